@@ -1,0 +1,98 @@
+"""Messages of the drive chain: chair ↔ gateway ↔ odometry ↔ velocity PID."""
+
+from __future__ import annotations
+
+import msgspec
+
+
+class EncoderSample(msgspec.Struct, kw_only=True, frozen=True):
+    """One telemetry frame from the chair, as received by the gateway.
+
+    Counts are the MCU's raw 32-bit counters (unsigned, wrapping): consumers unwrap them with a
+    modular difference. 10000 counts per encoder-wheel revolution on the thesis chair.
+    """
+
+    stamp_ns: int  # host receive time
+    seq: int  # 16-bit frame sequence number from the MCU
+    mcu_time_us: int  # 32-bit MCU clock, µs, wrapping
+    left_counts: int
+    right_counts: int
+    status: int  # bit field, see docs/arduino-protocol.md
+    dropped: int = 0  # frames missing before this one (sequence gap)
+
+
+class JoystickCommand(msgspec.Struct, kw_only=True, frozen=True):
+    """Joystick voltages wanted by the velocity PID (volts; 2.5 V is neutral).
+
+    `longitudinal_v` > 2.5 drives forward; `angular_v` > 2.5 turns left (counter-clockwise, ISO).
+    """
+
+    stamp_ns: int
+    longitudinal_v: float
+    angular_v: float
+    enable: bool = True
+    source_seq: int = -1  # encoder frame this command was computed from (latency tracing)
+
+
+class JoystickOutput(msgspec.Struct, kw_only=True, frozen=True):
+    """What the gateway actually wrote to the chair, and why."""
+
+    stamp_ns: int
+    seq: int  # 16-bit host frame sequence number
+    longitudinal_v: float
+    angular_v: float
+    enable: bool
+    reason: str  # "command" | "neutral:startup" | "neutral:stale" | "neutral:estop" | ...
+    clamped: bool = False
+
+
+class VelocityCommand(msgspec.Struct, kw_only=True, frozen=True):
+    """Desired chair velocity (m/s, rad/s; ω > 0 turns left)."""
+
+    stamp_ns: int
+    v_mps: float
+    omega_radps: float
+    source: str = ""  # "cli" | "control" | "teleop" | ...
+
+
+class Odometry(msgspec.Struct, kw_only=True, frozen=True):
+    """Pose of the chair's drive-axle centre in `world`, from encoders alone."""
+
+    stamp_ns: int
+    x_m: float
+    y_m: float
+    yaw_rad: float  # in (-π, π]
+    v_mps: float
+    omega_radps: float
+    distance_m: float = 0.0  # path length travelled since start
+    source_seq: int = -1  # encoder frame this estimate is from
+    frame_id: str = "world"
+    child_frame_id: str = "chair"
+
+
+class PidStatus(msgspec.Struct, kw_only=True, frozen=True):
+    """Both velocity loops: desired, measured and effort (effort C in [-1, 1])."""
+
+    stamp_ns: int
+    v_desired_mps: float
+    v_measured_mps: float
+    v_effort: float
+    omega_desired_radps: float
+    omega_measured_radps: float
+    omega_effort: float
+    active: bool  # False while the desired velocity is stale (zero effort)
+    saturated: bool = False
+
+
+class GroundTruth(msgspec.Struct, kw_only=True, frozen=True):
+    """The simulator's true chair state (never present on a real chair)."""
+
+    stamp_ns: int
+    sim_time_s: float
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    v_mps: float
+    omega_radps: float
+    longitudinal_v: float  # joystick voltages the simulated controller sees
+    angular_v: float

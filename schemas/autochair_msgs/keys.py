@@ -1,0 +1,97 @@
+"""The one table of every Zenoh key in autochair (after openpilot's cereal/services.py).
+
+Each row: key expression, message type, nominal rate (None = on event), whether the logger
+records it, and what it is. Services, the logger, the CLI and the docs all read this table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Generic, Literal, TypeVar
+
+import msgspec
+
+from .common import FrameTransform, Health, LogEvent
+from .drive import (
+    EncoderSample,
+    GroundTruth,
+    JoystickCommand,
+    JoystickOutput,
+    Odometry,
+    PidStatus,
+    VelocityCommand,
+)
+from .lidar import LaserScan, OccupancyGrid, PointCloud
+from .nav import GoalReply, GoalRequest, GoalStatus
+
+T = TypeVar("T", bound=msgspec.Struct)
+
+PREFIX = "autochair"
+
+
+@dataclass(frozen=True)
+class Topic(Generic[T]):
+    key: str
+    type: type[T]
+    rate_hz: float | None
+    logged: bool
+    doc: str
+    kind: Literal["pub", "query"] = "pub"
+    # For "query" rows: the reply type (the request type is `type`).
+    reply: type[msgspec.Struct] | None = None
+
+    def for_service(self, service: str) -> str:
+        """Concrete key of a per-service row (`.../*`)."""
+        assert self.key.endswith("/*"), self.key
+        return self.key[:-1] + service
+
+
+# --- drive chain ---------------------------------------------------------------------------
+ENCODERS = Topic("autochair/chair/encoders", EncoderSample, 200, True,
+                 "Encoder telemetry from the chair (gateway)")
+JOYSTICK = Topic("autochair/chair/joystick", JoystickCommand, 200, True,
+                 "Joystick voltages wanted (velocity PID → gateway)")
+JOYSTICK_OUT = Topic("autochair/chair/joystick_out", JoystickOutput, 200, True,
+                     "Joystick frames actually written to the chair (gateway)")
+CMD_VEL = Topic("autochair/cmd/vel", VelocityCommand, 20, True,
+                "Desired velocity (control law, CLI, teleop → velocity PID)")
+ODOM = Topic("autochair/odom", Odometry, 200, True, "Encoder odometry (odometry)")
+TF = Topic("autochair/tf", FrameTransform, 200, True, "Dynamic transform world → chair (odometry)")
+TF_STATIC = Topic("autochair/tf_static", FrameTransform, 1, True,
+                  "Static transforms, e.g. chair → laser, repeated for late joiners")
+PID_STATUS = Topic("autochair/pid/status", PidStatus, 200, True,
+                   "Velocity loops: desired, measured, effort (velocity PID)")
+SIM_TRUTH = Topic("autochair/sim/truth", GroundTruth, 100, True,
+                  "Simulator ground truth (simulator only)")
+
+# --- navigation ----------------------------------------------------------------------------
+GOAL_SET = Topic("autochair/goal/set", GoalRequest, None, False,
+                 "Set a goal or waypoints (query; reply GoalReply)", kind="query", reply=GoalReply)
+GOAL_CANCEL = Topic("autochair/goal/cancel", GoalRequest, None, False,
+                    "Cancel the active goal (query; reply GoalReply)", kind="query",
+                    reply=GoalReply)
+GOAL_STATUS = Topic("autochair/goal/status", GoalStatus, 5, True, "Goal progress (control law)")
+
+# --- lidar and map -------------------------------------------------------------------------
+SCAN = Topic("autochair/lidar/scan", LaserScan, 10, True, "Checked laser scans (lidar ingest)")
+MAP_GRID = Topic("autochair/map/grid", OccupancyGrid, 1, True, "Occupancy grid (mapping)")
+MAP_CLOUD = Topic("autochair/map/cloud", PointCloud, 1, True,
+                  "Accumulated world-frame points (mapping)")
+
+# --- system --------------------------------------------------------------------------------
+HEALTH = Topic("autochair/health/*", Health, 1, True, "Health of each service")
+LOG = Topic("autochair/log", LogEvent, None, True, "Service events and faults")
+ALIVE = "autochair/alive/*"  # liveliness tokens, one per running service
+
+TOPICS: tuple[Topic[msgspec.Struct], ...] = tuple(
+    v for v in list(globals().values()) if isinstance(v, Topic)  # type: ignore[misc]
+)
+
+
+def by_key(key: str) -> Topic[msgspec.Struct]:
+    """The table row whose key expression matches a concrete key."""
+    for topic in TOPICS:
+        if topic.key == key or (topic.key.endswith("/*") and key.startswith(topic.key[:-1])
+                                and "/" not in key[len(topic.key) - 1:]):
+            return topic
+    raise KeyError(key)

@@ -1,0 +1,33 @@
+"""`autochair`: the one command for people. Each subcommand lives in autochair.commands.<name>
+and registers itself; keep heavy imports inside the handlers so `--help` stays fast."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+COMMANDS = ("up", "drive", "status")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="autochair", description=__doc__.split(".")[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"autochair.commands.{name}").register(sub)
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        return 130
+    except CliError as e:
+        print(f"autochair {args.command}: error: {e}", file=sys.stderr)
+        return 2
+
+
+class CliError(Exception):
+    """A user-facing error: printed as one line, exit status 2."""
+
+
+if __name__ == "__main__":
+    sys.exit(main())

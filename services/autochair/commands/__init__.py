@@ -1,0 +1,1 @@
+"""Subcommands of the `autochair` CLI, one module each with `register(subparsers)`."""

@@ -1,0 +1,49 @@
+"""The one list of processes. `autochair up`, deploy/ (compose, supervisor, systemd) and the
+tests are all made from, or checked against, this list.
+
+`args` may use placeholders filled in by whoever launches: {run_dir} (a per-run directory for
+pty links and recordings), {hub} (the hub endpoint) and {hub_port}.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class Process:
+    name: str  # also the service name (liveliness token, health key, config section)
+    module: str  # run as `python -m module`
+    script: str  # console script of the same
+    args: tuple[str, ...] = ()
+    sim_only: bool = False  # only with --sim (the simulated hardware)
+    hardware: tuple[str, ...] = ()  # devices it owns on a real chair
+    doc: str = ""
+    after: tuple[str, ...] = field(default=("router",))  # start after these are up
+
+
+PROCESSES: tuple[Process, ...] = (
+    Process("router", "autochair.router", "autochair-router",
+            ("--listen", "{hub}"), after=(), doc="Zenoh hub for discovery"),
+    Process("sim", "autochair.sim.node", "autochair-sim",
+            ("--set", "pty_link={run_dir}/arduino"), sim_only=True,
+            doc="Simulated chair + Arduino on a pty"),
+    Process("gateway", "autochair.gateway.node", "autochair-gateway",
+            ("--set", "port={serial_port}"), hardware=("serial",),
+            doc="Serial link to the Arduino: encoders in, joystick out"),
+    Process("odometry", "autochair.odometry.node", "autochair-odometry",
+            doc="Encoder counts to pose and velocity"),
+    Process("pid", "autochair.pid.node", "autochair-pid",
+            doc="Velocity PID: desired (v, ω) to joystick voltages"),
+)
+
+
+def by_name(name: str) -> Process:
+    for p in PROCESSES:
+        if p.name == name:
+            return p
+    raise KeyError(name)
+
+
+def selected(sim: bool) -> list[Process]:
+    return [p for p in PROCESSES if sim or not p.sim_only]

@@ -1,0 +1,119 @@
+"""Configuration: one TOML file with a section per service, plus `--set key=value` overrides.
+
+Every service's settings are a msgspec Struct with defaults, so a typo or a wrong type is a clear
+error naming the field, not a silent default.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tomllib
+from pathlib import Path
+from typing import Any, TypeVar
+
+import msgspec
+import zenoh
+
+T = TypeVar("T")
+
+ENV_CONFIG = "AUTOCHAIR_CONFIG"  # path of the TOML file
+ENV_CONNECT = "AUTOCHAIR_CONNECT"  # comma-separated Zenoh endpoints of the hub
+DEFAULT_HUB = "tcp/127.0.0.1:7447"
+
+
+class ConfigError(Exception):
+    """Bad configuration; the message is one line meant for a person."""
+
+
+class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """How a process joins the Zenoh network ([zenoh] section of the config file).
+
+    Default: a peer that connects to the hub (the `router` process) for discovery and listens on
+    an ephemeral loopback port, so peers then talk directly (lower latency than via the hub).
+    """
+
+    mode: str = "peer"  # peer | client | router
+    connect: list[str] = [DEFAULT_HUB]
+    listen: list[str] = ["tcp/127.0.0.1:0"]
+    multicast_scouting: bool = False
+    lease_ms: int = 1000  # a hung process is declared gone after about this long
+    config_file: str = ""  # a full Zenoh JSON5 config (TLS, ACL...) applied before the above
+
+    def to_zenoh(self) -> zenoh.Config:
+        if self.config_file:
+            try:
+                cfg = zenoh.Config.from_file(self.config_file)
+            except Exception as e:
+                raise ConfigError(f"zenoh config file {self.config_file}: {e}") from None
+        else:
+            cfg = zenoh.Config()
+        if self.mode not in ("peer", "client", "router"):
+            raise ConfigError(f"zenoh.mode must be peer, client or router, not {self.mode!r}")
+        cfg.insert_json5("mode", json.dumps(self.mode))
+        cfg.insert_json5("scouting/multicast/enabled", json.dumps(self.multicast_scouting))
+        cfg.insert_json5("transport/link/tx/lease", json.dumps(self.lease_ms))
+        if self.connect:
+            cfg.insert_json5("connect/endpoints", json.dumps(self.connect))
+            # Keep retrying the hub instead of failing at start: the launcher, supervisor or
+            # compose may start us before it.
+            cfg.insert_json5("connect/timeout_ms", json.dumps(-1 if self.mode == "client" else 0))
+            cfg.insert_json5("connect/exit_on_failure", "false")
+        if self.listen:
+            cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
+        return cfg
+
+
+def _parse_value(text: str) -> Any:
+    """A `--set` value: TOML syntax if it parses (numbers, booleans, arrays), else a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def read_file(path: str | None) -> dict[str, Any]:
+    path = path or os.environ.get(ENV_CONFIG) or None
+    if not path:
+        return {}
+    try:
+        return tomllib.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"config file not found: {path}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"config file {path}: {e}") from None
+
+
+def apply_overrides(table: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """Apply `key=value` (or `a.b=value`) overrides to a section."""
+    out = dict(table)
+    for item in overrides:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"--set wants key=value, got {item!r}")
+        node = out
+        *parents, leaf = key.strip().split(".")
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[leaf] = _parse_value(value.strip())
+    return out
+
+
+def load_section(
+    type_: type[T], section: str, path: str | None = None, overrides: list[str] | None = None
+) -> T:
+    """Build `type_` from `[section]` of the config file with overrides applied."""
+    table = read_file(path).get(section, {})
+    table = apply_overrides(table, overrides or [])
+    try:
+        return msgspec.convert(table, type_)
+    except msgspec.ValidationError as e:
+        raise ConfigError(f"[{section}] {e}") from None
+
+
+def load_zenoh(path: str | None = None, connect: str | None = None) -> ZenohSettings:
+    settings = load_section(ZenohSettings, "zenoh", path)
+    connect = connect or os.environ.get(ENV_CONNECT)
+    if connect:
+        settings.connect = [e.strip() for e in connect.split(",") if e.strip()]
+    return settings

@@ -1,0 +1,260 @@
+"""Node: one service's Zenoh session, typed pub/sub, liveliness, health, rate loops, shutdown."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import msgspec
+import zenoh
+
+from autochair_msgs import Health, LogEvent, keys
+
+from .config import ConfigError, ZenohSettings, load_section, load_zenoh
+
+T = TypeVar("T", bound=msgspec.Struct)
+C = TypeVar("C")
+
+_ENCODER = msgspec.msgpack.Encoder()
+
+
+def encode(msg: msgspec.Struct) -> bytes:
+    return _ENCODER.encode(msg)
+
+
+class HealthState:
+    """Counters and state a node reports; rates are derived from counter deltas."""
+
+    def __init__(self, service: str) -> None:
+        self.service = service
+        self.state = "starting"
+        self.detail = ""
+        self.last_fault = ""
+        self.last_fault_stamp_ns = 0
+        self.thresholds: dict[str, float] = {}
+        self.counters: dict[str, int] = {}
+        self._lock = threading.Lock()
+        self._prev: dict[str, int] = {}
+        self._prev_t = time.monotonic()
+        self._start = time.monotonic()
+
+    def count(self, name: str, n: int = 1) -> None:
+        with self._lock:
+            self.counters[name] = self.counters.get(name, 0) + n
+
+    def fault(self, message: str) -> None:
+        self.last_fault = message
+        self.last_fault_stamp_ns = time.time_ns()
+
+    def snapshot(self) -> Health:
+        now = time.monotonic()
+        with self._lock:
+            counters = dict(self.counters)
+        dt = max(now - self._prev_t, 1e-9)
+        rates = {k: round((v - self._prev.get(k, 0)) / dt, 3) for k, v in counters.items()}
+        self._prev, self._prev_t = counters, now
+        return Health(
+            stamp_ns=time.time_ns(),
+            service=self.service,
+            state=self.state,
+            uptime_s=round(now - self._start, 3),
+            counters=counters,
+            rates_hz=rates,
+            thresholds=dict(self.thresholds),
+            detail=self.detail,
+            last_fault=self.last_fault,
+            last_fault_stamp_ns=self.last_fault_stamp_ns,
+        )
+
+
+class Publisher:
+    """A declared publisher of one table row; encodes with the shared msgpack encoder."""
+
+    def __init__(self, pub: zenoh.Publisher) -> None:
+        self._pub = pub
+
+    def put(self, msg: msgspec.Struct) -> None:
+        self._pub.put(_ENCODER.encode(msg))
+
+
+class Node:
+    """What every service process has. Callbacks run on Zenoh threads: keep them short."""
+
+    def __init__(self, name: str, settings: ZenohSettings | None = None) -> None:
+        self.name = name
+        self.log = logging.getLogger(name)
+        self.stop_event = threading.Event()
+        self.health = HealthState(name)
+        self._threads: list[threading.Thread] = []
+        self._closers: list[Callable[[], Any]] = []
+        settings = settings or ZenohSettings()
+        try:
+            self.session = zenoh.open(settings.to_zenoh())
+        except zenoh.ZError as e:
+            raise ConfigError(f"cannot open Zenoh session: {e}") from None
+        self._token = self.session.liveliness().declare_token(f"{keys.PREFIX}/alive/{name}")
+        self._health_pub = self.publisher(keys.HEALTH, keys.HEALTH.for_service(name))
+        self._log_pub = self.publisher(keys.LOG)
+        self.every(1.0, self.publish_health, "health")
+
+    # --- messaging -----------------------------------------------------------------------------
+    def publisher(self, topic: keys.Topic[Any], key: str | None = None, *,
+                  express: bool = True) -> Publisher:
+        # express: send at once instead of batching; the drive chain is latency-bound.
+        pub = self.session.declare_publisher(
+            key or topic.key, express=express, congestion_control=zenoh.CongestionControl.DROP
+        )
+        self._closers.append(pub.undeclare)
+        return Publisher(pub)
+
+    def subscribe(self, topic: keys.Topic[T], callback: Callable[[T], None],
+                  key: str | None = None) -> None:
+        """Subscribe with decoding; a malformed payload is counted and reported, never raised."""
+        decoder = msgspec.msgpack.Decoder(topic.type)
+        counter = f"decode_errors:{topic.key}"
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            try:
+                msg = decoder.decode(sample.payload.to_bytes())
+            except (msgspec.DecodeError, msgspec.ValidationError) as e:
+                self.health.count(counter)
+                if self.health.counters.get(counter, 0) in (1, 10, 100, 1000):
+                    self.event("warning", f"malformed payload on {sample.key_expr}: {e}")
+                return
+            try:
+                callback(msg)
+            except Exception as e:  # a bug in one callback must not kill the Zenoh thread
+                self.health.count("callback_errors")
+                self.health.fault(f"{type(e).__name__}: {e}")
+                self.log.exception("callback for %s failed", sample.key_expr)
+
+        sub = self.session.declare_subscriber(key or topic.key, on_sample)
+        self._closers.append(sub.undeclare)
+
+    def event(self, level: str, message: str) -> None:
+        """Log locally and publish a LogEvent (warnings and worse also become `last_fault`)."""
+        self.log.log(getattr(logging, level.upper(), logging.INFO), message)
+        if level in ("warning", "error", "fatal"):
+            self.health.fault(message)
+        try:
+            self._log_pub.put(LogEvent(stamp_ns=time.time_ns(), service=self.name,
+                                       level=level, message=message))
+        except zenoh.ZError:
+            pass  # session closing
+
+    def publish_health(self) -> None:
+        self._health_pub.put(self.health.snapshot())
+
+    # --- time ----------------------------------------------------------------------------------
+    def every(self, period_s: float, fn: Callable[[], None], name: str) -> None:
+        """Call `fn` every `period_s` on its own thread, drift-free on the monotonic clock.
+
+        Missed ticks are skipped (not bunched) and counted as `overruns:<name>`.
+        """
+
+        def loop() -> None:
+            next_t = time.monotonic()
+            while not self.stop_event.is_set():
+                try:
+                    fn()
+                except Exception as e:
+                    self.health.count(f"errors:{name}")
+                    self.health.fault(f"{name}: {type(e).__name__}: {e}")
+                    self.log.exception("periodic %s failed", name)
+                next_t += period_s
+                now = time.monotonic()
+                if now > next_t:
+                    skipped = int((now - next_t) / period_s) + 1
+                    self.health.count(f"overruns:{name}", skipped)
+                    next_t += skipped * period_s
+                self.stop_event.wait(next_t - now)
+
+        self.thread(loop, name)
+
+    def thread(self, target: Callable[[], None], name: str) -> None:
+        t = threading.Thread(target=target, name=f"{self.name}-{name}", daemon=True)
+        self._threads.append(t)
+        t.start()
+
+    # --- life ----------------------------------------------------------------------------------
+    def run(self) -> None:
+        """Block until SIGTERM/SIGINT (or `stop_event`), then shut down cleanly."""
+        if self.health.state == "starting":
+            self.health.state = "ok"
+        self.publish_health()
+        self.stop_event.wait()
+        self.close()
+
+    def close(self) -> None:
+        self.stop_event.set()
+        for t in self._threads:
+            if t is not threading.current_thread():
+                t.join(timeout=2.0)
+        for closer in reversed(self._closers):
+            try:
+                closer()
+            except zenoh.ZError:
+                pass
+        self._token.undeclare()
+        self.session.close()
+
+
+def _install_signal_handlers(stop: threading.Event) -> None:
+    def handler(signum: int, _frame: object) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGTERM, handler)
+    signal.signal(signal.SIGINT, handler)
+
+
+def setup_logging(level: str = "INFO") -> None:
+    logging.basicConfig(
+        level=level.upper(),
+        format="%(asctime)s %(name)s %(levelname)s %(message)s",
+        stream=sys.stderr,
+    )
+
+
+def service_main(
+    name: str,
+    config_type: type[C],
+    start: Callable[[Node, C], None],
+    argv: list[str] | None = None,
+    description: str = "",
+) -> int:
+    """The `main` of every service: parse common flags, load config, start, run until signal.
+
+    `start(node, config)` declares subscriptions and loops and returns; errors there that are
+    the user's (bad config, missing device) are ConfigError and print as one line.
+    """
+    parser = argparse.ArgumentParser(prog=f"autochair-{name}", description=description)
+    parser.add_argument("--config", help="TOML config file (default: $AUTOCHAIR_CONFIG)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help=f"override a [{name}] setting; repeatable")
+    parser.add_argument("--connect", help="Zenoh endpoint(s) of the hub, comma-separated")
+    parser.add_argument("--log-level", default="INFO")
+    args = parser.parse_args(argv)
+    setup_logging(args.log_level)
+    try:
+        config = load_section(config_type, name, args.config, args.set)
+        settings = load_zenoh(args.config, args.connect)
+        node = Node(name, settings)
+    except ConfigError as e:
+        print(f"autochair-{name}: error: {e}", file=sys.stderr)
+        return 2
+    _install_signal_handlers(node.stop_event)
+    try:
+        start(node, config)
+    except ConfigError as e:
+        print(f"autochair-{name}: error: {e}", file=sys.stderr)
+        node.close()
+        return 2
+    node.event("info", f"{name} started")
+    node.run()
+    return 0
