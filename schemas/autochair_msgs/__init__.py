@@ -31,6 +31,6 @@ __all__ = [
     "PointCloud",
     "Pose2D",
     "Quaternion",
-    "VelocityCommand",
     "Vector3",
+    "VelocityCommand",
 ]

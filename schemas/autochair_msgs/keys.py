@@ -6,6 +6,7 @@ records it, and what it is. Services, the logger, the CLI and the docs all read 
 
 from __future__ import annotations
 
+import builtins
 from dataclasses import dataclass
 from typing import Generic, Literal, TypeVar
 
@@ -38,7 +39,7 @@ class Topic(Generic[T]):
     doc: str
     kind: Literal["pub", "query"] = "pub"
     # For "query" rows: the reply type (the request type is `type`).
-    reply: type[msgspec.Struct] | None = None
+    reply: builtins.type[msgspec.Struct] | None = None
 
     def for_service(self, service: str) -> str:
         """Concrete key of a per-service row (`.../*`)."""
@@ -84,7 +85,7 @@ LOG = Topic("autochair/log", LogEvent, None, True, "Service events and faults")
 ALIVE = "autochair/alive/*"  # liveliness tokens, one per running service
 
 TOPICS: tuple[Topic[msgspec.Struct], ...] = tuple(
-    v for v in list(globals().values()) if isinstance(v, Topic)  # type: ignore[misc]
+    v for v in list(globals().values()) if isinstance(v, Topic)
 )
 
 

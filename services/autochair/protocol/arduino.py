@@ -64,7 +64,8 @@ Frame = Telemetry | Command
 
 
 def _wrap(body: bytes) -> bytes:
-    return cobs.encode(body + struct.pack("<H", crc16(body))) + b"\x00"
+    encoded: bytes = cobs.encode(body + struct.pack("<H", crc16(body)))
+    return encoded + b"\x00"
 
 
 def encode(frame: Frame) -> bytes:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import signal
 import sys
@@ -142,11 +143,9 @@ class Node:
         self.log.log(getattr(logging, level.upper(), logging.INFO), message)
         if level in ("warning", "error", "fatal"):
             self.health.fault(message)
-        try:
+        with contextlib.suppress(zenoh.ZError):  # the session may be closing
             self._log_pub.put(LogEvent(stamp_ns=time.time_ns(), service=self.name,
                                        level=level, message=message))
-        except zenoh.ZError:
-            pass  # session closing
 
     def publish_health(self) -> None:
         self._health_pub.put(self.health.snapshot())
@@ -197,10 +196,8 @@ class Node:
             if t is not threading.current_thread():
                 t.join(timeout=2.0)
         for closer in reversed(self._closers):
-            try:
+            with contextlib.suppress(zenoh.ZError):
                 closer()
-            except zenoh.ZError:
-                pass
         self._token.undeclare()
         self.session.close()
 

@@ -1,0 +1,100 @@
+"""Pure gateway logic: frames in, samples out; commands in, safe joystick frames out.
+
+The output is exactly neutral at start, whenever no valid command arrived within the stale
+timeout, and whenever a command is not enabled; otherwise it is clamped to the valid window.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from autochair.protocol import arduino
+from autochair.protocol.arduino import Command, FrameDecoder, Telemetry
+
+NEUTRAL_V = 2.5
+
+
+@dataclass(frozen=True)
+class Output:
+    longitudinal_v: float
+    angular_v: float
+    enable: bool
+    reason: str
+    clamped: bool = False
+
+    @property
+    def neutral(self) -> bool:
+        return not self.enable
+
+
+NEUTRAL_STARTUP = Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:startup")
+
+
+@dataclass
+class GatewayCore:
+    stale_s: float = 0.1
+    min_v: float = 1.1
+    max_v: float = 3.9
+    decoder: FrameDecoder = field(default_factory=FrameDecoder)
+    dropped: int = 0  # telemetry frames lost (sequence gaps)
+    clamped: int = 0
+    rejected: int = 0  # commands with non-finite values
+    _last_seq: int | None = None
+    _cmd: tuple[float, float, bool] | None = None
+    _cmd_t: float = -math.inf
+    _tx_seq: int = 0
+    _ack_seq: int = 0
+
+    def on_bytes(self, data: bytes) -> list[tuple[Telemetry, int]]:
+        """Decode serial bytes; returns each telemetry frame with the count of frames missed."""
+        out = []
+        for frame in self.decoder.feed(data):
+            if not isinstance(frame, Telemetry):
+                continue  # a host frame echoed back would be a wiring fault; the decoder counts it
+            gap = 0 if self._last_seq is None else arduino.seq_gap(self._last_seq, frame.seq)
+            if gap > 1000:  # far jump: the MCU rebooted, not a loss
+                gap = 0
+            self.dropped += gap
+            self._last_seq = frame.seq
+            self._ack_seq = frame.seq
+            out.append((frame, gap))
+        return out
+
+    def on_command(self, longitudinal_v: float, angular_v: float, enable: bool,
+                   now_s: float) -> bool:
+        """Accept a joystick command at monotonic time `now_s`; False if it is unusable."""
+        if not (math.isfinite(longitudinal_v) and math.isfinite(angular_v)):
+            self.rejected += 1
+            return False
+        self._cmd = (longitudinal_v, angular_v, enable)
+        self._cmd_t = now_s
+        return True
+
+    def reset(self) -> None:
+        """Forget the last command (e.g. after a reconnect): output goes neutral until a new one."""
+        self._cmd, self._cmd_t, self._last_seq = None, -math.inf, None
+
+    def output(self, now_s: float) -> Output:
+        if self._cmd is None:
+            return NEUTRAL_STARTUP
+        if now_s - self._cmd_t > self.stale_s:
+            return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:stale")
+        lon, ang, enable = self._cmd
+        if not enable:
+            return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:disabled")
+        clon, cang = min(max(lon, self.min_v), self.max_v), min(max(ang, self.min_v), self.max_v)
+        clamped = (clon, cang) != (lon, ang)
+        return Output(clon, cang, True, "command", clamped)
+
+    def frame(self, out: Output) -> tuple[bytes, int]:
+        """The next host frame for `out`, and its sequence number."""
+        seq = self._tx_seq
+        self._tx_seq = (seq + 1) & 0xFFFF
+        if out.clamped:
+            self.clamped += 1
+        cmd = Command(seq=seq, ack_seq=self._ack_seq,
+                      longitudinal_mv=round(out.longitudinal_v * 1000),
+                      angular_mv=round(out.angular_v * 1000),
+                      flags=arduino.FL_ENABLE if out.enable else 0)
+        return arduino.encode(cmd), seq

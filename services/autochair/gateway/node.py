@@ -1,0 +1,190 @@
+"""Gateway node: serial port ↔ Zenoh. Holds neutral whenever in doubt; reconnects with backoff."""
+
+from __future__ import annotations
+
+import contextlib
+import random
+import sys
+import threading
+import time
+
+import msgspec
+import serial
+
+from autochair.runtime import Node, service_main
+from autochair_msgs import EncoderSample, JoystickCommand, JoystickOutput, keys
+
+from .core import GatewayCore, Output
+
+
+class GatewayConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    port: str = ""  # device (/dev/ttyACM0), pty path, or a pyserial URL (loop://, socket://...)
+    baudrate: int = 115200
+    stale_timeout_s: float = 0.1  # no valid command for this long → neutral
+    min_v: float = 1.1  # valid joystick window, volts
+    max_v: float = 3.9
+    keepalive_hz: float = 50.0  # frames are written at least this often (firmware watchdog 200 ms)
+    rx_stall_s: float = 2.0  # no telemetry this long on an open port → reopen it
+    reconnect_min_s: float = 0.1
+    reconnect_max_s: float = 2.0
+
+
+class Gateway:
+    def __init__(self, node: Node, cfg: GatewayConfig) -> None:
+        if not cfg.port:
+            from autochair.runtime import ConfigError
+
+            raise ConfigError("[gateway] port is not set (device path, pty or pyserial URL)")
+        if not 0.5 <= cfg.min_v < 2.5 < cfg.max_v <= 4.5:
+            from autochair.runtime import ConfigError
+
+            raise ConfigError(f"[gateway] window {cfg.min_v}–{cfg.max_v} V must contain 2.5 V")
+        self.node, self.cfg = node, cfg
+        self.core = GatewayCore(stale_s=cfg.stale_timeout_s, min_v=cfg.min_v, max_v=cfg.max_v)
+        self.lock = threading.Lock()  # core + port writes: command callback vs tick vs reader
+        self.port: serial.SerialBase | None = None
+        self.last_out: Output | None = None
+        self.last_write = 0.0
+        self.last_rx = 0.0
+        self.enc_pub = node.publisher(keys.ENCODERS)
+        self.out_pub = node.publisher(keys.JOYSTICK_OUT)
+        h = node.health
+        h.thresholds.update(stale_timeout_s=cfg.stale_timeout_s, min_v=cfg.min_v, max_v=cfg.max_v,
+                            firmware_timeout_s=0.2)
+        h.state, h.detail = "degraded", f"connecting to {cfg.port}"
+        node.subscribe(keys.JOYSTICK, self.on_command)
+        node.every(0.005, self.tick, "tick")
+        node.thread(self.serial_loop, "serial")
+
+    # --- host → chair ----------------------------------------------------------------------
+    def on_command(self, cmd: JoystickCommand) -> None:
+        with self.lock:
+            if not self.core.on_command(cmd.longitudinal_v, cmd.angular_v, cmd.enable,
+                                        time.monotonic()):
+                self.node.health.count("rejected_commands")
+                return
+            self.node.health.count("commands")
+            self._write(self.core.output(time.monotonic()))
+
+    def tick(self) -> None:
+        """Watchdog and keepalive: write when the output changes or the keepalive is due."""
+        with self.lock:
+            now = time.monotonic()
+            out = self.core.output(now)
+            if out != self.last_out or now - self.last_write >= 1.0 / self.cfg.keepalive_hz:
+                self._write(out)
+
+    def _write(self, out: Output) -> None:
+        if self.port is None:
+            return
+        data, seq = self.core.frame(out)
+        try:
+            self.port.write(data)
+        except (serial.SerialException, OSError) as e:
+            self._lost(f"write failed: {e}")
+            return
+        if out.reason != (self.last_out.reason if self.last_out else None):
+            level = "info" if out.reason == "command" else "warning"
+            if out.reason == "neutral:startup":
+                level = "info"
+            self.node.event(level, f"output {out.reason}")
+        self.last_out, self.last_write = out, time.monotonic()
+        self.node.health.count("frames_out")
+        self.out_pub.put(JoystickOutput(
+            stamp_ns=time.time_ns(), seq=seq, longitudinal_v=out.longitudinal_v,
+            angular_v=out.angular_v, enable=out.enable, reason=out.reason, clamped=out.clamped))
+
+    # --- chair → host ----------------------------------------------------------------------
+    def serial_loop(self) -> None:
+        backoff = self.cfg.reconnect_min_s
+        announced = False
+        while not self.node.stop_event.is_set():
+            if self.port is None:
+                if self._open():
+                    backoff, announced = self.cfg.reconnect_min_s, False
+                else:
+                    if not announced:  # say it once per outage, not once per attempt
+                        self.node.event("warning", f"serial port {self.cfg.port} unavailable; "
+                                        "holding neutral and retrying with backoff")
+                        announced = True
+                    # jitter keeps several gateways (or a flapping hub) from retrying in lockstep
+                    self.node.stop_event.wait(backoff * random.uniform(0.8, 1.2))
+                    backoff = min(backoff * 2, self.cfg.reconnect_max_s)
+                    continue
+            self._read_once()
+
+    def _open(self) -> bool:
+        try:
+            port = serial.serial_for_url(self.cfg.port, baudrate=self.cfg.baudrate, timeout=0.01,
+                                         write_timeout=0.05)
+        except (serial.SerialException, OSError, ValueError):
+            return False
+        with self.lock:
+            self.port = port
+            self.core.reset()
+            self.last_rx = time.monotonic()
+            with contextlib.suppress(serial.SerialException, OSError):
+                port.write(b"\x00")  # end any partial frame the firmware holds
+            self._write(self.core.output(time.monotonic()))
+        self.node.health.count("connects")
+        self.node.health.state, self.node.health.detail = "ok", f"connected to {self.cfg.port}"
+        self.node.event("info", f"serial port {self.cfg.port} open")
+        return True
+
+    def _read_once(self) -> None:
+        port = self.port
+        if port is None:
+            return
+        try:
+            data = port.read(max(1, port.in_waiting))
+        except (serial.SerialException, OSError, TypeError) as e:
+            # TypeError: pyserial on a pty whose other side went away can fail inside read()
+            with self.lock:
+                self._lost(f"read failed: {e}")
+            return
+        now = time.monotonic()
+        if not data:
+            if now - self.last_rx > self.cfg.rx_stall_s:
+                with self.lock:
+                    self._lost(f"no telemetry for {self.cfg.rx_stall_s:.1f} s")
+            return
+        stamp = time.time_ns()
+        stats = self.core.decoder.stats
+        bad_before = stats.bad_frames
+        with self.lock:
+            frames = self.core.on_bytes(data)
+        for frame, gap in frames:
+            self.last_rx = now
+            self.enc_pub.put(EncoderSample(
+                stamp_ns=stamp, seq=frame.seq, mcu_time_us=frame.t_us, left_counts=frame.left,
+                right_counts=frame.right, status=frame.status, dropped=gap))
+        h = self.node.health
+        h.count("frames_in", len(frames))
+        if stats.bad_frames != bad_before:
+            h.count("bad_frames", stats.bad_frames - bad_before)
+        if frames and any(gap for _, gap in frames):
+            h.count("dropped_frames", sum(gap for _, gap in frames))
+
+    def _lost(self, why: str) -> None:
+        """Call with the lock held: drop the port; the reader loop reconnects with backoff."""
+        port, self.port = self.port, None
+        if port is None:
+            return
+        with contextlib.suppress(serial.SerialException, OSError):
+            port.close()
+        self.last_out = None
+        self.node.health.count("disconnects")
+        self.node.health.state, self.node.health.detail = "degraded", f"disconnected: {why}"
+        self.node.event("warning", f"serial port {self.cfg.port} lost ({why}); holding neutral")
+
+
+def start(node: Node, cfg: GatewayConfig) -> None:
+    Gateway(node, cfg)
+
+
+def main(argv: list[str] | None = None) -> int:
+    return service_main("gateway", GatewayConfig, start, argv, __doc__ or "")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

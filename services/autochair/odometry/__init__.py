@@ -1,0 +1,1 @@
+"""Odometry: encoder counts to pose and velocity."""

@@ -1,0 +1,98 @@
+"""Pure differential-drive odometry (after diff_drive_controller's `Odometry`).
+
+Exact arc integration in the ISO/REP-103 frame (x forward, y left, yaw counter-clockwise), yaw
+kept in (−π, π], wrap-safe N-bit counters, time from the MCU clock (wrap-safe µs counter).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+from autochair.protocol.arduino import wrap_delta
+
+
+def wrap_angle(a: float) -> float:
+    """Wrap to (−π, π]."""
+    a = math.fmod(a + math.pi, 2 * math.pi)
+    if a <= 0:
+        a += 2 * math.pi
+    return a - math.pi
+
+
+@dataclass(frozen=True)
+class OdomState:
+    x: float
+    y: float
+    yaw: float
+    v: float
+    omega: float
+    distance: float
+    dt: float  # seconds since the previous sample (0 on the first)
+
+
+@dataclass
+class OdometryCore:
+    wheel_radius_m: float = 0.049
+    base_m: float = 0.367
+    counts_per_rev: int = 10000
+    counter_bits: int = 32
+    clock_bits: int = 32
+    velocity_window_s: float = 0.02  # velocities averaged over this window (quantisation noise)
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+    distance: float = 0.0
+    _prev: tuple[int, int, int] | None = None
+    _window: deque[tuple[float, float, float]] = field(default_factory=deque)  # (dt, d, dψ)
+
+    def reset(self, x: float = 0.0, y: float = 0.0, yaw: float = 0.0) -> None:
+        self.x, self.y, self.yaw, self.distance = x, y, wrap_angle(yaw), 0.0
+        self._prev = None
+        self._window.clear()
+
+    def rebase(self) -> None:
+        """Forget the previous counters (the MCU restarted) but keep the pose."""
+        self._prev = None
+        self._window.clear()
+
+    def update(self, left: int, right: int, t_us: int) -> OdomState:
+        """Integrate one encoder sample (raw wrapping counters, raw wrapping µs clock)."""
+        if self._prev is None:
+            self._prev = (left, right, t_us)
+            return OdomState(self.x, self.y, self.yaw, 0.0, 0.0, self.distance, 0.0)
+        pl, pr, pt = self._prev
+        self._prev = (left, right, t_us)
+        metres_per_count = 2 * math.pi * self.wheel_radius_m / self.counts_per_rev
+        d_l = wrap_delta(pl, left, self.counter_bits) * metres_per_count
+        d_r = wrap_delta(pr, right, self.counter_bits) * metres_per_count
+        dt = ((t_us - pt) % (1 << self.clock_bits)) * 1e-6
+        self.integrate(d_l, d_r)
+        self._window.append((dt, (d_l + d_r) / 2, (d_r - d_l) / self.base_m))
+        span = sum(w[0] for w in self._window)
+        while len(self._window) > 1 and span - self._window[0][0] >= self.velocity_window_s:
+            span -= self._window.popleft()[0]
+        if span > 0:
+            v = sum(w[1] for w in self._window) / span
+            omega = sum(w[2] for w in self._window) / span
+        else:
+            v = omega = 0.0
+        return OdomState(self.x, self.y, self.yaw, v, omega, self.distance, dt)
+
+    def integrate(self, d_l: float, d_r: float) -> None:
+        """Advance the pose by left/right wheel travel along an exact arc."""
+        d = (d_l + d_r) / 2
+        dpsi = (d_r - d_l) / self.base_m
+        yaw0 = self.yaw
+        if abs(dpsi) < 1e-6:
+            # second-order midpoint: exact for straight lines, error O(dψ²) below the threshold
+            self.x += d * math.cos(yaw0 + dpsi / 2)
+            self.y += d * math.sin(yaw0 + dpsi / 2)
+        else:
+            yaw1 = yaw0 + dpsi
+            r = d / dpsi
+            self.x += r * (math.sin(yaw1) - math.sin(yaw0))
+            self.y -= r * (math.cos(yaw1) - math.cos(yaw0))
+        self.yaw = wrap_angle(yaw0 + dpsi)
+        self.distance += abs(d)

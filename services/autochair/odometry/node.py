@@ -1,0 +1,62 @@
+"""Odometry node: EncoderSample → Odometry + world→chair transform, at the encoder rate."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import msgspec
+
+from autochair.runtime import Node, service_main
+from autochair_msgs import EncoderSample, FrameTransform, Odometry, Quaternion, Vector3, keys
+
+from .core import OdometryCore
+
+
+class OdometryConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    wheel_radius_m: float = 0.049
+    base_m: float = 0.367
+    counts_per_rev: int = 10000
+    velocity_window_s: float = 0.02
+    publish_tf: bool = True
+
+
+def start(node: Node, cfg: OdometryConfig) -> None:
+    if cfg.wheel_radius_m <= 0 or cfg.base_m <= 0 or cfg.counts_per_rev <= 0:
+        from autochair.runtime import ConfigError
+
+        raise ConfigError("[odometry] wheel_radius_m, base_m and counts_per_rev must be > 0")
+    core = OdometryCore(wheel_radius_m=cfg.wheel_radius_m, base_m=cfg.base_m,
+                        counts_per_rev=cfg.counts_per_rev,
+                        velocity_window_s=cfg.velocity_window_s)
+    odom_pub = node.publisher(keys.ODOM)
+    tf_pub = node.publisher(keys.TF)
+    last_status = [0]
+
+    def on_sample(s: EncoderSample) -> None:
+        if s.status & 0x04 and not last_status[0] & 0x04:  # ST_BOOT rising: the MCU restarted
+            node.event("warning", "chair MCU restarted; odometry continues from the last pose")
+            core.rebase()
+        last_status[0] = s.status
+        st = core.update(s.left_counts, s.right_counts, s.mcu_time_us)
+        stamp = s.stamp_ns or time.time_ns()
+        odom_pub.put(Odometry(stamp_ns=stamp, x_m=st.x, y_m=st.y, yaw_rad=st.yaw, v_mps=st.v,
+                              omega_radps=st.omega, distance_m=st.distance,
+                              sample_dt_s=st.dt, source_seq=s.seq))
+        if cfg.publish_tf:
+            tf_pub.put(FrameTransform(
+                stamp_ns=stamp, parent_frame_id="world", child_frame_id="chair",
+                translation=Vector3(st.x, st.y, 0.0),
+                rotation=Quaternion(0.0, 0.0, math.sin(st.yaw / 2), math.cos(st.yaw / 2))))
+        node.health.count("samples")
+
+    node.subscribe(keys.ENCODERS, on_sample)
+
+
+def main(argv: list[str] | None = None) -> int:
+    return service_main("odometry", OdometryConfig, start, argv, __doc__ or "")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

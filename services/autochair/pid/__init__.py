@@ -1,0 +1,1 @@
+"""Velocity PID: desired (v, ω) and measured odometry to joystick voltages."""

@@ -1,0 +1,65 @@
+"""Gateway core: neutral at start and when stale, clamping, sequence gaps, framing."""
+
+from __future__ import annotations
+
+from autochair.gateway.core import GatewayCore
+from autochair.protocol import arduino
+from autochair.protocol.arduino import Command, FrameDecoder, Telemetry
+
+
+def decode_one(data: bytes) -> Command:
+    (frame,) = FrameDecoder().feed(data)
+    assert isinstance(frame, Command)
+    return frame
+
+
+def test_neutral_at_start() -> None:
+    core = GatewayCore()
+    out = core.output(now_s=0.0)
+    assert (out.longitudinal_v, out.angular_v, out.enable) == (2.5, 2.5, False)
+    cmd = decode_one(core.frame(out)[0])
+    assert (cmd.longitudinal_mv, cmd.angular_mv, cmd.enable) == (2500, 2500, False)
+
+
+def test_command_then_stale_after_timeout() -> None:
+    core = GatewayCore(stale_s=0.1)
+    assert core.on_command(3.0, 2.0, True, now_s=10.0)
+    assert core.output(10.09).reason == "command"
+    out = core.output(10.101)
+    assert out.reason == "neutral:stale" and (out.longitudinal_v, out.angular_v) == (2.5, 2.5)
+
+
+def test_clamps_to_window() -> None:
+    core = GatewayCore(min_v=1.1, max_v=3.9)
+    core.on_command(4.5, 0.2, True, 0.0)
+    out = core.output(0.0)
+    assert (out.longitudinal_v, out.angular_v, out.clamped) == (3.9, 1.1, True)
+    cmd = decode_one(core.frame(out)[0])
+    assert (cmd.longitudinal_mv, cmd.angular_mv) == (3900, 1100)
+    assert core.clamped == 1
+
+
+def test_disabled_and_non_finite_commands_are_neutral() -> None:
+    core = GatewayCore()
+    core.on_command(3.0, 3.0, False, 0.0)
+    assert core.output(0.0).reason == "neutral:disabled"
+    assert not core.on_command(float("nan"), 2.5, True, 0.0)
+    assert core.rejected == 1
+
+
+def test_sequence_gaps_are_counted_across_wrap() -> None:
+    core = GatewayCore()
+    frames = b"".join(arduino.encode(Telemetry(s & 0xFFFF, 0, 0, 0, 0))
+                      for s in (65534, 65535, 2, 3))  # 0 and 1 lost across the wrap
+    got = core.on_bytes(frames)
+    assert [g for _, g in got] == [0, 0, 2, 0]
+    assert core.dropped == 2
+
+
+def test_tx_sequence_and_ack() -> None:
+    core = GatewayCore()
+    core.on_bytes(arduino.encode(Telemetry(77, 0, 0, 0, 0)))
+    first, seq0 = core.frame(core.output(0.0))
+    second, seq1 = core.frame(core.output(0.0))
+    assert (seq0, seq1) == (0, 1)
+    assert decode_one(second).ack_seq == 77

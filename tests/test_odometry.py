@@ -1,0 +1,98 @@
+"""Odometry core against analytic motion: straight lines, arcs, a full circle, counter wrap."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from autochair.odometry.core import OdometryCore, wrap_angle
+
+R, B, CPR = 0.049, 0.367, 10000
+M_PER_COUNT = 2 * math.pi * R / CPR
+
+
+def drive(core: OdometryCore, v: float, omega: float, seconds: float, hz: float = 200,
+          start: tuple[int, int, int] = (0, 0, 0)) -> None:
+    """Feed samples of an exact constant-(v, ω) motion; counts are rounded like an encoder."""
+    left = right = 0.0
+    l0, r0, t0 = start
+    n = round(seconds * hz)
+    core.update(l0, r0, t0)
+    for i in range(1, n + 1):
+        left += (v - omega * B / 2) / hz
+        right += (v + omega * B / 2) / hz
+        core.update(l0 + round(left / M_PER_COUNT), r0 + round(right / M_PER_COUNT),
+                    (t0 + round(i * 1e6 / hz)) % (1 << 32))
+
+
+def test_straight_line() -> None:
+    core = OdometryCore()
+    drive(core, 0.5, 0.0, 4.0)
+    assert core.x == pytest.approx(2.0, abs=M_PER_COUNT)
+    assert core.y == pytest.approx(0.0, abs=1e-9)
+    assert core.yaw == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("v,omega", [(0.5, 0.4), (0.3, -0.8), (1.0, 0.1), (-0.4, 0.5)])
+def test_arc_matches_analytic(v: float, omega: float) -> None:
+    core = OdometryCore()
+    t = 3.0
+    drive(core, v, omega, t)
+    yaw = omega * t
+    r = v / omega
+    assert core.x == pytest.approx(r * math.sin(yaw), abs=2e-4)
+    assert core.y == pytest.approx(r * (1 - math.cos(yaw)), abs=2e-4)
+    assert core.yaw == pytest.approx(wrap_angle(yaw), abs=2e-4)
+
+
+def test_full_circle_returns_home() -> None:
+    core = OdometryCore()
+    omega = 0.5
+    drive(core, 0.5, omega, 2 * math.pi / omega)
+    assert math.hypot(core.x, core.y) < 1e-3
+    assert abs(wrap_angle(core.yaw)) < 1e-3
+    assert core.distance == pytest.approx(2 * math.pi * 1.0, rel=1e-3)
+
+
+def test_spin_in_place_keeps_position_and_wraps_yaw() -> None:
+    core = OdometryCore()
+    drive(core, 0.0, 1.0, 4.0)  # 4 rad: past π, must wrap to 4 − 2π
+    assert math.hypot(core.x, core.y) < 1e-6
+    assert core.yaw == pytest.approx(4.0 - 2 * math.pi, abs=1e-3)
+    assert -math.pi < core.yaw <= math.pi
+
+
+def test_counter_and_clock_wrap_are_invisible() -> None:
+    near_wrap = (1 << 32) - 5000
+    a, b = OdometryCore(), OdometryCore()
+    drive(a, 0.8, 0.3, 2.0)
+    drive(b, 0.8, 0.3, 2.0, start=(near_wrap, near_wrap, (1 << 32) - 100_000))
+    assert (b.x, b.y, b.yaw) == pytest.approx((a.x, a.y, a.yaw), abs=1e-12)
+
+
+def test_backwards_over_zero_counts() -> None:
+    core = OdometryCore()
+    drive(core, -0.5, 0.0, 1.0, start=(3, 3, 0))  # counters go below zero → wrap to 2^32 − n
+    assert core.x == pytest.approx(-0.5, abs=M_PER_COUNT)
+
+
+def test_velocity_from_mcu_clock() -> None:
+    core = OdometryCore(velocity_window_s=0.02)
+    drive(core, 0.5, 0.2, 1.0)
+    st = core.update(*_next_sample(core, 0.5, 0.2))
+    assert st.v == pytest.approx(0.5, abs=0.01)
+    assert st.omega == pytest.approx(0.2, abs=0.02)
+
+
+def _next_sample(core: OdometryCore, v: float, omega: float) -> tuple[int, int, int]:
+    assert core._prev is not None
+    l, r, t = core._prev
+    return (l + round((v - omega * B / 2) / 200 / M_PER_COUNT),
+            r + round((v + omega * B / 2) / 200 / M_PER_COUNT), t + 5000)
+
+
+@pytest.mark.parametrize("a,expected", [(math.pi, math.pi), (-math.pi, math.pi),
+                                        (3 * math.pi, math.pi), (0.1, 0.1), (-7.0, -7 + 2 * math.pi)])
+def test_wrap_angle(a: float, expected: float) -> None:
+    assert wrap_angle(a) == pytest.approx(expected)
