@@ -2,6 +2,7 @@
 
 from .common import FrameTransform, Health, LogEvent, Quaternion, Vector3
 from .drive import (
+    CommandOwner,
     EncoderSample,
     GroundTruth,
     JoystickCommand,
@@ -14,6 +15,7 @@ from .lidar import LaserScan, OccupancyGrid, PointCloud
 from .nav import GoalReply, GoalRequest, GoalStatus, Pose2D
 
 __all__ = [
+    "CommandOwner",
     "EncoderSample",
     "FrameTransform",
     "GoalReply",

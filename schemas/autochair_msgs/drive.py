@@ -97,3 +97,16 @@ class GroundTruth(msgspec.Struct, kw_only=True, frozen=True):
     omega_radps: float
     longitudinal_v: float  # joystick voltages the simulated controller sees
     angular_v: float
+
+
+class CommandOwner(msgspec.Struct, kw_only=True, frozen=True):
+    """Who may move the chair: "autonomy" (keys.CMD_VEL) or "teleop" (keys.TELEOP).
+
+    Contract (see keys.CMD_OWNER): the velocity PID obeys only the owner's key. Teleop sends
+    owner="teleop" to take over (and repeats it about once a second for late joiners) and
+    owner="autonomy" to hand back explicitly; a lost teleop link does NOT hand back.
+    """
+
+    stamp_ns: int
+    owner: str  # "autonomy" | "teleop"
+    by: str = ""  # who asked (e.g. the laptop's name), for the log

@@ -14,6 +14,7 @@ import msgspec
 
 from .common import FrameTransform, Health, LogEvent
 from .drive import (
+    CommandOwner,
     EncoderSample,
     GroundTruth,
     JoystickCommand,
@@ -56,6 +57,13 @@ JOYSTICK_OUT = Topic("autochair/chair/joystick_out", JoystickOutput, 200, True,
                      "Joystick frames actually written to the chair (gateway)")
 CMD_VEL = Topic("autochair/cmd/vel", VelocityCommand, 20, True,
                 "Desired velocity (control law, CLI, teleop → velocity PID)")
+TELEOP = Topic("autochair/cmd/teleop", VelocityCommand, 20, True,
+               "Teleop velocity (laptop keyboard/pad → velocity PID), obeyed only while "
+               "CMD_OWNER says \"teleop\"; teleop sends zero then stops on deadman")
+CMD_OWNER = Topic("autochair/cmd/owner", CommandOwner, 1, True,
+                  "Who drives: \"autonomy\" (PID obeys CMD_VEL, the default) or \"teleop\" "
+                  "(PID obeys TELEOP only). Teleop takes over and hands back explicitly and "
+                  "repeats its claim ~1 Hz; a lost link leaves \"teleop\" (stale → stop)")
 ODOM = Topic("autochair/odom", Odometry, 200, True, "Encoder odometry (odometry)")
 TF = Topic("autochair/tf", FrameTransform, 200, True, "Dynamic transform world → chair (odometry)")
 TF_STATIC = Topic("autochair/tf_static", FrameTransform, 1, True,
