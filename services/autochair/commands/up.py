@@ -1,0 +1,108 @@
+"""`autochair up`: start the stack from the one process list, show it, stop it cleanly."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from autochair.cli import CliError
+
+DEFAULT_RECORD_DIR = "recordings"
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser(
+        "up", help="start the stack (--sim: with the simulated chair)",
+        description="Start every process of the stack, show their state, and stop them all "
+                    "cleanly on Ctrl-C or SIGTERM.")
+    p.add_argument("--sim", action="store_true", help="run the simulated chair and lidar")
+    p.add_argument("--port", help="serial device of the chair's Arduino (without --sim)")
+    p.add_argument("--lidar", help="lidar device or tcp://host:port (without --sim)")
+    p.add_argument("--record", metavar="PATH", default=DEFAULT_RECORD_DIR,
+                   help=f"record the run to PATH (file or dir; default {DEFAULT_RECORD_DIR}/)")
+    p.add_argument("--no-record", action="store_true", help="do not run the logger")
+    p.add_argument("--hub", default="tcp/127.0.0.1:7447", help="Zenoh endpoint of the hub")
+    p.add_argument("--config", help="TOML config file for every service")
+    p.add_argument("--only", help="comma-separated subset of processes to run")
+    p.add_argument("--run-dir", help="directory for pty links and logs (default: a temp dir)")
+    p.add_argument("--no-restart", action="store_true", help="do not restart exited processes")
+    p.set_defaults(func=run)
+
+
+def _is_url(port: str) -> bool:
+    return "://" in port
+
+
+def run(args: argparse.Namespace) -> int:
+    from autochair import processes
+    from autochair.launcher import Child, Launcher
+
+    if not args.sim and not args.port:
+        raise CliError("give --port DEVICE (the chair's Arduino), or --sim for the simulator")
+    if args.port and not _is_url(args.port) and not os.path.exists(args.port):
+        raise CliError(f"serial port {args.port} not found (is the Arduino plugged in?)")
+    if args.config and not os.path.exists(args.config):
+        raise CliError(f"config file not found: {args.config}")
+    procs = processes.selected(sim=args.sim)
+    if args.no_record:
+        procs = [p for p in procs if p.name != "logger"]
+    if not args.sim and not args.lidar:
+        procs = [p for p in procs if p.name != "lidar"]
+    if args.only:
+        wanted = {n.strip() for n in args.only.split(",")} | {"router"}
+        unknown = wanted - {p.name for p in processes.PROCESSES}
+        if unknown:
+            raise CliError(f"unknown process(es): {', '.join(sorted(unknown))}; known: "
+                           f"{', '.join(p.name for p in processes.PROCESSES)}")
+        procs = [p for p in procs if p.name in wanted]
+    hub = args.hub
+    try:
+        hub_port = hub.rsplit(":", 1)[1]
+    except IndexError:
+        raise CliError(f"--hub must look like tcp/127.0.0.1:7447, not {hub!r}") from None
+    import tempfile
+
+    run_dir = Path(args.run_dir or tempfile.mkdtemp(prefix="autochair-"))
+    values = {
+        "run_dir": str(run_dir), "hub": hub, "hub_port": hub_port,
+        "serial_port": args.port or str(run_dir / "arduino"),
+        "lidar_url": args.lidar or str(run_dir / "lidar"),
+        "record_path": str(Path(args.record).resolve()),
+    }
+    env = {"AUTOCHAIR_CONFIG": str(Path(args.config).resolve())} if args.config else {}
+
+    def show(child: Child) -> None:
+        extra = ""
+        if child.state in ("restarting", "exited") and child.exit_code is not None:
+            extra = f" (exit {child.exit_code}; log {child.log_path})"
+        pid = f"pid {child.popen.pid}" if child.popen else ""
+        print(f"{time.strftime('%H:%M:%S')}  {child.proc.name:<10} {child.state:<10} {pid}{extra}",
+              flush=True)
+
+    launcher = Launcher(procs, values, run_dir, restart=not args.no_restart, env=env,
+                        on_change=show)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    print(f"autochair: starting {len(procs)} processes (logs in {run_dir})", flush=True)
+    try:
+        launcher.start()
+    except TimeoutError as e:
+        launcher.stop()
+        raise CliError(str(e)) from None
+    print(f"autochair: all up. Hub {hub}. Try `autochair drive 0.5 0 --for 3` or "
+          "`autochair status`. Ctrl-C stops.", flush=True)
+    while not stop.wait(0.1):
+        launcher.poll()
+    print("autochair: stopping ...", flush=True)
+    clean = launcher.stop()
+    print("autochair: stopped" + ("" if clean else " (some processes had to be killed)"),
+          flush=True)
+    return 0 if clean else 1
+
+

@@ -1,0 +1,210 @@
+"""Start the processes of the one process list, watch them, restart them, stop them cleanly.
+
+Used by `autochair up` and by the system tests, so both run exactly what deploy/ runs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import zenoh
+
+from autochair.processes import Process
+
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """Children get SIGTERM if the launcher itself is killed (Linux), so nothing is orphaned."""
+    with contextlib.suppress(Exception):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def wait_port(host: str, port: int, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        with socket.socket() as s:
+            s.settimeout(0.2)
+            if s.connect_ex((host, port)) == 0:
+                return True
+        time.sleep(0.05)
+    return False
+
+
+@dataclass
+class Child:
+    proc: Process
+    argv: list[str]
+    popen: subprocess.Popen[bytes] | None = None
+    state: str = "stopped"  # starting | up | exited | restarting | stopped
+    restarts: int = 0
+    exit_code: int | None = None
+    next_start: float = 0.0
+    log_path: Path | None = None
+
+
+@dataclass
+class Launcher:
+    processes: list[Process]
+    values: dict[str, str]  # placeholder values: run_dir, hub, hub_port, serial_port, ...
+    run_dir: Path
+    restart: bool = True
+    env: dict[str, str] = field(default_factory=dict)
+    on_change: Callable[[Child], None] = lambda c: None
+    children: dict[str, Child] = field(default_factory=dict)
+    _session: zenoh.Session | None = None
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def __post_init__(self) -> None:
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        for p in self.processes:
+            argv = [sys.executable, "-m", p.module, *(a.format(**self.values) for a in p.args)]
+            self.children[p.name] = Child(p, argv, log_path=self.run_dir / f"{p.name}.log")
+
+    @property
+    def hub(self) -> str:
+        return self.values["hub"]
+
+    def start(self, ready_timeout_s: float = 20.0) -> None:
+        """Start everything (the hub first); returns once all are up or raises TimeoutError."""
+        if "router" in self.children:
+            self._spawn(self.children["router"])
+            host, port = self.hub.split("/", 1)[1].rsplit(":", 1)
+            if not wait_port(host, int(port), ready_timeout_s):
+                raise TimeoutError(f"the Zenoh hub did not start listening on {self.hub}")
+            self._set(self.children["router"], "up")
+        self._watch_liveliness()
+        for child in self.children.values():
+            if child.proc.name != "router":
+                self._spawn(child)
+        self.wait_up(ready_timeout_s)
+
+    def wait_up(self, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            self.poll()
+            if all(c.state == "up" for c in self.children.values()):
+                return
+            time.sleep(0.05)
+        late = [c.proc.name for c in self.children.values() if c.state != "up"]
+        raise TimeoutError(f"not up after {timeout_s:.0f} s: {', '.join(late)} "
+                           f"(logs in {self.run_dir})")
+
+    def _watch_liveliness(self) -> None:
+        cfg = zenoh.Config()
+        cfg.insert_json5("mode", '"client"')
+        cfg.insert_json5("connect/endpoints", f'["{self.hub}"]')
+        cfg.insert_json5("scouting/multicast/enabled", "false")
+        self._session = zenoh.open(cfg)
+
+        def on_token(sample: zenoh.Sample) -> None:
+            name = str(sample.key_expr).rsplit("/", 1)[-1]
+            child = self.children.get(name)
+            if child is None:
+                return
+            if sample.kind == zenoh.SampleKind.PUT:
+                self._set(child, "up")
+            elif child.state == "up":
+                self._set(child, "starting")  # token gone: process hung or dying; poll() decides
+
+        self._session.liveliness().declare_subscriber("autochair/alive/*", on_token, history=True)
+
+    def _spawn(self, child: Child) -> None:
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", "AUTOCHAIR_CONNECT": self.hub, **self.env}
+        assert child.log_path is not None
+        log = child.log_path.open("ab")
+        child.popen = subprocess.Popen(child.argv, stdout=log, stderr=subprocess.STDOUT,
+                                       stdin=subprocess.DEVNULL, env=env,
+                                       start_new_session=True, preexec_fn=_die_with_parent)
+        log.close()
+        child.exit_code = None
+        self._set(child, "starting")
+
+    def _set(self, child: Child, state: str) -> None:
+        with self._lock:
+            if child.state == state:
+                return
+            child.state = state
+        self.on_change(child)
+
+    def poll(self) -> None:
+        """Notice exits; restart with exponential backoff (0.5 s doubling to 8 s)."""
+        now = time.monotonic()
+        for child in self.children.values():
+            if child.popen is not None and child.popen.poll() is not None:
+                child.exit_code = child.popen.returncode
+                child.popen = None
+                if self.restart:
+                    delay = min(0.5 * 2 ** min(child.restarts, 4), 8.0)
+                    child.next_start = now + delay
+                    self._set(child, "restarting")
+                else:
+                    self._set(child, "exited")
+            elif child.state == "restarting" and now >= child.next_start:
+                child.restarts += 1
+                self._spawn(child)
+
+    def kill(self, name: str, sig: int = signal.SIGKILL) -> None:
+        """Signal one child (fault injection in tests)."""
+        popen = self.children[name].popen
+        if popen is not None:
+            popen.send_signal(sig)
+
+    def pid(self, name: str) -> int | None:
+        popen = self.children[name].popen
+        return popen.pid if popen else None
+
+    def stop(self, timeout_s: float = 5.0) -> bool:
+        """SIGTERM in reverse start order, then SIGKILL stragglers. True if all exited cleanly."""
+        self.restart = False
+        clean = True
+        order = [c for c in reversed(list(self.children.values())) if c.popen is not None]
+        for child in order:
+            if child.proc.name != "router":
+                assert child.popen is not None
+                child.popen.terminate()
+        router = self.children.get("router")
+        deadline = time.monotonic() + timeout_s
+        for child in order:
+            if child is router:
+                continue
+            clean &= self._reap(child, deadline)
+        if router is not None and router.popen is not None:
+            router.popen.terminate()
+            clean &= self._reap(router, time.monotonic() + timeout_s)
+        if self._session is not None:
+            with contextlib.suppress(zenoh.ZError):
+                self._session.close()
+            self._session = None
+        return clean
+
+    def _reap(self, child: Child, deadline: float) -> bool:
+        assert child.popen is not None
+        try:
+            code = child.popen.wait(max(0.0, deadline - time.monotonic()))
+            clean = code in (0, -signal.SIGTERM)
+        except subprocess.TimeoutExpired:
+            child.popen.kill()
+            code = child.popen.wait()
+            clean = False
+        child.exit_code, child.popen = code, None
+        self._set(child, "stopped")
+        return clean
