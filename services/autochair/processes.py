@@ -3,6 +3,8 @@ tests are all made from, or checked against, this list.
 
 `args` may use placeholders filled in by whoever launches: {run_dir} (a per-run directory for
 pty links and recordings), {hub} (the hub endpoint) and {hub_port}.
+{record_path}: where the logger records (a directory, default `recordings/`, gets one
+autochair-<UTC time>.mcap per run; a path ending in .mcap is that file).
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ PROCESSES: tuple[Process, ...] = (
             doc="Encoder counts to pose and velocity"),
     Process("pid", "autochair.pid.node", "autochair-pid",
             doc="Velocity PID: desired (v, ω) to joystick voltages"),
+    Process("logger", "autochair.logger.node", "autochair-logger",
+            ("--set", "path={record_path}"), doc="Records every logged key to MCAP"),
 )
 
 

@@ -1,0 +1,116 @@
+"""autochair-logger: records every logged key to MCAP without ever blocking a publisher.
+
+Zenoh callbacks only append (key, payload, receive time) to a bounded queue; one writer thread
+decodes, transcodes and writes. A full queue drops the sample, counts it (`dropped` in health)
+and the writer reports it as a warning event and a foxglove.Log in the file. The writer thread
+is not a daemon: on SIGTERM it drains the queue and finishes the file (summary and indexes)
+before the process exits.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import threading
+import time
+from collections import deque
+from typing import Any
+
+import zenoh
+
+from autochair.runtime import ConfigError, Node, service_main
+from autochair_msgs import keys
+
+from .writer import LoggerConfig, Recorder
+
+IDLE_WAIT_S = 0.005  # writer poll period when the queue is empty
+
+
+def logged_keys() -> list[str]:
+    """Key expressions to subscribe: every logged publish row (wildcards for per-service rows)."""
+    return [t.key for t in keys.TOPICS if t.logged and t.kind == "pub"]
+
+
+def start(node: Node, cfg: LoggerConfig) -> None:
+    if cfg.queue_size < 1 or cfg.flush_period_s <= 0 or cfg.chunk_size_kib < 1:
+        raise ConfigError("[logger] queue_size, flush_period_s and chunk_size_kib must be > 0")
+    try:
+        recorder = Recorder(cfg, time.time_ns(), time.monotonic())
+    except (ValueError, OSError) as e:
+        raise ConfigError(f"[logger] cannot record to {cfg.path}: {e}") from None
+    node.log.info("recording to %s", recorder.path)
+    node.health.detail = f"recording to {recorder.path}"
+    node.health.thresholds.update(queue_size=cfg.queue_size, flush_period_s=cfg.flush_period_s,
+                                  max_size_mib=cfg.max_size_mib,
+                                  max_duration_s=cfg.max_duration_s)
+    queue: deque[tuple[str, bytes, int]] = deque()
+    limit = cfg.queue_size
+    health = node.health
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        # Runs on a Zenoh thread: append and return, nothing else (never block a publisher).
+        if len(queue) >= limit:
+            health.count("dropped")
+            return
+        queue.append((str(sample.key_expr), sample.payload.to_bytes(), time.time_ns()))
+
+    subscribers = [node.session.declare_subscriber(k, on_sample) for k in logged_keys()]
+    writer = threading.Thread(target=_write_loop, args=(node, recorder, queue, subscribers),
+                              name="logger-writer", daemon=False)
+    writer.start()
+
+
+def _write_loop(node: Node, recorder: Recorder, queue: deque[tuple[str, bytes, int]],
+                subscribers: list[Any]) -> None:
+    health = node.health
+    reported = {k: 0 for k in recorder.counters}
+    dropped_reported = 0
+    last_report = time.monotonic()
+    queue_max = 0
+    try:
+        while True:
+            stopping = node.stop_event.is_set()
+            queue_max = max(queue_max, len(queue))
+            n = 0
+            while queue:
+                key, payload, recv_ns = queue.popleft()
+                recorder.write(key, payload, recv_ns)
+                n += 1
+            now = time.monotonic()
+            recorder.tick(now)
+            if now - last_report >= 1.0 or stopping:
+                last_report = now
+                for k, v in recorder.counters.items():
+                    if v != reported[k]:
+                        health.count(k, v - reported[k])
+                        reported[k] = v
+                health.counters["queue_max"] = queue_max
+                health.counters["files"] = len(recorder.files)
+                if reported["decode_errors"] and recorder.last_error:
+                    health.fault(recorder.last_error)
+                dropped = health.counters.get("dropped", 0)
+                if dropped > dropped_reported:
+                    msg = (f"queue full ({len(queue)}/{recorder.cfg.queue_size}): dropped "
+                           f"{dropped - dropped_reported} samples ({dropped} in all)")
+                    recorder.note("warning", msg, time.time_ns())
+                    node.event("warning", msg)
+                    dropped_reported = dropped
+            if stopping:
+                break
+            if n == 0:
+                node.stop_event.wait(IDLE_WAIT_S)
+    finally:
+        for sub in subscribers:
+            with contextlib.suppress(zenoh.ZError):
+                sub.undeclare()
+        recorder.finish()
+        node.log.info("recording finished: %s (%d messages)", ", ".join(
+            str(p) for p in recorder.files), recorder.counters["written"])
+
+
+def main(argv: list[str] | None = None) -> int:
+    return service_main("logger", LoggerConfig, start, argv, description=__doc__ or "")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

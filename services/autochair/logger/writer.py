@@ -1,0 +1,214 @@
+"""The logger's pure core: decoded samples in, an MCAP file (or a rotated series) out.
+
+One channel per concrete key (JSON + JSON Schema), derived foxglove.* channels alongside,
+zstd chunks. log_time = receive time, publish_time = the message's own stamp. Time is passed
+in: `write` gets the receive time, `tick` the monotonic time that drives the periodic chunk
+flush (so a killed writer loses at most `flush_period_s` of data) and duration rotation uses
+receive times.
+"""
+
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+from typing import IO, Any
+
+import msgspec
+from mcap.writer import CompressionType, Writer
+
+from autochair_msgs import keys
+
+from . import foxglove
+from .schema import Codec, to_json
+
+_JSON = msgspec.json.Encoder()
+DEFAULT_DIR = "recordings/"
+
+
+class LoggerConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """[logger] section. Sizes in MiB, times in seconds."""
+
+    # A directory (ends with "/" or exists as one): a new autochair-<UTC time>.mcap per run.
+    # A path ending in .mcap: that file. Rotated parts get -001, -002, ... before ".mcap".
+    path: str = DEFAULT_DIR
+    max_size_mib: float = 1024.0  # rotate when the file reaches this size; 0 = never
+    max_duration_s: float = 0.0  # rotate after this much receive time; 0 = never
+    flush_period_s: float = 1.0  # close the open chunk at least this often (crash loss bound)
+    chunk_size_kib: int = 1024  # ...or when it holds this much uncompressed data
+    queue_size: int = 100_000  # samples waiting for the writer thread before drops
+    compression: str = "zstd"  # zstd | lz4 | none
+
+
+def _compression(name: str) -> CompressionType:
+    try:
+        return {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                "none": CompressionType.NONE}[name]
+    except KeyError:
+        raise ValueError(f"compression must be zstd, lz4 or none, not {name!r}") from None
+
+
+def base_path(path: str, start_ns: int) -> Path:
+    """The first file of a recording for the configured `path`."""
+    p = Path(path)
+    if path.endswith(".mcap"):
+        return p
+    if p.exists() and not p.is_dir():
+        raise ValueError(f"{path} exists and is not a directory (a file path must end in .mcap)")
+    utc = datetime.datetime.fromtimestamp(start_ns / 1e9, datetime.UTC)
+    return p / f"autochair-{utc:%Y%m%d-%H%M%S}.mcap"
+
+
+def part_path(base: Path, part: int) -> Path:
+    return base if part == 0 else base.with_name(f"{base.stem}-{part:03d}{base.suffix}")
+
+
+class _File:
+    """One open MCAP file and its channel ids."""
+
+    def __init__(self, path: Path, cfg: LoggerConfig) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self.stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 (closed in finish)
+        self.mcap = Writer(self.stream, chunk_size=cfg.chunk_size_kib * 1024,
+                           compression=_compression(cfg.compression))
+        self.mcap.start(profile="", library="autochair-logger")
+        self.schemas: dict[str, int] = {}
+        self.channels: dict[str, int] = {}
+        self.sequence: dict[int, int] = {}
+        self.start_ns: int | None = None
+
+    def channel(self, topic: str, schema_name: str, schema: bytes,
+                metadata: dict[str, str]) -> int:
+        cid = self.channels.get(topic)
+        if cid is None:
+            sid = self.schemas.get(schema_name)
+            if sid is None:
+                sid = self.schemas[schema_name] = self.mcap.register_schema(
+                    schema_name, "jsonschema", schema)
+            cid = self.channels[topic] = self.mcap.register_channel(
+                topic, "json", sid, metadata)
+        return cid
+
+    def add(self, cid: int, log_ns: int, publish_ns: int, data: bytes) -> None:
+        seq = self.sequence.get(cid, 0)
+        self.sequence[cid] = seq + 1
+        self.mcap.add_message(cid, log_ns, data, publish_ns, seq)
+        if self.start_ns is None:
+            self.start_ns = log_ns
+
+    def finish(self) -> None:
+        self.mcap.finish()  # type: ignore[no-untyped-call]
+        self.stream.close()
+
+
+class Recorder:
+    """Writes samples `(key, msgpack payload, receive ns)` to MCAP. Not thread-safe: one
+    writer thread owns it."""
+
+    def __init__(self, cfg: LoggerConfig, start_ns: int, start_mono_s: float) -> None:
+        _compression(cfg.compression)
+        self.cfg = cfg
+        self.base = base_path(cfg.path, start_ns)
+        self.files: list[Path] = []
+        self.counters: dict[str, int] = {"written": 0, "derived": 0, "decode_errors": 0,
+                                         "unknown_keys": 0, "flushes": 0, "rotations": 0}
+        self.last_error = ""
+        self._codecs: dict[str, tuple[Codec, dict[str, str], str]] = {}
+        self._deriver = foxglove.Deriver()
+        self._fox_schemas = {n: _JSON.encode(s) for n, s in foxglove.SCHEMAS.items()}
+        self._last_flush = start_mono_s
+        self._since_size_check = 0
+        self._file: _File | None = self._open()
+
+    def _open(self) -> _File:
+        f = _File(part_path(self.base, len(self.files)), self.cfg)
+        self.files.append(f.path)
+        return f
+
+    def _codec(self, key: str) -> tuple[Codec, dict[str, str], str] | None:
+        entry = self._codecs.get(key)
+        if entry is None:
+            try:
+                topic = keys.by_key(key)
+            except KeyError:
+                return None
+            meta = {"autochair.type": topic.type.__name__, "autochair.doc": topic.doc}
+            entry = self._codecs[key] = (Codec(topic.type), meta, topic.key)
+        return entry
+
+    def write(self, key: str, payload: bytes, recv_ns: int) -> bool:
+        """Record one sample; False (and counted) if it cannot be decoded."""
+        f = self._file
+        assert f is not None, "write after finish"
+        entry = self._codec(key)
+        if entry is None:
+            self.counters["unknown_keys"] += 1
+            self.last_error = f"no row in keys.TOPICS for {key}"
+            return False
+        codec, meta, row = entry
+        try:
+            msg = codec.decode_wire(payload)
+        except (msgspec.DecodeError, msgspec.ValidationError) as e:
+            self.counters["decode_errors"] += 1
+            self.last_error = f"{key}: {e}"
+            return False
+        stamp = getattr(msg, "stamp_ns", recv_ns)
+        cid = f.channel(key, codec.name, codec.schema, meta)
+        f.add(cid, recv_ns, stamp, to_json(msg))
+        self.counters["written"] += 1
+        for topic, stamp_ns, obj in self._deriver.derive(row, msg):
+            self._add_derived(f, topic, recv_ns, stamp_ns, obj)
+        if f.start_ns is not None and self.cfg.max_duration_s > 0 and \
+                recv_ns - f.start_ns >= self.cfg.max_duration_s * 1e9:
+            self._rotate()
+        else:
+            self._since_size_check += 1
+            if self._since_size_check >= 256:
+                self._check_size()
+        return True
+
+    def note(self, level: str, message: str, stamp_ns: int) -> None:
+        """Write a foxglove.Log of the logger's own (e.g. drops), straight into the file."""
+        if self._file is not None:
+            self._add_derived(self._file, foxglove.TOPIC_LOG, stamp_ns, stamp_ns,
+                              foxglove.log_message(stamp_ns, level, "logger", message))
+
+    def _add_derived(self, f: _File, topic: str, log_ns: int, stamp_ns: int,
+                     obj: dict[str, Any]) -> None:
+        name = foxglove.DERIVED[topic]
+        cid = f.channel(topic, name, self._fox_schemas[name], {"autochair.derived": "true"})
+        f.add(cid, log_ns, stamp_ns, _JSON.encode(obj))
+        self.counters["derived"] += 1
+
+    def tick(self, mono_s: float) -> None:
+        """Call often (at least a few times a second): flushes the open chunk on schedule."""
+        if self._file is not None and mono_s - self._last_flush >= self.cfg.flush_period_s:
+            self._last_flush = mono_s
+            self._file.mcap.flush()  # type: ignore[no-untyped-call]
+            self.counters["flushes"] += 1
+            self._check_size()
+
+    def _check_size(self) -> None:
+        self._since_size_check = 0
+        if self._file is not None and self.cfg.max_size_mib > 0 and \
+                self._file.stream.tell() >= self.cfg.max_size_mib * 1024 * 1024:
+            self._rotate()
+
+    def _rotate(self) -> None:
+        assert self._file is not None
+        self._file.finish()
+        self.counters["rotations"] += 1
+        self._file = self._open()
+
+    @property
+    def path(self) -> Path:
+        return self.files[-1]
+
+    def bytes_on_disk(self) -> int:
+        return sum(p.stat().st_size for p in self.files if p.exists())
+
+    def finish(self) -> None:
+        """Write the summary and indexes (a complete, seekable file) and close."""
+        if self._file is not None:
+            self._file.finish()
+            self._file = None
