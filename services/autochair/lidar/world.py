@@ -1,0 +1,115 @@
+"""2D worlds for the simulated lidar: a small text format and a vectorised ray caster.
+
+Format (docs/world-format.md): one shape per line, metres, `#` starts a comment::
+
+    wall x1 y1 x2 y2      # a line segment
+    box cx cy w h         # a solid axis-aligned rectangle (4 segments)
+    circle cx cy r        # a solid disc (pillar, bin)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+F64 = npt.NDArray[np.float64]
+
+DEFAULT_WORLD = Path(__file__).with_name("worlds") / "hallway.world"
+
+
+class WorldError(ValueError):
+    """A world file that does not parse; the message names the line."""
+
+
+@dataclass(frozen=True)
+class World:
+    segments: F64  # (S, 4): x1 y1 x2 y2
+    circles: F64  # (C, 3): cx cy r
+
+    def distance_to(self, pts: F64) -> F64:
+        """Distance of each (N, 2) point to the nearest shape boundary."""
+        p = np.asarray(pts, dtype=np.float64).reshape(-1, 1, 2)
+        best = np.full(p.shape[0], np.inf)
+        if len(self.segments):
+            a, b = self.segments[None, :, :2], self.segments[None, :, 2:]
+            ab = b - a
+            t = np.clip(((p - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0, 1)
+            d = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+            best = np.minimum(best, d.min(axis=1))
+        if len(self.circles):
+            c, r = self.circles[None, :, :2], self.circles[None, :, 2]
+            best = np.minimum(best, np.abs(np.linalg.norm(p - c, axis=-1) - r).min(axis=1))
+        return best
+
+
+def parse_world(text: str, name: str = "<world>") -> World:
+    segs: list[list[float]] = []
+    circles: list[list[float]] = []
+    arity = {"wall": 4, "box": 4, "circle": 3}
+    for n, raw in enumerate(text.splitlines(), 1):
+        words = raw.split("#", 1)[0].split()
+        if not words:
+            continue
+        kind, args = words[0], words[1:]
+        if kind not in arity:
+            raise WorldError(f"{name}:{n}: unknown shape {kind!r} (wall, box, circle)")
+        if len(args) != arity[kind]:
+            raise WorldError(f"{name}:{n}: {kind} wants {arity[kind]} numbers, got {len(args)}")
+        try:
+            v = [float(a) for a in args]
+        except ValueError:
+            raise WorldError(f"{name}:{n}: not a number in {raw.strip()!r}") from None
+        if not all(np.isfinite(v)):
+            raise WorldError(f"{name}:{n}: non-finite number")
+        if kind == "wall":
+            segs.append(v)
+        elif kind == "box":
+            cx, cy, w, h = v
+            if w <= 0 or h <= 0:
+                raise WorldError(f"{name}:{n}: box size must be > 0")
+            x0, x1, y0, y1 = cx - w / 2, cx + w / 2, cy - h / 2, cy + h / 2
+            segs += [[x0, y0, x1, y0], [x1, y0, x1, y1], [x1, y1, x0, y1], [x0, y1, x0, y0]]
+        else:
+            if v[2] <= 0:
+                raise WorldError(f"{name}:{n}: circle radius must be > 0")
+            circles.append(v)
+    return World(np.array(segs, dtype=np.float64).reshape(-1, 4),
+                 np.array(circles, dtype=np.float64).reshape(-1, 3))
+
+
+def load_world(path: str | Path = DEFAULT_WORLD) -> World:
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise WorldError(f"cannot read world {path}: {e.strerror}") from None
+    return parse_world(text, str(path))
+
+
+def raycast(world: World, x: float, y: float, angles: F64, max_range: float) -> F64:
+    """Distance along each ray from (x, y) at world-frame `angles` to the first hit (inf if none
+    within `max_range`). Vectorised over rays × shapes."""
+    dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    best = np.full(angles.shape[0], np.inf)
+    if len(world.segments):
+        s = world.segments
+        ex, ey = (s[:, 2] - s[:, 0])[None, :], (s[:, 3] - s[:, 1])[None, :]
+        qx, qy = (s[:, 0] - x)[None, :], (s[:, 1] - y)[None, :]
+        den = dx * ey - dy * ex
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (qx * ey - qy * ex) / den
+            u = (qx * dy - qy * dx) / den
+        ok = (np.abs(den) > 1e-12) & (t > 1e-9) & (u >= 0) & (u <= 1)
+        best = np.minimum(best, np.where(ok, t, np.inf).min(axis=1))
+    if len(world.circles):
+        c = world.circles
+        ox, oy = (x - c[:, 0])[None, :], (y - c[:, 1])[None, :]
+        b = dx * ox + dy * oy
+        disc = b * b - (ox * ox + oy * oy - (c[:, 2] ** 2)[None, :])
+        root = np.sqrt(np.maximum(disc, 0))
+        t1, t2 = -b - root, -b + root
+        t = np.where(t1 > 1e-9, t1, t2)
+        best = np.minimum(best, np.where((disc >= 0) & (t > 1e-9), t, np.inf).min(axis=1))
+    return np.where(best <= max_range, best, np.inf)
