@@ -7,6 +7,7 @@ import math
 import msgspec
 
 from autochair_msgs import (
+    CommandOwner,
     EncoderSample,
     FrameTransform,
     GoalRequest,
@@ -46,6 +47,9 @@ def samples(i: int = 0) -> dict[str, msgspec.Struct]:
                                               reason="neutral:stale ü", clamped=True),
         keys.CMD_VEL.key: VelocityCommand(stamp_ns=t, v_mps=-0.0, omega_radps=5e-324,
                                           source="cli"),
+        keys.TELEOP.key: VelocityCommand(stamp_ns=t, v_mps=0.3, omega_radps=-0.25,
+                                         source="teleop"),
+        keys.CMD_OWNER.key: CommandOwner(stamp_ns=t, owner="teleop", by="laptop-ü"),
         keys.ODOM.key: Odometry(stamp_ns=t, x_m=1.25 + i, y_m=-3.5, yaw_rad=math.pi,
                                 v_mps=0.7, omega_radps=-0.2, distance_m=12.0, source_seq=i),
         keys.TF.key: FrameTransform(stamp_ns=t, parent_frame_id="world", child_frame_id="chair",

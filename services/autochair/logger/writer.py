@@ -152,19 +152,18 @@ class Recorder:
             self.counters["decode_errors"] += 1
             self.last_error = f"{key}: {e}"
             return False
+        if f.start_ns is not None and self.cfg.max_duration_s > 0 and \
+                recv_ns - f.start_ns >= self.cfg.max_duration_s * 1e9:
+            f = self._rotate()
         stamp = getattr(msg, "stamp_ns", recv_ns)
         cid = f.channel(key, codec.name, codec.schema, meta)
         f.add(cid, recv_ns, stamp, to_json(msg))
         self.counters["written"] += 1
         for topic, stamp_ns, obj in self._deriver.derive(row, msg):
             self._add_derived(f, topic, recv_ns, stamp_ns, obj)
-        if f.start_ns is not None and self.cfg.max_duration_s > 0 and \
-                recv_ns - f.start_ns >= self.cfg.max_duration_s * 1e9:
-            self._rotate()
-        else:
-            self._since_size_check += 1
-            if self._since_size_check >= 256:
-                self._check_size()
+        self._since_size_check += 1
+        if self._since_size_check >= 256:
+            self._check_size()
         return True
 
     def note(self, level: str, message: str, stamp_ns: int) -> None:
@@ -194,11 +193,12 @@ class Recorder:
                 self._file.stream.tell() >= self.cfg.max_size_mib * 1024 * 1024:
             self._rotate()
 
-    def _rotate(self) -> None:
+    def _rotate(self) -> _File:
         assert self._file is not None
         self._file.finish()
         self.counters["rotations"] += 1
         self._file = self._open()
+        return self._file
 
     @property
     def path(self) -> Path:
