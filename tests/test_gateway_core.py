@@ -63,3 +63,10 @@ def test_tx_sequence_and_ack() -> None:
     second, seq1 = core.frame(core.output(0.0))
     assert (seq0, seq1) == (0, 1)
     assert decode_one(second).ack_seq == 77
+
+
+def test_ack_is_the_source_frame_of_the_command() -> None:
+    core = GatewayCore()
+    core.on_bytes(arduino.encode(Telemetry(90, 0, 0, 0, 0)))
+    core.on_command(3.0, 2.5, True, 0.0, source_seq=88)
+    assert decode_one(core.frame(core.output(0.0))[0]).ack_seq == 88

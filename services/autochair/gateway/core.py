@@ -41,7 +41,7 @@ class GatewayCore:
     clamped: int = 0
     rejected: int = 0  # commands with non-finite values
     _last_seq: int | None = None
-    _cmd: tuple[float, float, bool] | None = None
+    _cmd: tuple[float, float, bool, int] | None = None
     _cmd_t: float = -math.inf
     _tx_seq: int = 0
     _ack_seq: int = 0
@@ -62,12 +62,16 @@ class GatewayCore:
         return out
 
     def on_command(self, longitudinal_v: float, angular_v: float, enable: bool,
-                   now_s: float) -> bool:
-        """Accept a joystick command at monotonic time `now_s`; False if it is unusable."""
+                   now_s: float, source_seq: int = -1) -> bool:
+        """Accept a joystick command at monotonic time `now_s`; False if it is unusable.
+
+        `source_seq` is the telemetry frame the command was computed from; it goes back to the
+        chair as `ack_seq`, so a round trip can be timed on the wire.
+        """
         if not (math.isfinite(longitudinal_v) and math.isfinite(angular_v)):
             self.rejected += 1
             return False
-        self._cmd = (longitudinal_v, angular_v, enable)
+        self._cmd = (longitudinal_v, angular_v, enable, source_seq)
         self._cmd_t = now_s
         return True
 
@@ -80,7 +84,7 @@ class GatewayCore:
             return NEUTRAL_STARTUP
         if now_s - self._cmd_t > self.stale_s:
             return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:stale")
-        lon, ang, enable = self._cmd
+        lon, ang, enable, _ = self._cmd
         if not enable:
             return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:disabled")
         clon, cang = min(max(lon, self.min_v), self.max_v), min(max(ang, self.min_v), self.max_v)
@@ -93,7 +97,10 @@ class GatewayCore:
         self._tx_seq = (seq + 1) & 0xFFFF
         if out.clamped:
             self.clamped += 1
-        cmd = Command(seq=seq, ack_seq=self._ack_seq,
+        ack = self._ack_seq
+        if out.reason == "command" and self._cmd is not None and self._cmd[3] >= 0:
+            ack = self._cmd[3]
+        cmd = Command(seq=seq, ack_seq=ack,
                       longitudinal_mv=round(out.longitudinal_v * 1000),
                       angular_mv=round(out.angular_v * 1000),
                       flags=arduino.FL_ENABLE if out.enable else 0)

@@ -60,7 +60,7 @@ class Gateway:
     def on_command(self, cmd: JoystickCommand) -> None:
         with self.lock:
             if not self.core.on_command(cmd.longitudinal_v, cmd.angular_v, cmd.enable,
-                                        time.monotonic()):
+                                        time.monotonic(), cmd.source_seq):
                 self.node.health.count("rejected_commands")
                 return
             self.node.health.count("commands")

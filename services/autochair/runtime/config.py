@@ -34,8 +34,8 @@ class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """
 
     mode: str = "peer"  # peer | client | router
-    connect: list[str] = [DEFAULT_HUB]
-    listen: list[str] = ["tcp/127.0.0.1:0"]
+    connect: list[str] = msgspec.field(default_factory=lambda: [DEFAULT_HUB])
+    listen: list[str] = msgspec.field(default_factory=lambda: ["tcp/127.0.0.1:0"])
     multicast_scouting: bool = False
     lease_ms: int = 1000  # a hung process is declared gone after about this long
     config_file: str = ""  # a full Zenoh JSON5 config (TLS, ACL...) applied before the above

@@ -1,0 +1,243 @@
+"""Control-chain latency and sustained encoder rate, against a raw Zenoh 3-hop baseline.
+
+Chain: this process plays the Arduino on a pty. It writes a telemetry frame into the gateway's
+port and times the joystick frame that comes back with that frame's sequence number as its
+ack (gateway → odometry → velocity PID → gateway: three Zenoh hops and two pty crossings).
+Baseline, same run, same hub: this process publishes an equal-size payload that two relay
+processes pass on (three Zenoh hops) back to it.
+
+    python -m bench.chain [--duration 60] [--rates 200,400,800,1600] [--samples 3000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import tty
+from pathlib import Path
+
+import msgspec
+import zenoh
+
+from autochair.launcher import Launcher, free_port
+from autochair.processes import PROCESSES
+from autochair.protocol import arduino
+from autochair.runtime.config import ZenohSettings
+from autochair_msgs import EncoderSample, Health, VelocityCommand, keys
+
+RESULTS = Path(__file__).parent / "results" / "chain.json"
+
+
+def percentile(xs: list[float], q: float) -> float:
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(q * len(xs)))]
+
+
+class FakeArduino:
+    """The bench side of the pty: writes telemetry, reads joystick frames with their acks."""
+
+    def __init__(self) -> None:
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.slave_path = os.ttyname(slave)
+        self._slave = slave  # keep open so the pty exists before the gateway opens it
+        self.sent: dict[int, int] = {}  # seq → perf_counter_ns at write
+        self.acked: dict[int, int] = {}  # ack seq → perf_counter_ns of first frame carrying it
+        self.frames_in = 0
+        self._stop = threading.Event()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        dec = arduino.FrameDecoder()
+        while not self._stop.is_set():
+            try:
+                data = os.read(self.master, 4096)
+            except OSError:
+                time.sleep(0.01)
+                continue
+            now = time.perf_counter_ns()
+            for f in dec.feed(data):
+                if isinstance(f, arduino.Command):
+                    self.frames_in += 1
+                    if f.enable and f.ack_seq not in self.acked:
+                        self.acked[f.ack_seq] = now
+
+    def run(self, rate_hz: float, n: int, counts_per_frame: int = 50) -> tuple[int, int]:
+        """Write `n` telemetry frames at `rate_hz`; returns (first seq, last seq)."""
+        self.sent.clear()
+        self.acked.clear()
+        period = 1e9 / rate_hz
+        t0 = time.perf_counter_ns()
+        first = 0
+        for i in range(n):
+            seq = i & 0xFFFF
+            target = t0 + i * period
+            while (now := time.perf_counter_ns()) < target:
+                if target - now > 300_000:
+                    time.sleep((target - now - 200_000) / 1e9)
+            frame = arduino.encode(arduino.Telemetry(
+                seq, int(i * period / 1000), i * counts_per_frame, i * counts_per_frame, 0))
+            self.sent[seq] = time.perf_counter_ns()
+            os.write(self.master, frame)
+        return first, n - 1
+
+    def close(self) -> None:
+        self._stop.set()
+        os.close(self._slave)
+
+
+def chain_latencies(arduino_: FakeArduino) -> list[float]:
+    return [(arduino_.acked[s] - t) / 1000 for s, t in arduino_.sent.items()
+            if s in arduino_.acked]
+
+
+def baseline(hub: str, n: int, rate_hz: float, payload_size: int) -> list[float]:
+    """Three raw Zenoh hops: here → relay 1 → relay 2 → here, equal payloads, same hub."""
+    env = {**os.environ, "AUTOCHAIR_CONNECT": hub}
+    relays = [subprocess.Popen([sys.executable, "-m", "bench.relay", f"bench/k{i}",
+                                f"bench/k{i + 1}"], env=env, stdout=subprocess.PIPE, text=True)
+              for i in (0, 1)]
+    try:
+        for r in relays:
+            assert r.stdout is not None and r.stdout.readline().strip() == "relay ready"
+        settings = ZenohSettings(connect=[hub])
+        session = zenoh.open(settings.to_zenoh())
+        got: dict[int, int] = {}
+        session.declare_subscriber(
+            "bench/k2", lambda s: got.setdefault(
+                int.from_bytes(s.payload.to_bytes()[:4], "little"), time.perf_counter_ns()))
+        pub = session.declare_publisher("bench/k0", express=True)
+        pad = b"x" * (payload_size - 4)
+        # warm up until the path works end to end
+        deadline = time.monotonic() + 10
+        while not got and time.monotonic() < deadline:
+            pub.put((0xFFFFFFFF).to_bytes(4, "little") + pad)
+            time.sleep(0.05)
+        got.clear()
+        sent: dict[int, int] = {}
+        period = 1e9 / rate_hz
+        t0 = time.perf_counter_ns()
+        for i in range(n):
+            target = t0 + i * period
+            while (now := time.perf_counter_ns()) < target:
+                if target - now > 300_000:
+                    time.sleep((target - now - 200_000) / 1e9)
+            sent[i] = time.perf_counter_ns()
+            pub.put(i.to_bytes(4, "little") + pad)
+        time.sleep(0.5)
+        session.close()
+        return [(got[i] - t) / 1000 for i, t in sent.items() if i in got]
+    finally:
+        for r in relays:
+            r.terminate()
+            r.wait(5)
+
+
+def health_counter(session: zenoh.Session, service: str, name: str) -> int:
+    """Latest value of one health counter of a service (waits for the next health message)."""
+    box: list[Health] = []
+    dec = msgspec.msgpack.Decoder(Health)
+    sub = session.declare_subscriber(keys.HEALTH.for_service(service),
+                                     lambda s: box.append(dec.decode(s.payload.to_bytes())))
+    deadline = time.monotonic() + 3
+    while not box and time.monotonic() < deadline:
+        time.sleep(0.02)
+    sub.undeclare()
+    return box[-1].counters.get(name, 0) if box else -1
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.chain", description=__doc__)
+    ap.add_argument("--samples", type=int, default=3000, help="frames for the latency runs")
+    ap.add_argument("--duration", type=float, default=60.0, help="seconds per sustained rate")
+    ap.add_argument("--rates", default="200,400,800,1600", help="sustained rates to try, Hz")
+    args = ap.parse_args(argv)
+
+    hub = f"tcp/127.0.0.1:{free_port()}"
+    run_dir = Path(tempfile.mkdtemp(prefix="autochair-bench-"))
+    fake = FakeArduino()
+    names = {"router", "gateway", "odometry", "pid"}
+    procs = [p for p in PROCESSES if p.name in names]
+    values = {"run_dir": str(run_dir), "hub": hub, "hub_port": hub.rsplit(":", 1)[1],
+              "serial_port": fake.slave_path}
+    launcher = Launcher(procs, values, run_dir, restart=False)
+    results: dict[str, object] = {"python": sys.version.split()[0], "cpus": os.cpu_count()}
+    stop_cmd = threading.Event()
+    try:
+        launcher.start(ready_timeout_s=30)
+        session = zenoh.open(ZenohSettings(connect=[hub]).to_zenoh())
+        cmd_pub = session.declare_publisher(keys.CMD_VEL.key)
+        enc = msgspec.msgpack.Encoder()
+
+        def command() -> None:  # keep the PID active, as the control law would
+            while not stop_cmd.wait(0.05):
+                cmd_pub.put(enc.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.3,
+                                                       omega_radps=0.0, source="bench")))
+
+        threading.Thread(target=command, daemon=True).start()
+        fake.run(200, 400)  # warm-up: connections, caches, the PID becoming active
+        time.sleep(0.5)
+
+        fake.run(200, args.samples)
+        time.sleep(0.5)
+        lat = chain_latencies(fake)
+        payload = len(enc.encode(EncoderSample(stamp_ns=time.time_ns(), seq=1, mcu_time_us=1,
+                                               left_counts=1, right_counts=1, status=0)))
+        base = baseline(hub, args.samples, 200, payload)
+        chain_p50, chain_p99 = statistics.median(lat), percentile(lat, 0.99)
+        base_p50, base_p99 = statistics.median(base), percentile(base, 0.99)
+        results["latency_us"] = {
+            "rate_hz": 200, "samples": args.samples, "answered": len(lat),
+            "chain_p50": round(chain_p50, 1), "chain_p99": round(chain_p99, 1),
+            "baseline_3hop_p50": round(base_p50, 1), "baseline_3hop_p99": round(base_p99, 1),
+            "p99_ratio_to_baseline": round(chain_p99 / base_p99, 2),
+            "p50_ratio_to_baseline": round(chain_p50 / base_p50, 2),
+        }
+        print(json.dumps(results["latency_us"]), flush=True)
+
+        sustained: list[dict[str, object]] = []
+        for rate in (float(r) for r in args.rates.split(",")):
+            dropped0 = health_counter(session, "gateway", "dropped_frames")
+            bad0 = health_counter(session, "gateway", "bad_frames")
+            n = int(rate * args.duration)
+            print(f"sustained {rate:.0f} Hz for {args.duration:.0f} s ...", flush=True)
+            fake.run(rate, n)
+            time.sleep(0.5)
+            lat = chain_latencies(fake)
+            row = {
+                "rate_hz": rate, "frames": n, "answered": len(lat),
+                "unanswered": n - len(lat),
+                "gateway_dropped": health_counter(session, "gateway", "dropped_frames") - dropped0,
+                "gateway_bad": health_counter(session, "gateway", "bad_frames") - bad0,
+                "p50_us": round(statistics.median(lat), 1) if lat else None,
+                "p99_us": round(percentile(lat, 0.99), 1) if lat else None,
+            }
+            print(json.dumps(row), flush=True)
+            sustained.append(row)
+            if row["unanswered"] or row["gateway_dropped"] or row["gateway_bad"]:
+                break
+        clean = [r for r in sustained
+                 if not (r["unanswered"] or r["gateway_dropped"] or r["gateway_bad"])]
+        results["sustained"] = sustained
+        results["max_clean_rate_hz"] = max((r["rate_hz"] for r in clean), default=0)
+        session.close()
+    finally:
+        stop_cmd.set()
+        launcher.stop()
+        fake.close()
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps(results, indent=2) + "\n")
+    print(f"results in {RESULTS}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,72 @@
+"""Test helpers: bounded waiting, Zenoh clients, a private stack from the process list."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+import msgspec
+import pytest
+import zenoh
+
+from autochair.launcher import Launcher
+from autochair.processes import PROCESSES
+
+T = TypeVar("T")
+
+
+def wait_for(cond: Callable[[], T], timeout: float, what: str = "condition",
+             interval: float = 0.01) -> T:
+    """Poll `cond` until it returns something truthy; fail the test after `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = cond()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(interval)
+
+
+def client_session(hub: str) -> zenoh.Session:
+    cfg = zenoh.Config()
+    cfg.insert_json5("mode", '"client"')
+    cfg.insert_json5("connect/endpoints", json.dumps([hub]))
+    cfg.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(cfg)
+
+
+class Recorder:
+    """Collects decoded messages of one key with their receive time (monotonic)."""
+
+    def __init__(self, session: zenoh.Session, key: str, type_: type[Any]) -> None:
+        self.items: list[tuple[float, Any]] = []
+        self._lock = threading.Lock()
+        dec = msgspec.msgpack.Decoder(type_)
+
+        def cb(sample: zenoh.Sample) -> None:
+            msg = dec.decode(sample.payload.to_bytes())
+            with self._lock:
+                self.items.append((time.monotonic(), msg))
+
+        self._sub = session.declare_subscriber(key, cb)
+
+    def messages(self) -> list[Any]:
+        with self._lock:
+            return [m for _, m in self.items]
+
+    def latest(self) -> Any:
+        with self._lock:
+            return self.items[-1][1] if self.items else None
+
+
+def make_stack(names: list[str], hub: str, run_dir: Path, **values: str) -> Launcher:
+    procs = [p for p in PROCESSES if p.name in names]
+    base = {"run_dir": str(run_dir), "hub": hub, "hub_port": hub.rsplit(":", 1)[1],
+            "serial_port": str(run_dir / "arduino"), "lidar_url": str(run_dir / "lidar"),
+            "record_path": str(run_dir / "rec.mcap")}
+    return Launcher(procs, {**base, **values}, run_dir, restart=False)
