@@ -1,0 +1,268 @@
+"""Goal manager: waypoints → Park–Kuipers law → comfort limiter → (v, ω). PURE, time passed in.
+
+Waypoints are driven in order; intermediate ones are passed through without stopping (switch to
+the next once within `pass_radius_m`, no slowdown towards them); the last one is approached with
+the paper's slowdown, then, inside the capture radius, the chair turns in place to the goal yaw
+(see law.py). Stale odometry aborts the goal and brakes through the limiter.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import msgspec
+
+from autochair_msgs import GoalReply, GoalRequest, Pose2D
+
+from .law import Gains, align_omega, braking_speed, park_kuipers, wrap
+from .limits import ComfortLimiter, ComfortLimits
+
+IDLE, ACTIVE, ARRIVED, ABORTED, CANCELLED = "idle", "active", "arrived", "aborted", "cancelled"
+
+
+class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """[control] section. SI units."""
+
+    rate_hz: float = 50.0  # command rate while a goal is active (≥ 20)
+    status_rate_hz: float = 5.0
+    stop_burst_s: float = 0.5  # zeros published after the chair has been braked to rest
+    odom_timeout_s: float = 0.3  # older odometry aborts the goal
+    # Park & Kuipers gains (thesis values)
+    k1: float = 1.5
+    k2: float = 3.0
+    beta: float = 0.4
+    lam: float = 2.0
+    vmax_mps: float = 1.2
+    r_thresh_m: float = 1.2
+    # comfort limits
+    a_max_mps2: float = 1.0
+    jerk_max_mps3: float = 2.0
+    omega_max_radps: float = 0.9
+    omega_acc_max_radps2: float = 2.8
+    omega_jerk_max_radps3: float = 7.7
+    # beyond the paper
+    omega_floor_radps: float = 0.5  # min |ω| on tight curves (law.py); 0 = the paper's v(κ)
+    # v ≤ rate·r near the goal: the paper's slowdown (vmax/r_thresh = 1/s) gives a heading loop
+    # faster than the comfort-limited turn rate can follow (it oscillated); ≥ 1 = the paper's.
+    approach_rate_1ps: float = 0.6
+    brake_fraction: float = 0.6  # goal braking curve planned at this fraction of a and jerk max
+    pass_radius_m: float = 0.4  # intermediate waypoint counts as passed within this distance
+    capture_fraction: float = 0.5  # stop translating at this fraction of the position tolerance
+    align_gain_1ps: float = 1.5  # linear tail of the in-place turn
+    align_brake_fraction: float = 0.5  # in-place turn brakes at this fraction of ω̇ max
+    max_waypoints: int = 1000
+
+    def check(self) -> None:
+        if not self.rate_hz >= 20.0:
+            raise ValueError(f"rate_hz must be >= 20, not {self.rate_hz}")
+        for name in ("status_rate_hz", "odom_timeout_s", "k1", "k2", "vmax_mps", "r_thresh_m",
+                     "a_max_mps2", "jerk_max_mps3", "omega_max_radps", "omega_acc_max_radps2",
+                     "omega_jerk_max_radps3", "pass_radius_m", "align_gain_1ps",
+                     "approach_rate_1ps"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be > 0, not {value}")
+        for name in ("capture_fraction", "align_brake_fraction", "brake_fraction"):
+            if not 0 < getattr(self, name) <= 1:
+                raise ValueError(f"{name} must be in (0, 1]")
+
+    @property
+    def gains(self) -> Gains:
+        return Gains(self.k1, self.k2, self.beta, self.lam, self.vmax_mps, self.r_thresh_m)
+
+    @property
+    def limits(self) -> ComfortLimits:
+        return ComfortLimits(self.vmax_mps, self.a_max_mps2, self.jerk_max_mps3,
+                             self.omega_max_radps, self.omega_acc_max_radps2,
+                             self.omega_jerk_max_radps3)
+
+
+@dataclass(frozen=True)
+class OdomSample:
+    x: float
+    y: float
+    yaw: float
+    v: float
+    omega: float
+    t: float  # receive time, monotonic s
+
+
+@dataclass(frozen=True)
+class Status:
+    goal_id: int
+    state: str
+    waypoint_index: int
+    waypoint_count: int
+    distance_left_m: float
+    eta_s: float
+    reason: str
+
+
+def validate(req: GoalRequest, cfg: ControlConfig) -> str:
+    """'' if the request is usable, else a one-line reason."""
+    if not req.waypoints:
+        return "no waypoints"
+    if len(req.waypoints) > cfg.max_waypoints:
+        return f"{len(req.waypoints)} waypoints (max {cfg.max_waypoints})"
+    for i, p in enumerate(req.waypoints):
+        if not all(math.isfinite(c) for c in (p.x_m, p.y_m, p.yaw_rad)):
+            return f"waypoint {i} is not finite: ({p.x_m}, {p.y_m}, {p.yaw_rad})"
+    if not (math.isfinite(req.tolerance_m) and req.tolerance_m > 0):
+        return f"tolerance_m must be > 0, not {req.tolerance_m}"
+    if not (math.isfinite(req.tolerance_rad) and 0 < req.tolerance_rad < math.pi):
+        return f"tolerance_rad must be in (0, π), not {req.tolerance_rad}"
+    if req.vmax_mps is not None:
+        if not (math.isfinite(req.vmax_mps) and req.vmax_mps > 0):
+            return f"vmax_mps must be > 0, not {req.vmax_mps}"
+        if req.vmax_mps > cfg.vmax_mps:
+            return f"vmax_mps {req.vmax_mps} exceeds the configured {cfg.vmax_mps}"
+    return ""
+
+
+class ControlCore:
+    def __init__(self, cfg: ControlConfig | None = None) -> None:
+        self.cfg = cfg or ControlConfig()
+        self.cfg.check()
+        self.gains = self.cfg.gains
+        self.limiter = ComfortLimiter(self.cfg.limits)
+        self.goal_id = 0
+        self.state = IDLE
+        self.reason = ""
+        self.waypoints: list[Pose2D] = []
+        self.index = 0
+        self.tol_m = 0.05
+        self.tol_rad = math.radians(3)
+        self.vmax = self.cfg.vmax_mps
+        self.aligning = False
+        self.odom: OdomSample | None = None
+        self._last_t: float | None = None
+        self._ended_t = -math.inf
+        self.counters: dict[str, int] = {}
+
+    # --- inputs -----------------------------------------------------------------------------
+    def on_odom(self, odom: OdomSample) -> None:
+        if not all(math.isfinite(c) for c in (odom.x, odom.y, odom.yaw, odom.v, odom.omega)):
+            self._count("rejected_odom")
+            return
+        self.odom = odom
+
+    def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
+        error = validate(req, self.cfg)
+        if error:
+            self._count("rejected_goals")
+            return GoalReply(ok=False, error=error)
+        if self.odom is None or now - self.odom.t > self.cfg.odom_timeout_s:
+            self._count("rejected_goals")
+            return GoalReply(ok=False, error="no fresh odometry: is the odometry service up?")
+        if self.state != ACTIVE and self.limiter.at_rest:
+            # Start from what the chair does now (e.g. teleop), not from a jump to zero.
+            self.limiter.reset(self.odom.v, self.odom.omega)
+        self.goal_id += 1
+        self.waypoints = [Pose2D(p.x_m, p.y_m, wrap(p.yaw_rad)) for p in req.waypoints]
+        self.index = 0
+        self.tol_m, self.tol_rad = req.tolerance_m, req.tolerance_rad
+        self.vmax = req.vmax_mps or self.cfg.vmax_mps
+        self.aligning = False
+        self.state, self.reason = ACTIVE, ""
+        self._count("goals")
+        return GoalReply(ok=True, goal_id=self.goal_id)
+
+    def cancel(self, now: float) -> GoalReply:
+        if self.state != ACTIVE:
+            return GoalReply(ok=True, goal_id=0, error="no active goal")
+        self._end(CANCELLED, "cancelled by request", now)
+        return GoalReply(ok=True, goal_id=self.goal_id)
+
+    # --- the loop ---------------------------------------------------------------------------
+    def step(self, now: float) -> tuple[float, float] | None:
+        """(v, ω) to publish now, or None when idle and at rest (leave the chair to others)."""
+        dt = 0.0 if self._last_t is None else min(max(now - self._last_t, 0.0), 0.1)
+        self._last_t = now
+        v_des = w_des = 0.0
+        if self.state == ACTIVE:
+            if self.odom is None or now - self.odom.t > self.cfg.odom_timeout_s:
+                age = math.inf if self.odom is None else now - self.odom.t
+                self._count("stale_odom_aborts")
+                self._end(ABORTED, f"stale odometry ({age:.2f} s > "
+                          f"{self.cfg.odom_timeout_s} s)", now)
+            else:
+                v_des, w_des = self._desired(self.odom, now)
+        if self.state != ACTIVE and self.limiter.at_rest \
+                and now - self._ended_t > self.cfg.stop_burst_s:
+            return None
+        v, w = self.limiter.step(v_des, w_des, dt)
+        if self.state != ACTIVE and not self.limiter.at_rest:
+            self._ended_t = now  # the zero burst starts once braked to rest
+        return v, w
+
+    def _desired(self, o: OdomSample, now: float) -> tuple[float, float]:
+        cfg = self.cfg
+        while self.index < len(self.waypoints) - 1:
+            wp = self.waypoints[self.index]
+            if math.hypot(wp.x_m - o.x, wp.y_m - o.y) > cfg.pass_radius_m:
+                out = park_kuipers(o.x, o.y, o.yaw, wp.x_m, wp.y_m, wp.yaw_rad, self.gains,
+                                   self.vmax, slowdown=False,
+                                   omega_floor=cfg.omega_floor_radps)
+                return out.v_mps, out.omega_radps
+            self.index += 1
+        goal = self.waypoints[-1]
+        r = math.hypot(goal.x_m - o.x, goal.y_m - o.y)
+        if r <= self.tol_m * cfg.capture_fraction:
+            self.aligning = True
+        elif r > self.tol_m:
+            self.aligning = False  # drifted out: approach again
+        if not self.aligning:
+            out = park_kuipers(o.x, o.y, o.yaw, goal.x_m, goal.y_m, goal.yaw_rad, self.gains,
+                               self.vmax, omega_floor=cfg.omega_floor_radps)
+            # Braking curve, evaluated where the chair will be once the limiter has swung its
+            # acceleration round to braking (it may still be accelerating now).
+            f = cfg.brake_fraction
+            ax = self.limiter.v
+            swing = max(ax.rate + f * ax.amax, 0.0) / ax.jmax
+            r_eff = r - max(ax.value, 0.0) * swing
+            v = min(out.v_mps, braking_speed(r_eff, f * ax.amax, f * ax.jmax),
+                    cfg.approach_rate_1ps * r)
+            return v, out.kappa_1pm * v
+        e = wrap(goal.yaw_rad - o.yaw)
+        # Turn down to the capture band, then brake; arrived once braked to rest in tolerance.
+        if abs(e) <= self.tol_rad * cfg.capture_fraction or (
+                abs(e) <= self.tol_rad and self.limiter.at_rest):
+            if self.limiter.at_rest:
+                self._end(ARRIVED, "", now)
+            return 0.0, 0.0
+        w = align_omega(e, cfg.omega_max_radps, cfg.align_brake_fraction
+                        * cfg.omega_acc_max_radps2, cfg.align_gain_1ps)
+        return 0.0, w
+
+    def _end(self, state: str, reason: str, now: float) -> None:
+        self.state, self.reason = state, reason
+        self._ended_t = now
+        self._count(state)
+
+    def _count(self, name: str) -> None:
+        self.counters[name] = self.counters.get(name, 0) + 1
+
+    # --- status -----------------------------------------------------------------------------
+    def status(self) -> Status:
+        dist = eta = 0.0
+        o = self.odom
+        if self.waypoints and o is not None and self.state == ACTIVE:
+            wps = self.waypoints[self.index:]
+            dist = math.hypot(wps[0].x_m - o.x, wps[0].y_m - o.y) + sum(
+                math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) for a, b in zip(wps, wps[1:],
+                                                                          strict=False))
+            eta = self.eta(dist, wrap(self.waypoints[-1].yaw_rad - o.yaw))
+        return Status(self.goal_id, self.state, self.index, len(self.waypoints), dist, eta,
+                      self.reason)
+
+    def eta(self, dist: float, yaw_error: float) -> float:
+        """Rough time left from the law's own speed profile: cruise at vmax, then the
+        exponential slowdown v = vmax·r/r_thresh down to the capture radius, then the turn."""
+        capture = self.tol_m * self.cfg.capture_fraction
+        rt = self.cfg.r_thresh_m
+        t = max(dist - rt, 0.0) / self.vmax
+        if dist > capture:
+            t += rt / self.vmax * math.log(min(dist, rt) / capture)
+        return t + abs(yaw_error) / self.cfg.omega_max_radps if dist <= self.tol_m else t
+
