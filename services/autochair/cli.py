@@ -7,7 +7,7 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("up", "drive", "status")
+COMMANDS = ("up", "drive", "status", "deploy", "certs", "monitor", "teleop", "foxglove", "record", "replay", "info", "report")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -30,4 +30,7 @@ class CliError(Exception):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # Run through the real module so CliError is the class the commands raise.
+    from autochair.cli import main as _main
+
+    sys.exit(_main())

@@ -1,0 +1,76 @@
+"""People get one clear line, not a traceback, for bad config, a missing port or a wrong argument."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from autochair.launcher import free_port
+
+
+def run(*argv: str, timeout: float = 30) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, *argv], capture_output=True, text=True,
+                          timeout=timeout, stdin=subprocess.DEVNULL)
+
+
+def one_line_error(proc: subprocess.CompletedProcess[str], *needles: str) -> None:
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert "Traceback" not in proc.stderr
+    errors = [ln for ln in lines if "error:" in ln]
+    assert len(errors) == 1, proc.stderr
+    for needle in needles:
+        assert needle in errors[0], errors[0]
+
+
+def test_up_needs_sim_or_port() -> None:
+    one_line_error(run("-m", "autochair.cli", "up"), "--port", "--sim")
+
+
+def test_up_missing_serial_port() -> None:
+    one_line_error(run("-m", "autochair.cli", "up", "--port", "/dev/ttyNOPE0"),
+                   "/dev/ttyNOPE0 not found")
+
+
+def test_up_unknown_process() -> None:
+    one_line_error(run("-m", "autochair.cli", "up", "--sim", "--only", "gatewy"), "gatewy")
+
+
+def test_drive_out_of_range() -> None:
+    one_line_error(run("-m", "autochair.cli", "drive", "5", "0"), "|v|")
+
+
+def test_drive_wrong_argument_is_argparse_error() -> None:
+    proc = run("-m", "autochair.cli", "drive", "fast", "0")
+    one_line_error(proc, "invalid float value")
+
+
+def test_status_without_hub() -> None:
+    proc = run("-m", "autochair.cli", "status", "--connect", f"tcp/127.0.0.1:{free_port()}")
+    one_line_error(proc, "no autochair hub")
+
+
+@pytest.mark.parametrize("setting,needle", [
+    ("stale_timeout_s=abc", "Expected `float`"),
+    ("no_such_field=1", "no_such_field"),
+])
+def test_service_bad_setting(setting: str, needle: str) -> None:
+    proc = run("-m", "autochair.gateway.node", "--set", setting, "--set", "port=loop://",
+               "--connect", f"tcp/127.0.0.1:{free_port()}")
+    one_line_error(proc, "[gateway]", needle)
+
+
+def test_service_bad_config_file(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[pid]\nv_gains = [1, 2\n")
+    one_line_error(run("-m", "autochair.pid.node", "--config", str(bad)), str(bad))
+    one_line_error(run("-m", "autochair.pid.node", "--config", str(tmp_path / "none.toml")),
+                   "not found")
+
+
+def test_gateway_without_port() -> None:
+    proc = run("-m", "autochair.gateway.node", "--connect", f"tcp/127.0.0.1:{free_port()}")
+    one_line_error(proc, "port is not set")
