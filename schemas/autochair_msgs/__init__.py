@@ -13,9 +13,22 @@ from .drive import (
 )
 from .lidar import LaserScan, OccupancyGrid, PointCloud
 from .nav import GoalReply, GoalRequest, GoalStatus, Pose2D
+from .safety import (
+    EStopAssert,
+    EStopCause,
+    EStopRelease,
+    EStopReply,
+    EStopState,
+    SafetyLimit,
+)
 
 __all__ = [
     "CommandOwner",
+    "EStopAssert",
+    "EStopCause",
+    "EStopRelease",
+    "EStopReply",
+    "EStopState",
     "EncoderSample",
     "FrameTransform",
     "GoalReply",
@@ -33,6 +46,7 @@ __all__ = [
     "PointCloud",
     "Pose2D",
     "Quaternion",
+    "SafetyLimit",
     "Vector3",
     "VelocityCommand",
 ]

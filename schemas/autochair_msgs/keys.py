@@ -25,6 +25,7 @@ from .drive import (
 )
 from .lidar import LaserScan, OccupancyGrid, PointCloud
 from .nav import GoalReply, GoalRequest, GoalStatus
+from .safety import EStopAssert, EStopRelease, EStopReply, EStopState, SafetyLimit
 
 T = TypeVar("T", bound=msgspec.Struct)
 
@@ -86,6 +87,17 @@ SCAN = Topic("autochair/lidar/scan", LaserScan, 10, True, "Checked laser scans (
 MAP_GRID = Topic("autochair/map/grid", OccupancyGrid, 1, True, "Occupancy grid (mapping)")
 MAP_CLOUD = Topic("autochair/map/cloud", PointCloud, 1, True,
                   "Accumulated world-frame points (mapping)")
+
+# --- safety --------------------------------------------------------------------------------
+ESTOP_ASSERT = Topic("autochair/estop/assert", EStopAssert, None, True,
+                     "Latch the e-stop (any service, the CLI, an allowed laptop)")
+ESTOP_STATE = Topic("autochair/estop/state", EStopState, 10, True,
+                    "E-stop latch and causes (estop); gateway holds neutral if latched or silent")
+ESTOP_RELEASE = Topic("autochair/estop/release", EStopRelease, None, False,
+                      "Release the latch (query; reply EStopReply; refused while a cause "
+                      "remains)", kind="query", reply=EStopReply)
+SAFETY_LIMIT = Topic("autochair/safety/limit", SafetyLimit, 10, True,
+                     "Speed bounds from the safety monitor; the velocity PID clamps to them")
 
 # --- system --------------------------------------------------------------------------------
 HEALTH = Topic("autochair/health/*", Health, 1, True, "Health of each service")
