@@ -5,6 +5,8 @@ tests are all made from, or checked against, this list.
 pty links and recordings), {hub} (the hub endpoint) and {hub_port}.
 {record_path}: where the logger records (a directory, default `recordings/`, gets one
 autochair-<UTC time>.mcap per run; a path ending in .mcap is that file).
+{lidar_url}: the lidar the ingest reads: a serial device (e.g. /dev/ttyACM0), a pty path
+(with --sim: {run_dir}/lidar, the simulated URG-04LX) or tcp://HOST:PORT (UST/UTM class).
 """
 
 from __future__ import annotations
@@ -39,6 +41,14 @@ PROCESSES: tuple[Process, ...] = (
             doc="Velocity PID: desired (v, ω) to joystick voltages"),
     Process("logger", "autochair.logger.node", "autochair-logger",
             ("--set", "path={record_path}"), doc="Records every logged key to MCAP"),
+    Process("lidar-sim", "autochair.lidar.sim_node", "autochair-lidar-sim",
+            ("--set", "pty_link={run_dir}/lidar"), sim_only=True,
+            doc="Simulated Hokuyo URG-04LX (SCIP 2.0) on a pty, seeing the hallway world"),
+    Process("lidar", "autochair.lidar.node", "autochair-lidar",
+            ("--set", "url={lidar_url}"), hardware=("lidar",),
+            doc="Hokuyo SCIP 2.0 ingest: checked, stamped scans and the chair→laser transform"),
+    Process("mapping", "autochair.mapping.node", "autochair-mapping",
+            doc="Occupancy grid and point-cloud map from scans and odometry"),
 )
 
 

@@ -257,7 +257,8 @@ def parse_reply(block: bytes, expect_echo: bytes | Iterable[bytes]) -> Reply:
                 if at < 0 or (isinstance(expect_echo, bytes) and at + len(p) != len(line)):
                     continue
                 status_line = lines[i + 1]
-                status = (status_line[:2] if len(status_line) == 3 else status_line).decode()
+                status = (status_line[:2] if len(status_line) == 3 else status_line).decode(
+                    "ascii", "replace")
                 return Reply(line[at:], status, lines[i + 2:], skipped + at)
         skipped += len(line) + 1
     if len(lines) >= 2 and _is_status_line(lines[1]):
@@ -317,7 +318,7 @@ def parse_scan(block: bytes, prefix: bytes, nchars: int) -> Scan:
     reply = parse_reply(block, (prefix,))
     if reply.status != "99":
         raise StatusError(reply.echo[:2].decode("ascii", "replace"), reply.status)
-    if len(reply.echo) < len(prefix) + 2:
+    if len(reply.echo) < 15:
         raise EchoError(f"short scan echo {reply.echo!r}")
     if not reply.lines:
         raise FormatError("scan without timestamp")
@@ -327,7 +328,7 @@ def parse_scan(block: bytes, prefix: bytes, nchars: int) -> Scan:
     # Data lines are contiguous in `block`: slice them out once for the vectorised pass.
     data = b"\n".join(reply.lines[1:])
     values = decode_values(strip_data_lines(data), nchars)
-    rem = reply.echo[len(prefix):len(prefix) + 2]
+    rem = reply.echo[13:15]  # MD/MS echo: the remaining-scan count replaces the count field
     return Scan(reply.echo, int(rem) if rem.isdigit() else 0, decode_value(ts), values)
 
 

@@ -1,0 +1,199 @@
+"""autochair-lidar-sim: a simulated Hokuyo URG-04LX on a pty and on TCP, ray-casting a 2D world
+from the simulated chair's true pose (keys.SIM_TRUTH; (0, 0, 0) until the first sample).
+
+Fault hook: SIGUSR1 unplugs the device for `unplug_s` seconds (the pty and its link vanish, the
+TCP listener closes), then it comes back rebooted (SCIP 1.1 mode, clock from 0).
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import socket
+import sys
+import threading
+import time
+import tty
+from pathlib import Path
+
+import msgspec
+import numpy as np
+import numpy.typing as npt
+
+from autochair.runtime.config import ConfigError
+from autochair.runtime.node import Node, service_main
+from autochair_msgs import GroundTruth, keys
+
+from .sim import ScanFn, UrgDevice, UrgParams, ray_scan
+from .world import DEFAULT_WORLD, WorldError, load_world
+
+MAX_OUT = 1 << 18  # bytes queued for a reader that does not read; more is dropped (counted)
+
+
+class LidarSimConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    pty_link: str = ""  # path of a symlink to the pty slave ("" = no pty)
+    tcp_port: int = -1  # TCP port on 127.0.0.1 (-1 = off; 10940 is the UST/UTM default)
+    world: str = ""  # world file ("" = the shipped hallway)
+    scan_rate_hz: float = 10.0  # URG-04LX: 10 (600 rpm); 40 emulates a UTM-30LX's rate
+    noise_std_m: float = 0.01  # Gaussian range noise
+    mount_x_m: float = 0.8636  # laser position in the chair frame
+    mount_y_m: float = 0.2032
+    mount_yaw_rad: float = 0.0
+    clock_start_ms: int = 0  # device clock at boot (set near 2^24 to exercise wraparound)
+    unplug_s: float = 3.0  # how long SIGUSR1 unplugs the device
+    seed: int = 0
+
+
+class Endpoint:
+    """One device behind one link; `serve` runs until unplugged or stopped."""
+
+    def __init__(self, node: Node, cfg: LidarSimConfig, params: UrgParams,
+                 scan_fn: ScanFn) -> None:
+        self.node, self.cfg, self.params, self.scan_fn = node, cfg, params, scan_fn
+        self.unplug = threading.Event()
+
+    def run(self) -> None:
+        raise NotImplementedError
+
+    def new_device(self) -> tuple[UrgDevice, float]:
+        return UrgDevice(self.params, self.scan_fn, self.cfg.clock_start_ms), time.monotonic()
+
+    def pump(self, rfd: int, wfd: int, stop: threading.Event) -> None:
+        """Serve one connection: requests in, replies and scans out, until EOF/unplug/stop."""
+        dev, boot = self.new_device()
+        inbuf, out = b"", b""
+        h = self.node.health
+        while not (stop.is_set() or self.unplug.is_set()):
+            due = dev.next_due_s()
+            now = time.monotonic() - boot
+            timeout = 0.05 if due is None else min(0.05, max(due - now, 0.0))
+            r, _, _ = select.select([rfd], [wfd] if out else [], [], timeout)
+            now = time.monotonic() - boot
+            if r:
+                try:
+                    data = os.read(rfd, 4096)
+                except OSError:
+                    data = b""
+                if not data:
+                    return
+                inbuf += data
+                *lines, inbuf = inbuf.split(b"\n")
+                inbuf = inbuf[-1024:]
+                for line in lines:
+                    h.count("requests")
+                    out += dev.handle(line, now)
+            for block in dev.poll(now):
+                h.count("scans_sent")
+                out += block
+            if len(out) > MAX_OUT:
+                h.count("tx_dropped_bytes", len(out) - MAX_OUT)
+                out = out[-MAX_OUT:]
+            if out:
+                try:
+                    n = os.write(wfd, out)
+                except BlockingIOError:
+                    n = 0
+                except OSError:
+                    return
+                out = out[n:]
+
+    def unplugged(self, stop: threading.Event) -> None:
+        if self.unplug.is_set() and not stop.is_set():
+            self.node.event("warning", f"lidar-sim: unplugged for {self.cfg.unplug_s} s")
+            self.node.health.count("unplugs")
+            stop.wait(self.cfg.unplug_s)
+            self.unplug.clear()
+            self.node.event("info", "lidar-sim: plugged back in")
+
+
+class PtyEndpoint(Endpoint):
+    def run(self) -> None:
+        stop, link = self.node.stop_event, Path(self.cfg.pty_link)
+        while not stop.is_set():
+            master, slave = os.openpty()
+            try:
+                tty.setraw(slave)  # the sim keeps the slave open so the master never sees EIO
+                os.set_blocking(master, False)
+                tmp = link.with_name(link.name + ".tmp")
+                tmp.unlink(missing_ok=True)
+                tmp.symlink_to(os.ttyname(slave))
+                os.replace(tmp, link)  # atomic: a reader never sees a half-made link
+                self.pump(master, master, stop)
+            finally:
+                link.unlink(missing_ok=True)
+                os.close(master)
+                os.close(slave)
+            self.unplugged(stop)
+
+
+class TcpEndpoint(Endpoint):
+    def run(self) -> None:
+        stop = self.node.stop_event
+        while not stop.is_set():
+            srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                srv.bind(("127.0.0.1", self.cfg.tcp_port))
+                srv.listen(1)
+                while not (stop.is_set() or self.unplug.is_set()):
+                    if not select.select([srv], [], [], 0.1)[0]:
+                        continue
+                    conn, _ = srv.accept()
+                    conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                    conn.setblocking(False)
+                    try:
+                        self.pump(conn.fileno(), conn.fileno(), stop)
+                    finally:
+                        conn.close()
+            finally:
+                srv.close()
+            self.unplugged(stop)
+
+
+
+def start(node: Node, cfg: LidarSimConfig) -> None:
+    if not cfg.pty_link and cfg.tcp_port < 0:
+        raise ConfigError("lidar-sim: set pty_link and/or tcp_port")
+    if cfg.scan_rate_hz <= 0 or cfg.scan_rate_hz > 100:
+        raise ConfigError("lidar-sim.scan_rate_hz must be in (0, 100]")
+    try:
+        world = load_world(cfg.world or DEFAULT_WORLD)
+    except WorldError as e:
+        raise ConfigError(str(e)) from None
+    params = UrgParams(scan_rate_hz=cfg.scan_rate_hz)
+    pose: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)]
+    mount = (cfg.mount_x_m, cfg.mount_y_m, cfg.mount_yaw_rad)
+    rng = np.random.default_rng(cfg.seed)
+    lock = threading.Lock()  # the generator is shared by the pty and TCP threads
+
+    def on_truth(msg: GroundTruth) -> None:
+        pose[0] = (msg.x_m, msg.y_m, msg.yaw_rad)
+
+    def scan_fn(_now_s: float) -> npt.NDArray[np.int64]:
+        with lock:
+            return ray_scan(world, params, pose[0], mount, cfg.noise_std_m, rng)
+
+    node.subscribe(keys.SIM_TRUTH, on_truth)
+    endpoints: list[Endpoint] = []
+    if cfg.pty_link:
+        endpoints.append(PtyEndpoint(node, cfg, params, scan_fn))
+    if cfg.tcp_port >= 0:
+        endpoints.append(TcpEndpoint(node, cfg, params, scan_fn))
+    for i, ep in enumerate(endpoints):
+        node.thread(ep.run, f"endpoint{i}")
+
+    def on_usr1(_signum: int, _frame: object) -> None:
+        for ep in endpoints:
+            ep.unplug.set()
+
+    signal.signal(signal.SIGUSR1, on_usr1)
+    node.health.detail = f"world {cfg.world or DEFAULT_WORLD.name}, {cfg.scan_rate_hz} scans/s"
+
+
+def main(argv: list[str] | None = None) -> int:
+    return service_main("lidar-sim", LidarSimConfig, start, argv, description=__doc__ or "")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,162 @@
+"""Mapping core, pure: log-odds occupancy grid, voxel point cloud, odometry lookup by stamp.
+
+Ray updates are vectorised: every beam is sampled at half-cell steps (free) up to its end point
+(occupied); each cell changes at most once per scan, and a cell hit in this scan is not also
+cleared by it.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from autochair_msgs import OccupancyGrid, Odometry, PointCloud
+
+F64 = npt.NDArray[np.float64]
+Pose = tuple[float, float, float]  # x, y, yaw
+
+
+def compose(a: Pose, b: Pose) -> Pose:
+    """Pose b (in a's frame) expressed in a's parent frame: a ∘ b."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    yaw = math.atan2(math.sin(a[2] + b[2]), math.cos(a[2] + b[2]))
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], yaw)
+
+
+def scan_points(ranges: F64, angle_min: float, angle_inc: float, pose: Pose) -> F64:
+    """World (N, 2) end points of the finite beams of a scan taken from laser `pose`."""
+    a = angle_min + angle_inc * np.arange(ranges.size) + pose[2]
+    ok = np.isfinite(ranges)
+    r = ranges[ok]
+    return np.stack([pose[0] + r * np.cos(a[ok]), pose[1] + r * np.sin(a[ok])], axis=1)
+
+
+@dataclass
+class GridSpec:
+    resolution_m: float = 0.05
+    width_m: float = 40.0
+    height_m: float = 20.0
+    origin_x_m: float = -10.0  # world position of cell (0, 0)'s corner
+    origin_y_m: float = -10.0
+
+
+class OccupancyMapper:
+    def __init__(self, spec: GridSpec, l_hit: float = 0.85, l_miss: float = -0.4,
+                 l_min: float = -4.0, l_max: float = 4.0, max_range_m: float = 30.0) -> None:
+        self.spec = spec
+        self.res = spec.resolution_m
+        self.w = round(spec.width_m / self.res)
+        self.h = round(spec.height_m / self.res)
+        self.l_hit, self.l_miss, self.l_min, self.l_max = l_hit, l_miss, l_min, l_max
+        self.max_range_m = max_range_m
+        self.logodds = np.zeros((self.h, self.w), dtype=np.float32)
+        self.scans = 0
+
+    def cells(self, pts: F64) -> npt.NDArray[np.int64]:
+        """Flat cell indices of (N, 2) world points; -1 outside the grid."""
+        ix = np.floor((pts[:, 0] - self.spec.origin_x_m) / self.res).astype(np.int64)
+        iy = np.floor((pts[:, 1] - self.spec.origin_y_m) / self.res).astype(np.int64)
+        inside = (ix >= 0) & (ix < self.w) & (iy >= 0) & (iy < self.h)
+        return np.where(inside, iy * self.w + ix, -1)
+
+    def integrate(self, ranges: F64, angle_min: float, angle_inc: float, pose: Pose) -> int:
+        """Add one scan seen from laser `pose` (world); returns the number of beams used."""
+        a = angle_min + angle_inc * np.arange(ranges.size) + pose[2]
+        ok = np.isfinite(ranges) & (ranges > 0) & (ranges <= self.max_range_m)
+        r, a = ranges[ok], a[ok]
+        if r.size == 0:
+            return 0
+        step = self.res / 2
+        t = np.arange(0.0, float(r.max()), step)
+        cos, sin = np.cos(a)[:, None], np.sin(a)[:, None]
+        # Free samples stop a cell short of the end point so the hit cell is not cleared.
+        free_mask = t[None, :] < (r[:, None] - self.res)
+        fx = (pose[0] + cos * t[None, :])[free_mask]
+        fy = (pose[1] + sin * t[None, :])[free_mask]
+        free = np.unique(self.cells(np.stack([fx, fy], axis=1)))
+        hits = np.unique(self.cells(np.stack([pose[0] + r * cos[:, 0],
+                                              pose[1] + r * sin[:, 0]], axis=1)))
+        free, hits = free[free >= 0], hits[hits >= 0]
+        free = np.setdiff1d(free, hits, assume_unique=True)
+        flat = self.logodds.reshape(-1)
+        flat[free] += self.l_miss
+        flat[hits] += self.l_hit
+        np.clip(flat, self.l_min, self.l_max, out=flat)
+        self.scans += 1
+        return int(r.size)
+
+    def occupied(self, threshold: float = 0.5) -> npt.NDArray[np.bool_]:
+        """(H, W) cells whose log odds exceed `threshold` (0.5 ≈ p 0.62)."""
+        return self.logodds > threshold
+
+    def cell_centres(self, mask: npt.NDArray[np.bool_]) -> F64:
+        iy, ix = np.nonzero(mask)
+        return np.stack([self.spec.origin_x_m + (ix + 0.5) * self.res,
+                         self.spec.origin_y_m + (iy + 0.5) * self.res], axis=1)
+
+    def to_msg(self, stamp_ns: int, frame_id: str = "world") -> OccupancyGrid:
+        p = 1.0 / (1.0 + np.exp(-self.logodds))
+        data = np.where(self.logodds == 0, 255, np.rint(p * 100)).astype(np.uint8)
+        return OccupancyGrid(stamp_ns=stamp_ns, frame_id=frame_id, resolution_m=self.res,
+                             width=self.w, height=self.h, origin_x_m=self.spec.origin_x_m,
+                             origin_y_m=self.spec.origin_y_m, data=data.tobytes())
+
+
+class VoxelCloud:
+    """World points, one per voxel (the first seen), at most `max_points` (oldest evicted)."""
+
+    def __init__(self, voxel_m: float = 0.05, max_points: int = 100_000) -> None:
+        self.voxel_m, self.max_points = voxel_m, max_points
+        self._pts: dict[int, tuple[float, float, float]] = {}
+
+    def __len__(self) -> int:
+        return len(self._pts)
+
+    def add(self, xy: F64, z: float) -> None:
+        if xy.size == 0:
+            return
+        k = np.floor(xy / self.voxel_m).astype(np.int64)
+        keys = (k[:, 0] << 32) ^ (k[:, 1] & 0xFFFFFFFF)
+        keys, first = np.unique(keys, return_index=True)
+        for key, (x, y) in zip(keys.tolist(), xy[first].tolist(), strict=True):
+            self._pts.setdefault(key, (x, y, z))
+        excess = len(self._pts) - self.max_points
+        if excess > 0:
+            for key in list(self._pts)[:excess]:
+                del self._pts[key]
+
+    def to_msg(self, stamp_ns: int, frame_id: str = "world") -> PointCloud:
+        arr = np.array(list(self._pts.values()), dtype=np.float32).reshape(-1, 3)
+        return PointCloud(stamp_ns=stamp_ns, frame_id=frame_id, count=len(arr),
+                          points_xyz_f32=arr.astype("<f4").tobytes())
+
+
+class OdomBuffer:
+    """Recent odometry, looked up by the nearest stamp."""
+
+    def __init__(self, keep: int = 1000) -> None:
+        self._stamps: deque[int] = deque(maxlen=keep)
+        self._poses: deque[Pose] = deque(maxlen=keep)
+
+    def add(self, msg: Odometry) -> None:
+        if self._stamps and msg.stamp_ns < self._stamps[-1]:
+            self._stamps.clear()  # odometry restarted / time went back: old samples are void
+            self._poses.clear()
+        self._stamps.append(msg.stamp_ns)
+        self._poses.append((msg.x_m, msg.y_m, msg.yaw_rad))
+
+    def nearest(self, stamp_ns: int, max_dt_ns: int) -> Pose | None:
+        if not self._stamps:
+            return None
+        stamps = list(self._stamps)
+        i = bisect.bisect_left(stamps, stamp_ns)
+        best = min((j for j in (i - 1, i) if 0 <= j < len(stamps)),
+                   key=lambda j: abs(stamps[j] - stamp_ns))
+        if abs(stamps[best] - stamp_ns) > max_dt_ns:
+            return None
+        return self._poses[best]
