@@ -7,7 +7,8 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("up", "drive", "status", "deploy", "certs", "monitor", "teleop", "foxglove", "record", "replay", "info", "report")
+COMMANDS = ("up", "drive", "status", "deploy", "certs", "monitor", "teleop", "foxglove",
+            "record", "replay", "info", "report")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,32 @@
+"""`autochair record [PATH]`: run the logger alone (every logged key to MCAP) until Ctrl-C."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser(
+        "record", help="record every logged key to MCAP (the logger alone)",
+        description="Run the logger until Ctrl-C. PATH: a directory (one autochair-<UTC "
+                    "time>.mcap per run) or a file ending in .mcap.")
+    p.add_argument("path", nargs="?", default="recordings/", help="default: recordings/")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="other [logger] settings, e.g. max_size_mib=512; repeatable")
+    p.add_argument("--config", help="TOML config file")
+    p.add_argument("--connect", help="Zenoh endpoint(s) of the hub")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from autochair.logger.node import main
+
+    argv = ["--set", f"path={args.path}"]
+    for item in args.set:
+        argv += ["--set", item]
+    if args.config:
+        argv += ["--config", args.config]
+    if args.connect:
+        argv += ["--connect", args.connect]
+    return main(argv)
