@@ -8,7 +8,9 @@ the paper's slowdown, then, inside the capture radius, the chair turns in place 
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import msgspec
@@ -42,6 +44,7 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     omega_acc_max_radps2: float = 2.8
     omega_jerk_max_radps3: float = 7.7
     # beyond the paper
+    predict_s: float = 0.5  # drive-chain lag compensated by predicting the pose; 0 = off
     omega_floor_radps: float = 0.5  # min |ω| on tight curves (law.py); 0 = the paper's v(κ)
     # v ≤ rate·r near the goal: the paper's slowdown (vmax/r_thresh = 1/s) gives a heading loop
     # faster than the comfort-limited turn rate can follow (it oscillated); ≥ 1 = the paper's.
@@ -139,6 +142,7 @@ class ControlCore:
         self._last_t: float | None = None
         self._ended_t = -math.inf
         self.counters: dict[str, int] = {}
+        self._history: deque[tuple[float, float, float]] = deque()  # (dt, v, ω) sent
 
     # --- inputs -----------------------------------------------------------------------------
     def on_odom(self, odom: OdomSample) -> None:
@@ -187,14 +191,30 @@ class ControlCore:
                 self._end(ABORTED, f"stale odometry ({age:.2f} s > "
                           f"{self.cfg.odom_timeout_s} s)", now)
             else:
-                v_des, w_des = self._desired(self.odom, now)
+                v_des, w_des = self._desired(self._predicted(self.odom), now)
         if self.state != ACTIVE and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
             return None
         v, w = self.limiter.step(v_des, w_des, dt)
+        self._history.append((dt, v, w))
+        while len(self._history) > 1 and sum(h[0] for h in self._history) > \
+                self.cfg.predict_s + dt:
+            self._history.popleft()
         if self.state != ACTIVE and not self.limiter.at_rest:
             self._ended_t = now  # the zero burst starts once braked to rest
         return v, w
+
+    def _predicted(self, o: OdomSample) -> OdomSample:
+        """The pose once the commands already sent (last `predict_s`) have acted: the drive
+        chain (joystick controller delay, PID, inertia) lags by about that much, and a feedback
+        law acting on the lagging pose overshoots, above all near the goal where κ ~ 1/r."""
+        x, y, yaw = o.x, o.y, o.yaw
+        for dt, v, w in self._history:
+            yaw_mid = yaw + 0.5 * w * dt
+            x += v * math.cos(yaw_mid) * dt
+            y += v * math.sin(yaw_mid) * dt
+            yaw += w * dt
+        return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
 
     def _desired(self, o: OdomSample, now: float) -> tuple[float, float]:
         cfg = self.cfg
@@ -250,8 +270,7 @@ class ControlCore:
         if self.waypoints and o is not None and self.state == ACTIVE:
             wps = self.waypoints[self.index:]
             dist = math.hypot(wps[0].x_m - o.x, wps[0].y_m - o.y) + sum(
-                math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) for a, b in zip(wps, wps[1:],
-                                                                          strict=False))
+                math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) for a, b in itertools.pairwise(wps))
             eta = self.eta(dist, wrap(self.waypoints[-1].yaw_rad - o.yaw))
         return Status(self.goal_id, self.state, self.index, len(self.waypoints), dist, eta,
                       self.reason)
