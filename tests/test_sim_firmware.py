@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 from autochair.protocol import arduino as proto
 from autochair.sim.firmware import Firmware
 
@@ -99,7 +101,7 @@ def test_seq_clock_and_counter_wrap() -> None:
     assert proto.seq_gap(tels[1].seq, tels[2].seq) == 0
     us = [t.t_us for t in tels]
     assert us[0] > us[1] or us[1] > us[2]  # the 32-bit clock wrapped in here
-    assert all(proto.wrap_delta(a, b) == 5000 for a, b in zip(us, us[1:], strict=False))
+    assert all(proto.wrap_delta(a, b) == 5000 for a, b in itertools.pairwise(us))
     assert tels[0].left == 0xFFFFFFFF and tels[1].left == 0xFFFFFFFE
     assert tels[0].right == 0 and tels[3].right == 3
     assert proto.wrap_delta(tels[0].left, tels[3].left) == -3
