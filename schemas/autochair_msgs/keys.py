@@ -81,6 +81,9 @@ GOAL_CANCEL = Topic("autochair/goal/cancel", GoalRequest, None, False,
                     "Cancel the active goal (query; reply GoalReply)", kind="query",
                     reply=GoalReply)
 GOAL_STATUS = Topic("autochair/goal/status", GoalStatus, 5, True, "Goal progress (control law)")
+GOAL_GET = Topic("autochair/goal/get", GoalStatus, None, False,
+                 "Current goal status (query, empty request; reply GoalStatus)", kind="query",
+                 reply=GoalStatus)
 
 # --- lidar and map -------------------------------------------------------------------------
 SCAN = Topic("autochair/lidar/scan", LaserScan, 10, True, "Checked laser scans (lidar ingest)")

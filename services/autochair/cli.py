@@ -8,7 +8,7 @@ import importlib
 import sys
 
 COMMANDS = ("up", "drive", "status", "deploy", "certs", "monitor", "teleop", "foxglove",
-            "record", "replay", "info", "report")
+            "record", "replay", "info", "report", "goal", "cancel")
 
 
 def main(argv: list[str] | None = None) -> int:

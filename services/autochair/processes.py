@@ -29,6 +29,9 @@ class Process:
 PROCESSES: tuple[Process, ...] = (
     Process("router", "autochair.router", "autochair-router",
             ("--listen", "{hub}"), after=(), doc="Zenoh hub for discovery"),
+    Process("estop", "autochair.estop.node", "autochair-estop",
+            ("--set", "state_file={run_dir}/estop.json"),
+            doc="E-stop latch; the gateway holds neutral while latched or silent"),
     Process("sim", "autochair.sim.node", "autochair-sim",
             ("--set", "pty_link={run_dir}/arduino"), sim_only=True,
             doc="Simulated chair + Arduino on a pty"),
@@ -39,6 +42,8 @@ PROCESSES: tuple[Process, ...] = (
             doc="Encoder counts to pose and velocity"),
     Process("pid", "autochair.pid.node", "autochair-pid",
             doc="Velocity PID: desired (v, ω) to joystick voltages"),
+    Process("control", "autochair.control.node", "autochair-control",
+            doc="Smooth control law: goals and waypoints to comfort-limited (v, ω)"),
     Process("logger", "autochair.logger.node", "autochair-logger",
             ("--set", "path={record_path}"), doc="Records every logged key to MCAP"),
     Process("lidar-sim", "autochair.lidar.sim_node", "autochair-lidar-sim",

@@ -75,7 +75,7 @@ def speed(kappa: float, r: float, g: Gains, vmax: float | None = None,
     """v(κ) with the slowdown; `omega_floor` > 0 raises v (never above vmax or the slowdown)
     so that |ω| = |κ|·v stays ≥ omega_floor on tight curves (see module doc)."""
     vm = g.vmax_mps if vmax is None else vmax
-    v = vm / (1.0 + g.beta * abs(kappa) ** g.lam)
+    v = vm / (1.0 + g.beta * math.pow(abs(kappa), g.lam))
     if omega_floor > 0.0 and kappa != 0.0:
         v = max(v, min(vm, omega_floor / abs(kappa)))
     return min(vm * r / g.r_thresh_m, v) if slowdown else v
@@ -99,7 +99,7 @@ def braking_speed(distance: float, a: float, j: float) -> float:
     (or 2·√(v/j) when v < a²/j, where the acceleration never reaches a)."""
     if distance <= 0.0:
         return 0.0
-    v = (distance * math.sqrt(j)) ** (2.0 / 3.0)
+    v = math.pow(distance * math.sqrt(j), 2.0 / 3.0)
     if v <= a * a / j:
         return v
     return 0.5 * (-a * a / j + math.sqrt((a * a / j) ** 2 + 8.0 * a * distance))

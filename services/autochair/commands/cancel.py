@@ -1,0 +1,39 @@
+"""`autochair cancel`: cancel the active goal (the chair brakes smoothly to a stop)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from autochair.cli import CliError
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser("cancel", help="cancel the active goal",
+                                                description=__doc__)
+    p.add_argument("--connect", help="Zenoh endpoint of the hub")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import msgspec
+
+    from autochair.commands.goal import query
+    from autochair.runtime.client import open_client
+    from autochair.runtime.config import ConfigError
+    from autochair_msgs import GoalReply, GoalRequest, keys
+
+    try:
+        session = open_client(args.connect)
+    except ConfigError as e:
+        raise CliError(str(e)) from None
+    try:
+        reply = msgspec.msgpack.decode(
+            query(session, keys.GOAL_CANCEL.key,
+                  msgspec.msgpack.encode(GoalRequest(waypoints=[]))), type=GoalReply)
+    finally:
+        session.close()
+    if not reply.ok:
+        raise CliError(reply.error)
+    print(f"goal {reply.goal_id} cancelled" if reply.goal_id else "no active goal", flush=True)
+    return 0

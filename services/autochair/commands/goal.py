@@ -1,0 +1,160 @@
+"""`autochair goal X Y YAW_DEG` / `autochair goal --waypoints FILE`: drive to a pose.
+
+Poses are in the `world` frame (odometry origin = where the chair started): x forward, y left,
+metres; yaw in DEGREES, counter-clockwise (people think in degrees; the wire uses radians).
+Waypoints file: one `x, y, yaw_deg` per line (CSV), `#` comments and blank lines ignored; the
+chair passes through the intermediate ones without stopping and stops at the last.
+Shows progress until arrival; Ctrl-C cancels the goal.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from autochair.cli import CliError
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser(
+        "goal", help="drive to a pose X Y YAW_DEG (or --waypoints FILE)",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("pose", nargs="*", type=float, metavar="X Y YAW_DEG",
+                   help="goal pose: metres, metres, degrees")
+    p.add_argument("--waypoints", metavar="FILE", help="CSV file of x, y, yaw_deg lines")
+    p.add_argument("--tolerance-cm", type=float, default=5.0, help="position tolerance, cm")
+    p.add_argument("--tolerance-deg", type=float, default=3.0, help="heading tolerance, °")
+    p.add_argument("--vmax", type=float, default=None, help="speed limit for this goal, m/s")
+    p.add_argument("--no-wait", action="store_true", help="set the goal and return")
+    p.add_argument("--connect", help="Zenoh endpoint of the hub")
+    p.set_defaults(func=run)
+
+
+def read_waypoints(path: str) -> list[tuple[float, float, float]]:
+    """(x m, y m, yaw °) rows of a waypoints file; CliError naming the bad line."""
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise CliError(f"cannot read {path}: {e.strerror}") from None
+    rows: list[tuple[float, float, float]] = []
+    for n, line in enumerate(text.splitlines(), 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = [p.strip() for p in line.split(",")]
+        try:
+            x, y, yaw = (float(p) for p in parts)
+        except ValueError:
+            raise CliError(f"{path}:{n}: want 'x, y, yaw_deg', got {line!r}") from None
+        rows.append((x, y, yaw))
+    if not rows:
+        raise CliError(f"{path}: no waypoints")
+    return rows
+
+
+def query(session: Any, key: str, payload: bytes, timeout_s: float = 2.0) -> bytes:
+    """The first reply's payload; CliError when no control service answers."""
+    for reply in session.get(key, payload=payload, timeout=timeout_s):
+        if reply.ok is not None:
+            return bytes(reply.ok.payload.to_bytes())
+        raise CliError(f"{key}: error reply: {reply.err.payload.to_string()}")
+    raise CliError(f"no control service answered on {key} (is `autochair-control` running? "
+                   "see `autochair status`)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import msgspec
+
+    from autochair.runtime.client import open_client
+    from autochair.runtime.config import ConfigError
+    from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
+
+    if args.waypoints and args.pose:
+        raise CliError("give either X Y YAW_DEG or --waypoints FILE, not both")
+    if args.waypoints:
+        rows = read_waypoints(args.waypoints)
+    elif len(args.pose) == 3:
+        rows = [(args.pose[0], args.pose[1], args.pose[2])]
+    else:
+        raise CliError("want X Y YAW_DEG (metres, metres, degrees) or --waypoints FILE")
+    req = GoalRequest(waypoints=[Pose2D(x, y, math.radians(yaw)) for x, y, yaw in rows],
+                      tolerance_m=args.tolerance_cm / 100.0,
+                      tolerance_rad=math.radians(args.tolerance_deg), vmax_mps=args.vmax)
+    try:
+        session = open_client(args.connect)
+    except ConfigError as e:
+        raise CliError(str(e)) from None
+    try:
+        status: list[GoalStatus] = []
+        cond = threading.Condition()
+        dec = msgspec.msgpack.Decoder(GoalStatus)
+
+        def on_status(sample: Any) -> None:
+            try:
+                msg = dec.decode(sample.payload.to_bytes())
+            except msgspec.DecodeError:
+                return
+            with cond:
+                status.append(msg)
+                cond.notify()
+
+        sub = session.declare_subscriber(keys.GOAL_STATUS.key, on_status)
+        reply = msgspec.msgpack.decode(
+            query(session, keys.GOAL_SET.key, msgspec.msgpack.encode(req)), type=GoalReply)
+        if not reply.ok:
+            raise CliError(f"goal rejected: {reply.error}")
+        print(f"goal {reply.goal_id} set: {len(rows)} waypoint(s), last "
+              f"({rows[-1][0]:.2f} m, {rows[-1][1]:.2f} m, {rows[-1][2]:.1f}°)", flush=True)
+        if args.no_wait:
+            sub.undeclare()
+            return 0
+        try:
+            return _follow(reply.goal_id, status, cond)
+        except KeyboardInterrupt:
+            query(session, keys.GOAL_CANCEL.key,
+                  msgspec.msgpack.encode(GoalRequest(waypoints=[])))
+            print("\ncancelled", flush=True)
+            return 130
+        finally:
+            sub.undeclare()
+    finally:
+        session.close()
+
+
+def _follow(goal_id: int, status: list[Any], cond: threading.Condition) -> int:
+    tty = sys.stdout.isatty()
+    last_print = 0.0
+    last_seen = time.monotonic()
+    while True:
+        with cond:
+            cond.wait_for(lambda: bool(status), timeout=1.0)
+            batch, status[:] = list(status), []
+        now = time.monotonic()
+        mine = [s for s in batch if s.goal_id == goal_id]
+        if not mine:
+            if now - last_seen > 3.0:
+                raise CliError("no goal status for 3 s: lost contact with the control service")
+            continue
+        last_seen = now
+        s = mine[-1]
+        if s.state == "active":
+            if tty or now - last_print >= 1.0:
+                line = (f"waypoint {s.waypoint_index + 1}/{s.waypoint_count}  "
+                        f"{s.distance_left_m:6.2f} m left  ETA {s.eta_s:5.1f} s")
+                print(("\r" + line) if tty else line, end="" if tty else "\n", flush=True)
+                last_print = now
+            continue
+        if tty:
+            print()
+        if s.state == "arrived":
+            print(f"arrived (goal {goal_id})", flush=True)
+            return 0
+        if s.state == "cancelled":
+            print(f"goal {goal_id} cancelled", flush=True)
+            return 1
+        raise CliError(f"goal {goal_id} {s.state}: {s.reason}")

@@ -1,0 +1,116 @@
+"""Control-law node: goals in (Zenoh queries), smooth (v, ω) out while a goal is active.
+
+Publishes keys.CMD_VEL at `rate_hz` only while a goal is active and while braking after it (then
+`stop_burst_s` of zeros); when idle it publishes nothing, so the CLI or teleop can drive.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+import msgspec
+import zenoh
+
+from autochair.runtime import ConfigError, Node, service_main
+from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Odometry, VelocityCommand, keys
+
+from .core import ControlConfig, ControlCore, OdomSample
+
+_REQUEST = msgspec.msgpack.Decoder(GoalRequest)
+_ENC = msgspec.msgpack.Encoder()
+
+
+def start(node: Node, cfg: ControlConfig) -> None:
+    try:
+        core = ControlCore(cfg)
+    except ValueError as e:
+        raise ConfigError(f"[control] {e}") from None
+    node.health.thresholds.update(odom_timeout_s=cfg.odom_timeout_s, rate_hz=cfg.rate_hz)
+    lock = threading.Lock()
+    cmd_pub = node.publisher(keys.CMD_VEL)
+    status_pub = node.publisher(keys.GOAL_STATUS)
+
+    def on_odom(o: Odometry) -> None:
+        sample = OdomSample(o.x_m, o.y_m, o.yaw_rad, o.v_mps, o.omega_radps, time.monotonic())
+        with lock:
+            core.on_odom(sample)
+        node.health.count("odom")
+
+    def tick() -> None:
+        with lock:
+            state = core.state
+            out = core.step(time.monotonic())
+            ended = state == "active" and core.state != "active"
+        if ended:
+            why = f": {core.reason}" if core.reason else ""
+            node.event("warning" if core.state == "aborted" else "info",
+                       f"goal {core.goal_id} {core.state}{why}")
+        if out is not None:
+            cmd_pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=out[0],
+                                        omega_radps=out[1], source="control"))
+            node.health.count("commands")
+
+    def status_msg() -> GoalStatus:
+        with lock:
+            s = core.status()
+        return GoalStatus(stamp_ns=time.time_ns(), goal_id=s.goal_id, state=s.state,
+                          waypoint_index=s.waypoint_index, waypoint_count=s.waypoint_count,
+                          distance_left_m=round(s.distance_left_m, 4), eta_s=round(s.eta_s, 2),
+                          reason=s.reason)
+
+    def publish_status() -> None:
+        status_pub.put(status_msg())
+
+    def reply(query: zenoh.Query, msg: msgspec.Struct) -> None:
+        try:
+            query.reply(query.key_expr, _ENC.encode(msg))
+        except zenoh.ZError as e:
+            node.health.count("reply_errors")
+            node.log.warning("reply failed: %s", e)
+
+    def on_set(query: zenoh.Query) -> None:
+        payload = query.payload.to_bytes() if query.payload is not None else b""
+        try:
+            req = _REQUEST.decode(payload)
+        except (msgspec.DecodeError, msgspec.ValidationError) as e:
+            node.health.count("rejected_goals")
+            reply(query, GoalReply(ok=False, error=f"bad goal request: {e}"))
+            return
+        with lock:
+            result = core.set_goal(req, time.monotonic())
+        if result.ok:
+            last = req.waypoints[-1]
+            node.event("info", f"goal {result.goal_id}: {len(req.waypoints)} waypoint(s) to "
+                               f"({last.x_m:.2f}, {last.y_m:.2f}, {last.yaw_rad:.3f} rad)")
+        else:
+            node.health.count("rejected_goals")
+            node.event("warning", f"goal rejected: {result.error}")
+        reply(query, result)
+
+    def on_cancel(query: zenoh.Query) -> None:
+        with lock:
+            result = core.cancel(time.monotonic())
+        if result.goal_id:
+            node.event("info", f"goal {result.goal_id} cancelled")
+        reply(query, result)
+
+    def on_get(query: zenoh.Query) -> None:
+        reply(query, status_msg())
+
+    node.subscribe(keys.ODOM, on_odom)
+    for topic, handler in ((keys.GOAL_SET, on_set), (keys.GOAL_CANCEL, on_cancel),
+                           (keys.GOAL_GET, on_get)):
+        q = node.session.declare_queryable(topic.key, handler)
+        node._closers.append(q.undeclare)  # undeclared with the node's other entities
+    node.every(1.0 / cfg.rate_hz, tick, "control")
+    node.every(1.0 / cfg.status_rate_hz, publish_status, "status")
+
+
+def main(argv: list[str] | None = None) -> int:
+    return service_main("control", ControlConfig, start, argv, __doc__ or "")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
