@@ -164,7 +164,7 @@ def main(argv: list[str]) -> int:
     hub = f"tcp/127.0.0.1:{free_port()}"
     run_dir = Path(tempfile.mkdtemp(prefix="autochair-bench-"))
     fake = FakeArduino()
-    names = {"router", "gateway", "odometry", "pid"}
+    names = {"router", "estop", "gateway", "odometry", "pid"}
     procs = [p for p in PROCESSES if p.name in names]
     values = {"run_dir": str(run_dir), "hub": hub, "hub_port": hub.rsplit(":", 1)[1],
               "serial_port": fake.slave_path}

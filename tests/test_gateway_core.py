@@ -13,8 +13,16 @@ def decode_one(data: bytes) -> Command:
     return frame
 
 
+def running(**kw: float) -> GatewayCore:
+    """A core whose e-stop service is alive and released."""
+    core = GatewayCore(**kw)  # type: ignore[arg-type]
+    core.on_estop(False, now_s=0.0)
+    core.estop_stale_s = 1e9
+    return core
+
+
 def test_neutral_at_start() -> None:
-    core = GatewayCore()
+    core = running()
     out = core.output(now_s=0.0)
     assert (out.longitudinal_v, out.angular_v, out.enable) == (2.5, 2.5, False)
     cmd = decode_one(core.frame(out)[0])
@@ -22,7 +30,7 @@ def test_neutral_at_start() -> None:
 
 
 def test_command_then_stale_after_timeout() -> None:
-    core = GatewayCore(stale_s=0.1)
+    core = running(stale_s=0.1)
     assert core.on_command(3.0, 2.0, True, now_s=10.0)
     assert core.output(10.09).reason == "command"
     out = core.output(10.101)
@@ -30,7 +38,7 @@ def test_command_then_stale_after_timeout() -> None:
 
 
 def test_clamps_to_window() -> None:
-    core = GatewayCore(min_v=1.1, max_v=3.9)
+    core = running(min_v=1.1, max_v=3.9)
     core.on_command(4.5, 0.2, True, 0.0)
     out = core.output(0.0)
     assert (out.longitudinal_v, out.angular_v, out.clamped) == (3.9, 1.1, True)
@@ -40,7 +48,7 @@ def test_clamps_to_window() -> None:
 
 
 def test_disabled_and_non_finite_commands_are_neutral() -> None:
-    core = GatewayCore()
+    core = running()
     core.on_command(3.0, 3.0, False, 0.0)
     assert core.output(0.0).reason == "neutral:disabled"
     assert not core.on_command(float("nan"), 2.5, True, 0.0)
@@ -66,7 +74,23 @@ def test_tx_sequence_and_ack() -> None:
 
 
 def test_ack_is_the_source_frame_of_the_command() -> None:
-    core = GatewayCore()
+    core = running()
     core.on_bytes(arduino.encode(Telemetry(90, 0, 0, 0, 0)))
     core.on_command(3.0, 2.5, True, 0.0, source_seq=88)
     assert decode_one(core.frame(core.output(0.0))[0]).ack_seq == 88
+
+
+def test_estop_latched_or_silent_holds_neutral() -> None:
+    core = GatewayCore(estop_stale_s=0.5)
+    core.on_command(3.0, 3.0, True, now_s=0.0)
+    assert core.output(0.0).reason == "neutral:estop_silent"  # never heard the e-stop service
+    core.on_estop(False, now_s=0.0)
+    core.on_command(3.0, 3.0, True, now_s=0.4)
+    assert core.output(0.45).reason == "command"
+    core.on_command(3.0, 3.0, True, now_s=0.55)
+    assert core.output(0.55).reason == "neutral:estop_silent"  # heartbeat 0.55 s old
+    core.on_estop(True, now_s=0.6)
+    assert core.output(0.6).reason == "neutral:estop"
+    core.on_estop(False, now_s=0.7)
+    core.on_command(3.0, 3.0, True, now_s=0.7)
+    assert core.output(0.7).reason == "command"

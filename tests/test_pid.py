@@ -61,7 +61,7 @@ def test_effort_maps_to_thesis_voltage_and_clamps() -> None:
 
 def test_stale_desired_gives_exact_neutral() -> None:
     core = VelocityPidCore(stale_s=0.3)
-    assert core.set_desired(0.5, 0.0, now_s=0.0)
+    assert core.set_desired(0.5, 0.0, now_s=0.0) == "ok"
     out = core.update(0.0, 0.0, 0.005, now_s=0.1)
     assert out.active and out.longitudinal_v > 2.5
     out = core.update(0.0, 0.0, 0.005, now_s=0.31)
@@ -88,7 +88,7 @@ def test_parked_is_exact_neutral_and_integrator_cleared() -> None:
 
 def test_non_finite_desired_is_rejected() -> None:
     core = VelocityPidCore()
-    assert not core.set_desired(float("nan"), 0.0, 0.0)
+    assert core.set_desired(float("nan"), 0.0, 0.0) == "rejected"
     assert core.desired(0.0) is None
 
 
@@ -96,3 +96,29 @@ def test_thesis_gains_are_default() -> None:
     core = VelocityPidCore()
     assert (core.v_pid.kp, core.v_pid.ki, core.v_pid.kd) == (0.90, 1.03, 0.20)
     assert (core.omega_pid.kp, core.omega_pid.ki, core.omega_pid.kd) == (0.72, 1.08, 0.12)
+
+
+def test_only_the_owner_drives() -> None:
+    core = VelocityPidCore()
+    assert core.set_desired(0.5, 0.0, 0.0, source="teleop") == "not_owner"
+    assert core.desired(0.0) is None
+    assert core.set_desired(0.5, 0.0, 0.0) == "ok"
+    assert core.set_owner("teleop")
+    assert core.desired(0.0) is None  # autonomy's last command no longer counts
+    assert core.set_desired(0.2, 0.1, 0.0, source="teleop") == "ok"
+    assert core.set_desired(0.9, 0.0, 0.0, source="autonomy") == "not_owner"
+    assert core.desired(0.0) == (0.2, 0.1)
+    assert not core.set_owner("someone")
+
+
+def test_safety_limit_clamps_and_may_be_required() -> None:
+    core = VelocityPidCore(require_limit=True, limit_stale_s=0.5)
+    core.set_desired(1.0, 1.0, 0.0)
+    assert core.desired(0.0) == (0.0, 0.0)  # required but never received: stop
+    assert core.set_limit(0.3, 0.2, 0.5, 0.0)
+    assert core.desired(0.1) == (0.3, 0.5)
+    core.set_desired(-1.0, -1.0, 0.2)
+    assert core.desired(0.2) == (-0.2, -0.5)
+    core.set_desired(-1.0, -1.0, 0.5)
+    assert core.desired(0.51) == (0.0, 0.0)  # limit stale
+    assert not core.set_limit(float("nan"), 0, 0, 0)

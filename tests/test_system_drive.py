@@ -16,7 +16,7 @@ from tests.helpers import Recorder, client_session, wait_for
 
 pytestmark = pytest.mark.slow
 
-DRIVE_CHAIN = ["sim", "gateway", "odometry", "pid"]
+DRIVE_CHAIN = ["estop", "sim", "gateway", "odometry", "pid"]
 
 
 def test_velocity_step_settles_and_pid_kill_goes_neutral(

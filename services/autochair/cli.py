@@ -7,7 +7,7 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("up", "drive", "status", "deploy", "certs", "monitor", "teleop", "foxglove",
+COMMANDS = ("up", "drive", "status", "estop", "deploy", "certs", "monitor", "teleop", "foxglove",
             "record", "replay", "info", "report", "goal", "cancel")
 
 

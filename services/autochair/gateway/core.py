@@ -1,7 +1,8 @@
 """Pure gateway logic: frames in, samples out; commands in, safe joystick frames out.
 
-The output is exactly neutral at start, whenever no valid command arrived within the stale
-timeout, and whenever a command is not enabled; otherwise it is clamped to the valid window.
+The output is exactly neutral at start, while the e-stop is latched or its heartbeat is missing,
+whenever no valid command arrived within the stale timeout, and whenever a command is not
+enabled; otherwise it is clamped to the valid window.
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ NEUTRAL_STARTUP = Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:startup")
 @dataclass
 class GatewayCore:
     stale_s: float = 0.1
+    estop_stale_s: float = 0.5
+    require_estop: bool = True  # no e-stop heartbeat → neutral (a dead e-stop must stop the chair)
     min_v: float = 1.1
     max_v: float = 3.9
     decoder: FrameDecoder = field(default_factory=FrameDecoder)
@@ -43,6 +46,8 @@ class GatewayCore:
     _last_seq: int | None = None
     _cmd: tuple[float, float, bool, int] | None = None
     _cmd_t: float = -math.inf
+    _estop_latched: bool = False
+    _estop_t: float = -math.inf
     _tx_seq: int = 0
     _ack_seq: int = 0
 
@@ -75,11 +80,18 @@ class GatewayCore:
         self._cmd_t = now_s
         return True
 
+    def on_estop(self, latched: bool, now_s: float) -> None:
+        self._estop_latched, self._estop_t = latched, now_s
+
     def reset(self) -> None:
         """Forget the last command (e.g. after a reconnect): output goes neutral until a new one."""
         self._cmd, self._cmd_t, self._last_seq = None, -math.inf, None
 
     def output(self, now_s: float) -> Output:
+        if self._estop_latched:
+            return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:estop")
+        if self.require_estop and now_s - self._estop_t > self.estop_stale_s:
+            return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:estop_silent")
         if self._cmd is None:
             return NEUTRAL_STARTUP
         if now_s - self._cmd_t > self.stale_s:

@@ -12,7 +12,7 @@ import msgspec
 import serial
 
 from autochair.runtime import Node, service_main
-from autochair_msgs import EncoderSample, JoystickCommand, JoystickOutput, keys
+from autochair_msgs import EncoderSample, EStopState, JoystickCommand, JoystickOutput, keys
 
 from .core import GatewayCore, Output
 
@@ -20,7 +20,7 @@ from .core import GatewayCore, Output
 class GatewayConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     port: str = ""  # device (/dev/ttyACM0), pty path, or a pyserial URL (loop://, socket://...)
     baudrate: int = 115200
-    stale_timeout_s: float = 0.1  # no valid command for this long → neutral
+    require_estop: bool = True  # hold neutral unless the e-stop service says "released"
     min_v: float = 1.1  # valid joystick window, volts
     max_v: float = 3.9
     keepalive_hz: float = 50.0  # frames are written at least this often (firmware watchdog 200 ms)
@@ -40,7 +40,9 @@ class Gateway:
 
             raise ConfigError(f"[gateway] window {cfg.min_v}–{cfg.max_v} V must contain 2.5 V")
         self.node, self.cfg = node, cfg
-        self.core = GatewayCore(stale_s=cfg.stale_timeout_s, min_v=cfg.min_v, max_v=cfg.max_v)
+        stale = node.stale
+        self.core = GatewayCore(stale_s=stale.joystick_s, estop_stale_s=stale.estop_s,
+                                require_estop=cfg.require_estop, min_v=cfg.min_v, max_v=cfg.max_v)
         self.lock = threading.Lock()  # core + port writes: command callback vs tick vs reader
         self.port: serial.SerialBase | None = None
         self.last_out: Output | None = None
@@ -49,10 +51,12 @@ class Gateway:
         self.enc_pub = node.publisher(keys.ENCODERS)
         self.out_pub = node.publisher(keys.JOYSTICK_OUT)
         h = node.health
-        h.thresholds.update(stale_timeout_s=cfg.stale_timeout_s, min_v=cfg.min_v, max_v=cfg.max_v,
-                            firmware_timeout_s=0.2)
+        h.thresholds.update(joystick_s=stale.joystick_s, estop_s=stale.estop_s,
+                            firmware_host_s=stale.firmware_host_s, min_v=cfg.min_v,
+                            max_v=cfg.max_v)
         h.state, h.detail = "degraded", f"connecting to {cfg.port}"
         node.subscribe(keys.JOYSTICK, self.on_command)
+        node.subscribe(keys.ESTOP_STATE, self.on_estop)
         node.every(0.005, self.tick, "tick")
         node.thread(self.serial_loop, "serial")
 
@@ -65,6 +69,12 @@ class Gateway:
                 return
             self.node.health.count("commands")
             self._write(self.core.output(time.monotonic()))
+
+    def on_estop(self, state: EStopState) -> None:
+        with self.lock:
+            self.core.on_estop(state.latched, time.monotonic())
+            if state.latched:
+                self._write(self.core.output(time.monotonic()))  # at once, not at the next tick
 
     def tick(self) -> None:
         """Watchdog and keepalive: write when the output changes or the keepalive is due."""

@@ -69,11 +69,16 @@ class VelocityPidCore:
     max_v: float = 3.9
     stale_s: float = 0.3  # desired velocity older than this → zero effort
     stop_eps: float = 0.02  # |desired| and |measured| below this with a zero goal → exact neutral
+    require_limit: bool = False  # True: no fresh safety limit → desired (0, 0)
+    limit_stale_s: float = 0.5
+    owner: str = "autonomy"  # whose commands count: "autonomy" (CMD_VEL) or "teleop"
     v_pid: PID = field(init=False)
     omega_pid: PID = field(init=False)
     _desired: tuple[float, float] = (0.0, 0.0)
     _desired_t: float = -math.inf
     _active: bool = False
+    _limit: tuple[float, float, float] | None = None  # fwd, rev (> 0), |ω| bounds
+    _limit_t: float = -math.inf
 
     def __post_init__(self) -> None:
         lo = (self.min_v - NEUTRAL_V) / VOLTS_PER_EFFORT
@@ -81,15 +86,40 @@ class VelocityPidCore:
         self.v_pid = PID(*self.v_gains, out_min=lo, out_max=hi)
         self.omega_pid = PID(*self.omega_gains, out_min=lo, out_max=hi)
 
-    def set_desired(self, v: float, omega: float, now_s: float) -> bool:
+    def set_desired(self, v: float, omega: float, now_s: float,
+                    source: str = "autonomy") -> str:
+        """Take a desired velocity from `source`: "ok", "rejected" (not finite) or "not_owner"."""
         if not (math.isfinite(v) and math.isfinite(omega)):
-            return False
+            return "rejected"
+        if source != self.owner:
+            return "not_owner"
         self._desired, self._desired_t = (v, omega), now_s
+        return "ok"
+
+    def set_owner(self, owner: str) -> bool:
+        """Hand the drive to "autonomy" or "teleop"; the previous owner's command is dropped."""
+        if owner not in ("autonomy", "teleop"):
+            return False
+        if owner != self.owner:
+            self.owner, self._desired_t = owner, -math.inf
+        return True
+
+    def set_limit(self, v_fwd: float, v_rev: float, omega: float, now_s: float) -> bool:
+        if not all(math.isfinite(x) and x >= 0 for x in (v_fwd, v_rev, omega)):
+            return False
+        self._limit, self._limit_t = (v_fwd, v_rev, omega), now_s
         return True
 
     def desired(self, now_s: float) -> tuple[float, float] | None:
-        """The desired velocity, or None when it is stale."""
-        return self._desired if now_s - self._desired_t <= self.stale_s else None
+        """The desired velocity within the safety limit, or None when it is stale."""
+        if now_s - self._desired_t > self.stale_s:
+            return None
+        v, omega = self._desired
+        limit = self._limit if now_s - self._limit_t <= self.limit_stale_s else None
+        if limit is None:
+            return (0.0, 0.0) if self.require_limit else (v, omega)
+        fwd, rev, w = limit
+        return min(max(v, -rev), fwd), min(max(omega, -w), w)
 
     def update(self, v_meas: float, omega_meas: float, dt: float, now_s: float) -> PidOutput:
         desired = self.desired(now_s)

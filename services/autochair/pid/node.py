@@ -5,11 +5,20 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from collections.abc import Callable
 
 import msgspec
 
 from autochair.runtime import ConfigError, Node, service_main
-from autochair_msgs import JoystickCommand, Odometry, PidStatus, VelocityCommand, keys
+from autochair_msgs import (
+    CommandOwner,
+    JoystickCommand,
+    Odometry,
+    PidStatus,
+    SafetyLimit,
+    VelocityCommand,
+    keys,
+)
 
 from .core import VelocityPidCore
 
@@ -20,25 +29,49 @@ class PidConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     omega_gains: tuple[float, float, float] = (0.72, 1.08, 0.12)
     min_v: float = 1.1
     max_v: float = 3.9
-    desired_stale_s: float = 0.3  # no desired velocity for this long → zero effort
     d_filter_n: float = 10.0
+    # Drive only within a fresh limit from the safety monitor (stale limit → stop).
+    require_safety_limit: bool = False
 
 
 def start(node: Node, cfg: PidConfig) -> None:
     if any(g < 0 for g in (*cfg.v_gains, *cfg.omega_gains)):
         raise ConfigError("[pid] gains must be ≥ 0")
+    stale = node.stale
     core = VelocityPidCore(v_gains=cfg.v_gains, omega_gains=cfg.omega_gains, min_v=cfg.min_v,
-                           max_v=cfg.max_v, stale_s=cfg.desired_stale_s)
+                           max_v=cfg.max_v, stale_s=stale.desired_velocity_s,
+                           require_limit=cfg.require_safety_limit,
+                           limit_stale_s=stale.safety_limit_s)
     core.v_pid.d_filter_n = core.omega_pid.d_filter_n = cfg.d_filter_n
-    node.health.thresholds.update(desired_stale_s=cfg.desired_stale_s)
+    node.health.thresholds.update(desired_velocity_s=stale.desired_velocity_s,
+                                  safety_limit_s=stale.safety_limit_s)
     lock = threading.Lock()
     joy_pub = node.publisher(keys.JOYSTICK)
     status_pub = node.publisher(keys.PID_STATUS)
 
-    def on_desired(cmd: VelocityCommand) -> None:
+    def desired_from(source: str) -> Callable[[VelocityCommand], None]:
+        def on_desired(cmd: VelocityCommand) -> None:
+            with lock:
+                result = core.set_desired(cmd.v_mps, cmd.omega_radps, time.monotonic(), source)
+            node.health.count(f"desired_{result}")
+
+        return on_desired
+
+    def on_owner(msg: CommandOwner) -> None:
         with lock:
-            ok = core.set_desired(cmd.v_mps, cmd.omega_radps, time.monotonic())
-        node.health.count("desired" if ok else "rejected_desired")
+            previous = core.owner
+            ok = core.set_owner(msg.owner)
+        if not ok:
+            node.health.count("rejected_owner")
+        elif msg.owner != previous:
+            node.event("warning", f"drive handed to {msg.owner} by {msg.by or '?'}")
+            node.health.detail = f"owner {msg.owner}"
+
+    def on_limit(msg: SafetyLimit) -> None:
+        with lock:
+            ok = core.set_limit(msg.v_max_fwd_mps, msg.v_max_rev_mps, msg.omega_max_radps,
+                                time.monotonic())
+        node.health.count("limits" if ok else "rejected_limits")
 
     def on_odom(odom: Odometry) -> None:
         now = time.monotonic()
@@ -58,7 +91,11 @@ def start(node: Node, cfg: PidConfig) -> None:
             active=out.active, saturated=sat))
         node.health.count("updates")
 
-    node.subscribe(keys.CMD_VEL, on_desired)
+    node.health.detail = "owner autonomy"
+    node.subscribe(keys.CMD_VEL, desired_from("autonomy"))
+    node.subscribe(keys.TELEOP, desired_from("teleop"))
+    node.subscribe(keys.CMD_OWNER, on_owner)
+    node.subscribe(keys.SAFETY_LIMIT, on_limit)
     node.subscribe(keys.ODOM, on_odom)
 
 

@@ -64,6 +64,27 @@ class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         return cfg
 
 
+class StaleConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """Every stale threshold of the watchdog chain, in one place: the [stale] section.
+
+    Set from the command line of any service with `--set stale.joystick_s=0.2`.
+    """
+
+    joystick_s: float = 0.1  # gateway: no valid joystick command → neutral
+    estop_s: float = 0.5  # gateway: no e-stop heartbeat → neutral
+    desired_velocity_s: float = 0.3  # velocity PID: no desired velocity → zero effort
+    odometry_s: float = 0.3  # control law: no odometry → abort the goal and stop
+    scan_s: float = 0.5  # safety monitor: no laser scan → stop
+    safety_limit_s: float = 0.5  # velocity PID: no safety limit (when required) → stop
+    firmware_host_s: float = 0.2  # Arduino: no host frame → neutral (fixed in the firmware)
+
+    def validate(self) -> StaleConfig:
+        for name in self.__struct_fields__:
+            if not 0 < getattr(self, name) <= 10:
+                raise ConfigError(f"[stale] {name} must be within (0, 10] s")
+        return self
+
+
 def _parse_value(text: str) -> Any:
     """A `--set` value: TOML syntax if it parses (numbers, booleans, arrays), else a string."""
     try:

@@ -17,7 +17,7 @@ import zenoh
 
 from autochair_msgs import Health, LogEvent, keys
 
-from .config import ConfigError, ZenohSettings, load_section, load_zenoh
+from .config import ConfigError, StaleConfig, ZenohSettings, load_section, load_zenoh
 
 T = TypeVar("T", bound=msgspec.Struct)
 C = TypeVar("C")
@@ -87,8 +87,10 @@ class Publisher:
 class Node:
     """What every service process has. Callbacks run on Zenoh threads: keep them short."""
 
-    def __init__(self, name: str, settings: ZenohSettings | None = None) -> None:
+    def __init__(self, name: str, settings: ZenohSettings | None = None,
+                 stale: StaleConfig | None = None) -> None:
         self.name = name
+        self.stale = stale or StaleConfig()  # the watchdog chain's thresholds ([stale])
         self.log = logging.getLogger(name)
         self.stop_event = threading.Event()
         self.health = HealthState(name)
@@ -137,6 +139,20 @@ class Node:
 
         sub = self.session.declare_subscriber(key or topic.key, on_sample)
         self._closers.append(sub.undeclare)
+
+    def queryable(self, topic: keys.Topic[Any], handler: Callable[[zenoh.Query], None]) -> None:
+        """Serve queries on a `kind="query"` row; the handler must reply and return quickly."""
+
+        def guarded(query: zenoh.Query) -> None:
+            try:
+                handler(query)
+            except Exception as e:
+                self.health.count("query_errors")
+                self.health.fault(f"{type(e).__name__}: {e}")
+                self.log.exception("query on %s failed", topic.key)
+
+        q = self.session.declare_queryable(topic.key, guarded)
+        self._closers.append(q.undeclare)
 
     def event(self, level: str, message: str) -> None:
         """Log locally and publish a LogEvent (warnings and worse also become `last_fault`)."""
@@ -233,15 +249,18 @@ def service_main(
     parser = argparse.ArgumentParser(prog=f"autochair-{name}", description=description)
     parser.add_argument("--config", help="TOML config file (default: $AUTOCHAIR_CONFIG)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help=f"override a [{name}] setting; repeatable")
+                        help=f"override a [{name}] setting (or stale.KEY); repeatable")
     parser.add_argument("--connect", help="Zenoh endpoint(s) of the hub, comma-separated")
     parser.add_argument("--log-level", default="INFO")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
+    own = [o for o in args.set if not o.startswith("stale.")]
+    stale_overrides = [o.removeprefix("stale.") for o in args.set if o.startswith("stale.")]
     try:
-        config = load_section(config_type, name, args.config, args.set)
+        config = load_section(config_type, name, args.config, own)
+        stale = load_section(StaleConfig, "stale", args.config, stale_overrides).validate()
         settings = load_zenoh(args.config, args.connect)
-        node = Node(name, settings)
+        node = Node(name, settings, stale)
     except ConfigError as e:
         print(f"autochair-{name}: error: {e}", file=sys.stderr)
         return 2

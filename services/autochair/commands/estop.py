@@ -1,0 +1,85 @@
+"""`autochair estop [REASON]` latches the e-stop; `autochair release` asks to clear it."""
+
+from __future__ import annotations
+
+import argparse
+import getpass
+import socket
+import time
+from typing import Any
+
+from autochair.cli import CliError
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser(
+        "estop", help="latch the e-stop: the chair holds neutral until released")
+    p.add_argument("reason", nargs="?", default="operator", help="why (shown to everyone)")
+    p.add_argument("--connect", help="Zenoh endpoint of the hub")
+    p.set_defaults(func=run_estop)
+    r: argparse.ArgumentParser = sub.add_parser(
+        "release", help="release the e-stop (refused while a cause remains)")
+    r.add_argument("--connect", help="Zenoh endpoint of the hub")
+    r.set_defaults(func=run_release)
+
+
+def _who() -> str:
+    return f"{getpass.getuser()}@{socket.gethostname()}"
+
+
+def run_estop(args: argparse.Namespace) -> int:
+    import msgspec
+
+    from autochair.runtime.client import open_client
+    from autochair.runtime.config import ConfigError
+    from autochair_msgs import EStopAssert, EStopState, keys
+
+    try:
+        session = open_client(args.connect)
+    except ConfigError as e:
+        raise CliError(str(e)) from None
+    try:
+        states: list[EStopState] = []
+        dec = msgspec.msgpack.Decoder(EStopState)
+        session.declare_subscriber(keys.ESTOP_STATE.key,
+                                   lambda s: states.append(dec.decode(s.payload.to_bytes())))
+        msg = EStopAssert(stamp_ns=time.time_ns(), source=f"cli:{_who()}", reason=args.reason)
+        pub = session.declare_publisher(keys.ESTOP_ASSERT.key)
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline and not (states and states[-1].latched):
+            pub.put(msgspec.msgpack.encode(msg))  # repeated until confirmed: a lost sample
+            time.sleep(0.1)                       # must not leave the chair moving
+        if not (states and states[-1].latched):
+            raise CliError("no e-stop service confirmed the latch (is it running? "
+                           "`autochair status`)")
+        print(f"e-stop LATCHED ({args.reason}); `autochair release` to clear")
+    finally:
+        session.close()
+    return 0
+
+
+def run_release(args: argparse.Namespace) -> int:
+    import msgspec
+
+    from autochair.runtime.client import open_client
+    from autochair.runtime.config import ConfigError
+    from autochair_msgs import EStopRelease, EStopReply, keys
+
+    try:
+        session = open_client(args.connect)
+    except ConfigError as e:
+        raise CliError(str(e)) from None
+    try:
+        replies = list(session.get(keys.ESTOP_RELEASE.key,
+                                   payload=msgspec.msgpack.encode(EStopRelease(by=_who())),
+                                   timeout=3.0))
+        ok = [r.ok for r in replies if r.ok is not None]
+        if not ok:
+            raise CliError("no e-stop service answered (is it running? `autochair status`)")
+        reply = msgspec.msgpack.decode(ok[0].payload.to_bytes(), type=EStopReply)
+        if not reply.ok:
+            raise CliError(f"release {reply.error}")
+        print("e-stop released")
+    finally:
+        session.close()
+    return 0
