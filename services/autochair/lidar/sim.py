@@ -76,7 +76,7 @@ class UrgDevice:
         return 1.0 / self.p.scan_rate_hz
 
     def clock_ms(self, now_s: float) -> int:
-        return (self.clock_start_ms + int(now_s * 1000.0)) & 0xFFFFFF
+        return (self.clock_start_ms + round(now_s * 1000.0)) & 0xFFFFFF
 
     # --- requests ----------------------------------------------------------------------------
     def handle(self, line: bytes, now_s: float) -> bytes:
@@ -169,11 +169,12 @@ class UrgDevice:
             self._remaining -= 1
             if self._remaining <= 0:
                 self.stream = None
-        out.append(self.scan_block(req, max(self._remaining, 0) if req.count else 0, now_s))
+        slot = t_scan + missed * self.period_s  # when this scan finished
+        out.append(self.scan_block(req, max(self._remaining, 0) if req.count else 0, slot))
         return out
 
-    def scan_block(self, req: scip.ScanRequest, remaining: int, now_s: float) -> bytes:
-        raw = self.scan_fn(now_s)  # steps AMIN..AMAX
+    def scan_block(self, req: scip.ScanRequest, remaining: int, end_s: float) -> bytes:
+        raw = self.scan_fn(end_s)  # steps AMIN..AMAX
         steps = np.arange(req.start, req.end + 1)
         vals = np.full(steps.size, ERR_NO_RETURN, dtype=np.int64)
         inside = (steps >= self.p.amin) & (steps <= self.p.amax)
@@ -186,7 +187,7 @@ class UrgDevice:
             vals = np.minimum(vals, 4095)
         self.scans_sent += 1
         # The timestamp is when the scan started, one period before it is sent.
-        stamp = self.clock_ms(max(now_s - self.period_s, 0.0))
+        stamp = self.clock_ms(max(end_s - self.period_s, 0.0))
         return scip.encode_scan(req, remaining, stamp, vals)
 
 

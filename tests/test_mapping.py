@@ -1,0 +1,107 @@
+"""Mapping core on simulated scans of the default hallway, from known poses (pure)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from autochair.lidar.sim import UrgParams, ray_scan
+from autochair.lidar.world import load_world
+from autochair.mapping.core import (
+    GridSpec,
+    OccupancyMapper,
+    OdomBuffer,
+    VoxelCloud,
+    compose,
+    scan_points,
+)
+from autochair_msgs import Odometry
+
+MOUNT = (0.8636, 0.2032, 0.0)
+POSES = [(0.0, 0.0, 0.0), (2.5, 0.3, 0.4), (5.0, -0.2, 0.0), (7.5, 0.0, -0.5),
+         (10.0, 0.2, 0.0), (12.5, 0.0, 0.6), (15.0, -0.3, 0.0), (18.0, 0.0, 0.0),
+         (20.5, 0.4, math.pi), (8.0, 0.0, math.pi)]
+
+
+def build_map(res: float = 0.05) -> tuple[OccupancyMapper, list[np.ndarray]]:
+    world, params = load_world(), UrgParams()
+    rng = np.random.default_rng(7)
+    mapper = OccupancyMapper(GridSpec(res, 30.0, 12.0, -5.0, -6.0))
+    inc = 2 * math.pi / params.ares
+    amin = (params.amin - params.afrt) * inc
+    hits = []
+    for pose in POSES:
+        laser = compose(pose, MOUNT)
+        for _ in range(3):
+            raw = ray_scan(world, params, pose, MOUNT, 0.01, rng)
+            r = np.where(raw < params.dmin_mm, np.nan, raw / 1000.0)
+            mapper.integrate(r, amin, inc, laser)
+        clean = ray_scan(world, params, pose, MOUNT, 0.0, rng)
+        hits.append(scan_points(np.where(clean < 20, np.nan, clean / 1000.0), amin, inc, laser))
+    return mapper, hits
+
+
+def test_occupied_cells_lie_on_the_walls_within_one_cell() -> None:
+    mapper, _ = build_map()
+    occ = mapper.occupied()
+    assert occ.sum() > 1000  # a real map, not a handful of cells
+    d = load_world().distance_to(mapper.cell_centres(occ))
+    # A cell "on" a wall contains it: its centre is within half a diagonal; one cell of slack.
+    assert d.max() <= mapper.res * (1 + math.sqrt(2) / 2), f"stray cell {d.max():.3f} m off"
+
+
+def test_walls_seen_are_occupied_within_one_cell() -> None:
+    mapper, hits = build_map()
+    occ = mapper.occupied()
+    pts = np.concatenate(hits)
+    dil = occ.copy()  # occupied or next to an occupied cell
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            dil |= np.roll(np.roll(occ, dy, 0), dx, 1)
+    cells = mapper.cells(pts)
+    cells = cells[cells >= 0]
+    covered = dil.reshape(-1)[cells].mean()
+    assert covered >= 0.98, f"only {covered:.1%} of wall returns are mapped"
+
+
+def test_free_space_in_the_hallway_is_free() -> None:
+    mapper, _ = build_map()
+    cells = mapper.cells(np.array([[1.0, 0.0], [4.5, -1.0], [9.0, -0.5], [16.0, 1.0]]))
+    assert (mapper.logodds.reshape(-1)[cells] < -1.0).all()
+
+
+def test_grid_message_and_unknown_cells() -> None:
+    mapper, _ = build_map(0.1)
+    msg = mapper.to_msg(1, "world")
+    data = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.width)
+    assert (msg.width, msg.height) == (300, 120)
+    assert data[0, 0] == 255  # far corner never observed
+    ix = int((3.0 + 5.0) / 0.1)  # the left wall at x=3, y=1.4 (row of y 1.4)
+    iy = int((1.4 + 6.0) / 0.1)
+    assert data[iy - 1:iy + 1, ix].max() > 60
+
+
+def test_voxel_cloud_is_bounded_and_deduplicated() -> None:
+    cloud = VoxelCloud(0.1, max_points=50)
+    cloud.add(np.array([[0.01, 0.01], [0.02, 0.03], [0.5, 0.5]]), 0.4)
+    assert len(cloud) == 2
+    cloud.add(np.random.default_rng(0).uniform(-10, 10, (500, 2)), 0.4)
+    msg = cloud.to_msg(1)
+    assert len(cloud) == 50 and msg.count == 50 and len(msg.points_xyz_f32) == 50 * 12
+
+
+def test_odom_lookup_nearest_and_stale() -> None:
+    buf = OdomBuffer()
+    for k in range(10):
+        buf.add(Odometry(stamp_ns=k * 5_000_000, x_m=k * 0.01, y_m=0.0, yaw_rad=0.0,
+                         v_mps=0.0, omega_radps=0.0))
+    pose = buf.nearest(21_000_000, 10_000_000)
+    assert pose is not None and pose[0] == pytest.approx(0.04)
+    assert buf.nearest(500_000_000, 100_000_000) is None
+
+
+def test_compose_mount() -> None:
+    x, y, yaw = compose((1.0, 2.0, math.pi / 2), MOUNT)
+    assert (x, y, yaw) == pytest.approx((1.0 - 0.2032, 2.0 + 0.8636, math.pi / 2))
