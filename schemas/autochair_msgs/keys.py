@@ -26,6 +26,7 @@ from .drive import (
 from .lidar import LaserScan, OccupancyGrid, PointCloud
 from .nav import GoalReply, GoalRequest, GoalStatus
 from .safety import EStopAssert, EStopRelease, EStopReply, EStopState, SafetyLimit
+from .sim import SimFault, SimFaultReply
 
 T = TypeVar("T", bound=msgspec.Struct)
 
@@ -73,6 +74,9 @@ PID_STATUS = Topic("autochair/pid/status", PidStatus, 200, True,
                    "Velocity loops: desired, measured, effort (velocity PID)")
 SIM_TRUTH = Topic("autochair/sim/truth", GroundTruth, 100, True,
                   "Simulator ground truth (simulator only)")
+SIM_FAULT = Topic("autochair/sim/fault", SimFault, None, False,
+                  "Inject a link fault into the simulator (query; reply SimFaultReply)",
+                  kind="query", reply=SimFaultReply)
 
 # --- navigation ----------------------------------------------------------------------------
 GOAL_SET = Topic("autochair/goal/set", GoalRequest, None, False,
