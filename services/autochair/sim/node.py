@@ -1,0 +1,223 @@
+"""autochair-sim: the simulated chair + Arduino on a pty, speaking the real serial protocol.
+
+The host side (gateway) opens the pty through the symlink `pty_link`, exactly as it would open
+/dev/ttyACM0. Ground truth goes out on keys.SIM_TRUTH. Faults for tests come in on the query
+key keys.SIM_FAULT (SimFault: "unplug" for duration_s, "replug", "garbage" of count bytes).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import random
+import sys
+import time
+import tty
+from collections import deque
+
+import msgspec
+import zenoh
+
+from autochair.runtime import ConfigError, Node, service_main
+from autochair.sim.firmware import Firmware
+from autochair.sim.model import ChairModel, ChairParams
+from autochair_msgs import GroundTruth, keys
+from autochair_msgs.sim import SimFault, SimFaultReply
+
+
+class SimConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """[sim] section."""
+
+    pty_link: str  # symlink created to point at the pty slave (the "serial port")
+    telemetry_rate_hz: float = 200.0  # telemetry frames per simulated second (= model rate)
+    time_scale: float = 1.0  # simulated seconds per wall second (>1: faster than real time)
+    truth_rate_hz: float = 100.0  # ground truth per simulated second
+    seed: int = 0  # noise and garbage bytes
+    noise: bool = False  # wheel-speed noise and encoder slip in the model
+
+
+class PtyPort:
+    """The master side of a pty with a symlink to its slave; survives hosts coming and going."""
+
+    def __init__(self, link: str) -> None:
+        self.link = link
+        self.fd = -1
+        self.slave_name = ""
+
+    def open(self) -> None:
+        master, slave = os.openpty()
+        tty.setraw(slave)  # persists after we close the slave; the host reopens it
+        self.slave_name = os.ttyname(slave)
+        os.close(slave)  # hold no slave fd: EIO on read then tells us no host is attached
+        os.set_blocking(master, False)
+        self.fd = master
+        self._unlink()
+        os.symlink(self.slave_name, self.link)
+
+    def _unlink(self) -> None:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self.link)
+
+    def close(self) -> None:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+        with contextlib.suppress(OSError):
+            if os.readlink(self.link) == self.slave_name:
+                os.unlink(self.link)
+
+    def read(self) -> bytes | None:
+        """All pending host bytes; None when no host has the slave open."""
+        chunks = []
+        while True:
+            try:
+                data = os.read(self.fd, 4096)
+            except BlockingIOError:
+                break
+            except OSError as e:
+                if e.errno == errno.EIO:
+                    return None
+                raise
+            if not data:
+                break
+            chunks.append(data)
+        return b"".join(chunks)
+
+    def write(self, data: bytes) -> bool:
+        """False when the host is not reading (buffer full): the frame is dropped."""
+        try:
+            return os.write(self.fd, data) == len(data)
+        except (BlockingIOError, InterruptedError):
+            return False
+        except OSError as e:
+            if e.errno == errno.EIO:
+                return False
+            raise
+
+
+class Simulator:
+    """The loop: host bytes -> firmware -> model -> telemetry frame, one tick per 1/rate."""
+
+    def __init__(self, node: Node, cfg: SimConfig) -> None:
+        self.node, self.cfg = node, cfg
+        self.dt = 1.0 / cfg.telemetry_rate_hz
+        self.model = ChairModel(ChairParams(noise=cfg.noise, seed=cfg.seed))
+        self.fw = Firmware()
+        self.port = PtyPort(cfg.pty_link)
+        self.t = 0.0
+        self._rng = random.Random(cfg.seed)
+        self._truth_period = 1.0 / cfg.truth_rate_hz
+        self._next_truth = 0.0
+        self._truth_pub = node.publisher(keys.SIM_TRUTH)
+        self._faults: deque[SimFault] = deque()
+        self._unplugged_until: float | None = None
+        self._host_present = False
+        self._reported: dict[str, int] = {}
+
+    # --- faults (Zenoh thread enqueues, loop thread applies) --------------------------------
+    def on_fault(self, query: zenoh.Query) -> None:
+        try:
+            payload = query.payload.to_bytes() if query.payload is not None else b""
+            fault = msgspec.msgpack.decode(payload, type=SimFault)
+            if fault.kind not in ("unplug", "replug", "garbage"):
+                raise ValueError(f"unknown fault kind {fault.kind!r}")
+        except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as e:
+            self.node.health.count("bad_fault_requests")
+            reply = SimFaultReply(ok=False, detail=str(e))
+        else:
+            self._faults.append(fault)
+            reply = SimFaultReply(ok=True, detail=f"{fault.kind} queued")
+        query.reply(query.key_expr, msgspec.msgpack.encode(reply))
+
+    def _apply_faults(self) -> None:
+        while self._faults:
+            f = self._faults.popleft()
+            if f.kind == "unplug":
+                if self.port.fd >= 0:
+                    self.port.close()
+                    self.node.health.count("unplugs")
+                self._unplugged_until = time.monotonic() + max(f.duration_s, 0.0)
+                self.node.event("warning", f"fault: pty unplugged for {f.duration_s} s")
+            elif f.kind == "replug":
+                self._unplugged_until = time.monotonic()
+            elif f.kind == "garbage" and self.port.fd >= 0:
+                junk = bytes(self._rng.randrange(256) for _ in range(max(f.count, 0)))
+                self.port.write(junk)
+                self.node.health.count("garbage_bytes_out", len(junk))
+        if self._unplugged_until is not None and time.monotonic() >= self._unplugged_until:
+            self._unplugged_until = None
+            self.port.open()
+            self.node.event("info", f"fault: pty replugged at {self.port.slave_name}")
+
+    # --- the loop -------------------------------------------------------------------------
+    def tick(self) -> None:
+        self._apply_faults()
+        if self.port.fd >= 0:
+            data = self.port.read()
+            present = data is not None
+            if present != self._host_present:
+                self._host_present = present
+                self.node.event("info", "host attached" if present else "host detached")
+            if data:
+                self.fw.receive(data, self.t)
+        else:
+            self._host_present = False
+        self.model.step(*self.fw.output_volts, self.dt)
+        self.t += self.dt
+        wire = self.fw.tick(self.t, self.model.left_counts, self.model.right_counts)
+        if not self._host_present:
+            self.node.health.count("frames_unread")  # a UART talking to nobody
+        elif self.port.write(wire):
+            self.node.health.count("frames_out")
+        else:
+            self.node.health.count("frames_dropped_host_not_reading")
+        if self.t + 1e-9 >= self._next_truth:
+            self._next_truth += self._truth_period
+            self._publish_truth()
+        self._report_counters()
+
+    def _publish_truth(self) -> None:
+        m = self.model
+        lv, av = self.fw.output_volts
+        self._truth_pub.put(GroundTruth(
+            stamp_ns=time.time_ns(), sim_time_s=self.t, x_m=m.x, y_m=m.y, yaw_rad=m.yaw,
+            v_mps=m.v, omega_radps=m.omega, longitudinal_v=lv, angular_v=av))
+
+    def _report_counters(self) -> None:
+        c = self.fw.counters
+        for name, value in (("host_frames", c.host_frames), ("host_bad_frames",
+                            c.host_bad_frames), ("host_timeouts", c.host_timeouts),
+                            ("rejected_commands", c.rejected_commands)):
+            delta = value - self._reported.get(name, 0)
+            if delta:
+                self.node.health.count(name, delta)
+                self._reported[name] = value
+
+
+def start(node: Node, cfg: SimConfig) -> None:
+    if cfg.telemetry_rate_hz <= 0 or cfg.truth_rate_hz <= 0 or cfg.time_scale <= 0:
+        raise ConfigError("[sim] telemetry_rate_hz, truth_rate_hz and time_scale must be > 0")
+    sim = Simulator(node, cfg)
+    try:
+        sim.port.open()
+    except OSError as e:
+        raise ConfigError(f"cannot create pty link {cfg.pty_link}: {e.strerror}") from None
+    node._closers.append(sim.port.close)  # after the loop thread has stopped
+    for name in ("frames_out", "host_frames", "host_bad_frames", "host_timeouts"):
+        node.health.count(name, 0)
+    node.health.thresholds.update({"telemetry_rate_hz": cfg.telemetry_rate_hz,
+                                   "time_scale": cfg.time_scale,
+                                   "firmware_watchdog_s": sim.fw.watchdog_s})
+    node.health.detail = f"pty {sim.port.slave_name} via {cfg.pty_link}"
+    q = node.session.declare_queryable(keys.SIM_FAULT.key, sim.on_fault)
+    node._closers.append(q.undeclare)
+    node.every(sim.dt / cfg.time_scale, sim.tick, "sim")
+
+
+def main(argv: list[str] | None = None) -> int:
+    return service_main("sim", SimConfig, start, argv, description=__doc__ or "")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
