@@ -68,6 +68,7 @@ def test_sim_node_telemetry_truth_and_unplug(
             return None  # the hub is still starting
 
     session = wait_for(try_open, 20, "zenoh hub", interval=0.2)
+    assert session is not None
     try:
         truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
         wait_for(link.exists, 20, "pty link")
