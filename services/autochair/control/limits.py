@@ -45,7 +45,7 @@ class SCurveAxis:
         """
         e = abs(error)
         jd = self.jmax * dt
-        m = -0.5 + math.sqrt(0.25 + 2.0 * e / (jd * dt))
+        m = math.floor(-0.5 + math.sqrt(0.25 + 2.0 * e / (jd * dt)) + 1e-9)  # whole steps: no overshoot
         return math.copysign(min(self.amax, m * jd), error)
 
     def step(self, target: float, dt: float) -> float:

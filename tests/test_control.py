@@ -1,0 +1,302 @@
+"""Smooth control law: pure law, comfort limiter, goal manager (no processes)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from autochair.control.core import ControlConfig, ControlCore, OdomSample
+from autochair.control.law import Gains, braking_speed, egocentric, park_kuipers, wrap
+from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
+from autochair_msgs import GoalRequest, Pose2D
+
+DT = 0.005
+
+
+# --- law --------------------------------------------------------------------------------------
+def test_wrap_is_half_open() -> None:
+    assert wrap(math.pi) == pytest.approx(math.pi)
+    assert wrap(-math.pi) == pytest.approx(math.pi)
+    assert wrap(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
+
+
+def test_egocentric_uses_atan2_for_a_goal_behind() -> None:
+    # atan((0-0)/(-2-0)) = 0 would put this goal straight ahead; it is behind (δ = ±π).
+    r, theta, delta = egocentric(0, 0, 0, -2, 0, 0)
+    assert r == 2
+    assert abs(delta) == pytest.approx(math.pi)
+    assert abs(theta) == pytest.approx(math.pi)
+
+
+def test_law_matches_reference_formula_and_has_no_fudge() -> None:
+    g = Gains()
+    out = park_kuipers(0, 0, 0.3, 3, 1, 0.5, g)
+    alpha = math.atan2(1, 3)
+    th, de = 0.5 - alpha, 0.3 - alpha
+    kappa = -(1 / math.hypot(3, 1)) * (g.k2 * (de - math.atan(-g.k1 * th))
+                                       + (1 + g.k1 / (1 + (g.k1 * th) ** 2)) * math.sin(de))
+    v = min(g.vmax_mps * math.hypot(3, 1) / g.r_thresh_m, g.vmax_mps / (1 + g.beta * kappa**2))
+    assert out.kappa_1pm == pytest.approx(kappa)
+    assert out.v_mps == pytest.approx(v)
+    assert out.omega_radps == pytest.approx(kappa * v)  # ω = κ·v, not 4·κ·v
+
+
+def test_braking_speed_is_consistent_with_the_stop_distance() -> None:
+    a, j = 1.0, 2.0
+    for d in (0.01, 0.1, 0.5, 2.0):
+        v = braking_speed(d, a, j)
+        t = v / a + a / j if v >= a * a / j else 2 * math.sqrt(v / j)
+        assert v * t / 2 == pytest.approx(d, rel=1e-6)
+
+
+# --- pure convergence (kinematic plant with a first-order lag) -------------------------------
+def drive(start: tuple[float, float, float], goal: tuple[float, float, float],
+          lag_s: float = 0.1, timeout_s: float = 60.0) -> dict[str, float]:
+    """Run the core against a unicycle whose velocities lag the commands."""
+    x, y, yaw = start
+    v = w = 0.0
+    # The pose prediction horizon is matched to the plant's lag, as it should be on a chair.
+    core = ControlCore(ControlConfig(predict_s=lag_s))
+    core.on_odom(OdomSample(x, y, yaw, 0, 0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+    t, arrived_t, k = 0.0, -1.0, 0
+    cmd = (0.0, 0.0)
+    omegas: list[tuple[float, float]] = []  # (distance to goal, ω)
+    while t < timeout_s:
+        core.on_odom(OdomSample(x, y, yaw, v, w, t))
+        if k % 4 == 0:  # control at 50 Hz, plant at 200 Hz
+            out = core.step(t)
+            cmd = out if out is not None else (0.0, 0.0)
+        v += (cmd[0] - v) * (1 - math.exp(-DT / lag_s))
+        w += (cmd[1] - w) * (1 - math.exp(-DT / lag_s))
+        x += v * math.cos(yaw + w * DT / 2) * DT
+        y += v * math.sin(yaw + w * DT / 2) * DT
+        yaw = wrap(yaw + w * DT)
+        omegas.append((math.hypot(goal[0] - x, goal[1] - y), w))
+        t += DT
+        k += 1
+        if core.state != "active" and arrived_t < 0:
+            arrived_t = t
+        if arrived_t >= 0 and t - arrived_t > 1.0:
+            break
+    # ω sign reversals once within 0.5 m of the goal (for good, not just passing by)
+    last_far = max((i for i, (r, _) in enumerate(omegas) if r > 0.5), default=0)
+    sign, rev = 0, 0
+    for _, wi in omegas[last_far:]:
+        if abs(wi) > 0.05:
+            s = 1 if wi > 0 else -1
+            rev += bool(sign and s != sign)
+            sign = s
+    return {"state_ok": float(core.state == "arrived"), "t": arrived_t,
+            "pos": math.hypot(goal[0] - x, goal[1] - y),
+            "yaw": abs(wrap(goal[2] - yaw)), "rev": rev}
+
+
+GRID = [(gx, gy, math.radians(gyaw)) for gx, gy in
+        [(3, 0), (-3, 0), (0, 3), (0, -3), (2, 2), (-2, -2), (1, 0), (-1, 0), (0, 1), (0.4, 0.4)]
+        for gyaw in (0, 90, 180, -90)]
+
+
+@pytest.mark.parametrize("goal", GRID, ids=lambda g: f"{g[0]},{g[1]},{math.degrees(g[2]):.0f}")
+def test_converges_from_a_grid_of_start_poses(goal: tuple[float, float, float]) -> None:
+    r = drive((0.0, 0.0, 0.0), goal)
+    assert r["state_ok"], f"did not arrive: {r}"
+    assert r["pos"] <= 0.05 and r["yaw"] <= math.radians(3.0), r
+    assert r["rev"] <= 1, f"ω oscillates on the final approach: {r}"  # one S-bend allowed
+
+
+@pytest.mark.parametrize("goal", [(-2.0, 0.0, 0.0), (-2.0, 0.0, math.pi), (0.0, 2.0, 0.0),
+                                  (0.0, -2.0, 0.0), (0.0, 0.5, 0.0)],
+                         ids=["behind", "behind-uturn", "left", "right", "left-near"])
+def test_goals_behind_and_beside_the_chair(goal: tuple[float, float, float]) -> None:
+    r = drive((0.0, 0.0, 0.0), goal)
+    assert r["state_ok"] and r["pos"] <= 0.05 and r["yaw"] <= math.radians(3.0), r
+    assert r["t"] < 30.0, r
+
+
+def test_straight_goal_does_not_overshoot() -> None:
+    for d in (0.3, 1.0, 2.0, 5.0):
+        core = ControlCore()
+        x = v = 0.0
+        core.on_odom(OdomSample(0, 0, 0, 0, 0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(d, 0, 0)]), 0.0).ok
+        t, peak = 0.0, 0.0
+        while core.state == "active" and t < 30:
+            core.on_odom(OdomSample(x, 0, 0, v, 0, t))
+            out = core.step(t)
+            v = out[0] if out else 0.0
+            x += v * 0.02
+            peak = max(peak, x)
+            t += 0.02
+        assert core.state == "arrived"
+        assert peak <= d + 0.005, f"overshot {d} m by {peak - d:.3f} m"
+
+
+# --- limiter ----------------------------------------------------------------------------------
+def check_axis(values: list[float], dts: list[float], vmax: float, amax: float,
+               jmax: float) -> None:
+    tol = 1e-6
+    rates = [(values[i + 1] - values[i]) / dts[i] for i in range(len(dts))]
+    assert max(abs(x) for x in values) <= vmax + tol
+    assert max(abs(a) for a in rates) <= amax + tol
+    jerks = [(rates[i + 1] - rates[i]) / dts[i + 1] for i in range(len(rates) - 1)]
+    if jerks:
+        assert max(abs(j) for j in jerks) <= jmax + 1e-3, max(abs(j) for j in jerks)
+
+
+targets = st.lists(st.tuples(st.floats(-2, 2), st.floats(-2, 2), st.integers(1, 80)),
+                   min_size=1, max_size=12)
+
+
+@settings(max_examples=150, deadline=None)
+@given(targets, st.sampled_from([0.005, 0.02, 0.05]))
+def test_limits_never_exceeded(seq: list[tuple[float, float, int]], dt: float) -> None:
+    lim = ComfortLimits()
+    limiter = ComfortLimiter(lim)
+    vs, ws = [0.0], [0.0]
+    for v_t, w_t, n in seq:
+        for _ in range(n):
+            v, w = limiter.step(v_t, w_t, dt)
+            vs.append(v)
+            ws.append(w)
+    dts = [dt] * (len(vs) - 1)
+    check_axis(vs, dts, lim.v_max_mps, lim.a_max_mps2, lim.jerk_max_mps3)
+    check_axis(ws, dts, lim.omega_max_radps, lim.omega_acc_max_radps2,
+               lim.omega_jerk_max_radps3)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.floats(-1.5, 1.5), st.floats(0.002, 0.05)), min_size=2,
+                max_size=300))
+def test_axis_limits_hold_with_jittery_dt(seq: list[tuple[float, float]]) -> None:
+    ax = SCurveAxis(1.2, 1.0, 2.0)
+    values, dts = [0.0], []
+    for target, dt in seq:
+        values.append(ax.step(target, dt))
+        dts.append(dt)
+    # with varying dt the jerk bound holds against the later step's dt
+    check_axis(values, dts, 1.2, 1.0, 2.0)
+
+
+@given(st.floats(0.01, 1.2), st.floats(-1.0, 1.0), st.sampled_from([0.005, 0.02]))
+def test_axis_reaches_a_reachable_target_without_overshoot(target: float, start_rate: float,
+                                                           dt: float) -> None:
+    ax = SCurveAxis(1.2, 1.0, 2.0)
+    ax.reset(0.0, 0.0)
+    for _ in range(round(10 / dt)):
+        ax.step(target, dt)
+        assert ax.value <= target + 1e-9
+    assert ax.value == target and ax.rate == 0.0
+
+
+def test_limiter_keeps_curvature_while_v_ramps() -> None:
+    limiter = ComfortLimiter()
+    for _ in range(20):
+        v, w = limiter.step(1.0, 0.5, 0.02)  # κ = 0.5 1/m
+        if v > 0.05:
+            assert w / v == pytest.approx(0.5, rel=0.35)
+
+
+# --- goal manager -----------------------------------------------------------------------------
+def fresh_core(cfg: ControlConfig | None = None) -> ControlCore:
+    core = ControlCore(cfg)
+    core.on_odom(OdomSample(0, 0, 0, 0, 0, 0.0))
+    return core
+
+
+@pytest.mark.parametrize("req,needle", [
+    (GoalRequest(waypoints=[]), "no waypoints"),
+    (GoalRequest(waypoints=[Pose2D(math.nan, 0, 0)]), "not finite"),
+    (GoalRequest(waypoints=[Pose2D(1, 0, math.inf)]), "not finite"),
+    (GoalRequest(waypoints=[Pose2D(1, 0, 0)], tolerance_m=0.0), "tolerance_m"),
+    (GoalRequest(waypoints=[Pose2D(1, 0, 0)], tolerance_rad=-1.0), "tolerance_rad"),
+    (GoalRequest(waypoints=[Pose2D(1, 0, 0)], vmax_mps=5.0), "exceeds"),
+])
+def test_invalid_goals_are_rejected_with_a_reason(req: GoalRequest, needle: str) -> None:
+    core = fresh_core()
+    reply = core.set_goal(req, 0.0)
+    assert not reply.ok and needle in reply.error
+    assert core.state == "idle" and core.counters["rejected_goals"] == 1
+
+
+def test_idle_publishes_nothing_and_cancel_without_goal() -> None:
+    core = fresh_core()
+    assert core.step(0.0) is None and core.step(0.02) is None
+    reply = core.cancel(0.02)
+    assert reply.ok and reply.goal_id == 0 and "no active goal" in reply.error
+
+
+def test_stale_odometry_aborts_and_brakes_within_limits() -> None:
+    core = fresh_core()
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+    t, vs = 0.0, []
+    while t < 2.0:  # drive with fresh odometry
+        core.on_odom(OdomSample(0.5 * t, 0, 0, 0.0, 0, t))
+        out = core.step(t)
+        assert out is not None
+        vs.append(out[0])
+        t += 0.02
+    assert vs[-1] > 0.3
+    while core.step(t) is not None:  # odometry stops arriving
+        vs.append(core.limiter.v.value)
+        t += 0.02
+        assert t < 10.0
+    assert core.state == "aborted" and "stale odometry" in core.reason
+    assert vs[-1] == 0.0
+    check_axis(vs, [0.02] * (len(vs) - 1), 1.2, 1.0, 2.0)
+
+
+def test_cancel_brakes_then_publishes_a_burst_of_zeros_then_nothing() -> None:
+    core = fresh_core()
+    core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0)
+    t = 0.0
+    for _ in range(100):
+        core.on_odom(OdomSample(0, 0, 0, 0, 0, t))
+        core.step(t)
+        t += 0.02
+    assert core.cancel(t).ok and core.state == "cancelled"
+    outs = []
+    while (out := core.step(t)) is not None:
+        core.on_odom(OdomSample(0, 0, 0, 0, 0, t))
+        outs.append(out)
+        t += 0.02
+        assert len(outs) < 1000
+    zeros = [o for o in outs if o == (0.0, 0.0)]
+    assert len(zeros) >= 0.5 / 0.02 - 1  # the stop burst
+    assert outs[-1] == (0.0, 0.0)
+
+
+def test_waypoints_are_passed_without_stopping_and_status_counts_down() -> None:
+    core = fresh_core()
+    wps = [Pose2D(2, 0, 0), Pose2D(4, 1, math.pi / 4), Pose2D(5, 3, math.pi / 2)]
+    assert core.set_goal(GoalRequest(waypoints=wps), 0.0).ok
+    x = y = yaw = v = w = 0.0
+    t = 0.0
+    speeds_mid, dist = [], []
+    while core.state == "active" and t < 60:
+        core.on_odom(OdomSample(x, y, yaw, v, w, t))
+        out = core.step(t)
+        assert out is not None
+        v, w = out
+        s = core.status()
+        dist.append(s.distance_left_m)
+        if s.waypoint_index == 1 and math.hypot(x - 2, y) < 0.6:
+            speeds_mid.append(v)
+        x += v * math.cos(yaw) * 0.02
+        y += v * math.sin(yaw) * 0.02
+        yaw = wrap(yaw + w * 0.02)
+        t += 0.02
+    assert core.state == "arrived"
+    assert speeds_mid and min(speeds_mid) > 0.3, "stopped at an intermediate waypoint"
+    assert dist[0] == pytest.approx(2 + math.hypot(2, 1) + math.hypot(1, 2), rel=1e-6)
+    assert dist[-1] < 0.05
+
+
+def test_bad_config_is_refused() -> None:
+    with pytest.raises(ValueError, match="rate_hz"):
+        ControlCore(ControlConfig(rate_hz=10))
+    with pytest.raises(ValueError, match="a_max_mps2"):
+        ControlCore(ControlConfig(a_max_mps2=0))
