@@ -71,6 +71,7 @@ class Launcher:
     on_change: Callable[[Child], None] = lambda c: None
     children: dict[str, Child] = field(default_factory=dict)
     _session: zenoh.Session | None = None
+    _stopping: bool = False
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def __post_init__(self) -> None:
@@ -123,7 +124,8 @@ class Launcher:
             if sample.kind == zenoh.SampleKind.PUT:
                 self._set(child, "up")
             elif child.state == "up":
-                self._set(child, "starting")  # token gone: process hung or dying; poll() decides
+                # token gone: the process is hung, dying or being stopped; poll() decides
+                self._set(child, "stopping" if self._stopping else "starting")
 
         self._session.liveliness().declare_subscriber("autochair/alive/*", on_token, history=True)
 
@@ -174,7 +176,7 @@ class Launcher:
 
     def stop(self, timeout_s: float = 5.0) -> bool:
         """SIGTERM in reverse start order, then SIGKILL stragglers. True if all exited cleanly."""
-        self.restart = False
+        self.restart, self._stopping = False, True
         clean = True
         order = [c for c in reversed(list(self.children.values())) if c.popen is not None]
         for child in order:

@@ -94,10 +94,9 @@ class Gateway:
             self._lost(f"write failed: {e}")
             return
         if out.reason != (self.last_out.reason if self.last_out else None):
-            level = "info" if out.reason == "command" else "warning"
-            if out.reason == "neutral:startup":
-                level = "info"
-            self.node.event(level, f"output {out.reason}")
+            # Neutral because nothing is asked (startup, parked) is normal; the rest is a fault.
+            normal = out.reason in ("command", "neutral:startup", "neutral:disabled")
+            self.node.event("info" if normal else "warning", f"output {out.reason}")
         self.last_out, self.last_write = out, time.monotonic()
         self.node.health.count("frames_out")
         self.out_pub.put(JoystickOutput(

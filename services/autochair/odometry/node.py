@@ -32,7 +32,7 @@ def start(node: Node, cfg: OdometryConfig) -> None:
                         velocity_window_s=cfg.velocity_window_s)
     odom_pub = node.publisher(keys.ODOM)
     tf_pub = node.publisher(keys.TF)
-    last_status = [0]
+    last_status = [0x04]  # as if booting: the first frames after our own start are no news
 
     def on_sample(s: EncoderSample) -> None:
         if s.status & 0x04 and not last_status[0] & 0x04:  # ST_BOOT rising: the MCU restarted
