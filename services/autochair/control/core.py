@@ -43,6 +43,9 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     omega_max_radps: float = 0.9
     omega_acc_max_radps2: float = 2.8
     omega_jerk_max_radps3: float = 7.7
+    # The limiter plans at this fraction of the limits above: the drive chain (PID, chair
+    # controller) overshoots smooth ramps, and the limits are for the chair, not the command.
+    chain_margin: float = 0.6
     # beyond the paper
     predict_s: float = 0.5  # drive-chain lag compensated by predicting the pose; 0 = off
     omega_floor_radps: float = 0.5  # min |ω| on tight curves (law.py); 0 = the paper's v(κ)
@@ -66,7 +69,8 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, not {value}")
-        for name in ("capture_fraction", "align_brake_fraction", "brake_fraction"):
+        for name in ("capture_fraction", "align_brake_fraction", "brake_fraction",
+                     "chain_margin"):
             if not 0 < getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in (0, 1]")
 
@@ -76,9 +80,10 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
     @property
     def limits(self) -> ComfortLimits:
-        return ComfortLimits(self.vmax_mps, self.a_max_mps2, self.jerk_max_mps3,
-                             self.omega_max_radps, self.omega_acc_max_radps2,
-                             self.omega_jerk_max_radps3)
+        m = self.chain_margin
+        return ComfortLimits(self.vmax_mps, m * self.a_max_mps2, m * self.jerk_max_mps3,
+                             m * self.omega_max_radps, m * self.omega_acc_max_radps2,
+                             m * self.omega_jerk_max_radps3)
 
 
 @dataclass(frozen=True)
@@ -251,8 +256,9 @@ class ControlCore:
             if self.limiter.at_rest:
                 self._end(ARRIVED, "", now)
             return 0.0, 0.0
-        w = align_omega(e, cfg.omega_max_radps, cfg.align_brake_fraction
-                        * cfg.omega_acc_max_radps2, cfg.align_gain_1ps)
+        lim = self.limiter.lim
+        w = align_omega(e, lim.omega_max_radps, cfg.align_brake_fraction
+                        * lim.omega_acc_max_radps2, cfg.align_gain_1ps)
         return 0.0, w
 
     def _end(self, state: str, reason: str, now: float) -> None:
