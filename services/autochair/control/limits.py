@@ -45,7 +45,8 @@ class SCurveAxis:
         """
         e = abs(error)
         jd = self.jmax * dt
-        m = math.floor(-0.5 + math.sqrt(0.25 + 2.0 * e / (jd * dt)) + 1e-9)  # whole steps: no overshoot
+        # whole steps (floor): a fractional last step would overshoot the target slightly
+        m = math.floor(-0.5 + math.sqrt(0.25 + 2.0 * e / (jd * dt)) + 1e-9)
         return math.copysign(min(self.amax, m * jd), error)
 
     def step(self, target: float, dt: float) -> float:
