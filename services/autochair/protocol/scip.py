@@ -130,14 +130,13 @@ def decode_values(data: bytes | npt.NDArray[np.uint8], nchars: int) -> npt.NDArr
     a = np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes) else data
     if a.size % nchars:
         raise FormatError(f"{a.size} data chars is not a multiple of {nchars}")
-    g = a.astype(np.int64) - 0x30
-    if g.size and (g.min() < 0 or g.max() > 0x3F):
+    if a.size and (a.min() < 0x30 or a.max() > 0x6F):
         raise FormatError("char outside the SCIP value range in data")
-    g = g.reshape(-1, nchars)
-    out = g[:, 0].copy()
+    g = a.reshape(-1, nchars).astype(np.int64)
+    out = g[:, 0] - 0x30
     for i in range(1, nchars):
         out <<= 6
-        out |= g[:, i]
+        out += g[:, i] - 0x30
     return out
 
 
@@ -150,33 +149,44 @@ def split_data(values_chars: bytes) -> list[bytes]:
 def strip_data_lines(block: bytes | memoryview, what: str = "data") -> npt.NDArray[np.uint8]:
     """Data lines joined by LF (no trailing LF): check every sum, return the joined chars.
 
-    Vectorised: line bounds from the LF positions, sums by ``np.add.reduceat``.
+    Vectorised: a fast path views full 64-char lines as a (rows, 66) array; anything else goes
+    through line bounds from the LF positions and sums by ``np.add.reduceat``.
     """
-    buf = np.frombuffer(block, dtype=np.uint8)
-    if buf.size == 0:
-        return buf
-    lf = np.flatnonzero(buf == LF)
-    starts = np.empty(lf.size + 1, dtype=np.intp)
+    buf = np.frombuffer(bytes(block) + b"\n", dtype=np.uint8)  # every line now ends in LF
+    if buf.size == 1:
+        return buf[:0]
+    row = MAX_LINE + 2
+    rows = (buf.size - 1) // row  # the last line is handled as the tail, even if full
+    head = buf[:rows * row].reshape(rows, row)
+    tail = buf[rows * row:]
+    if (head[:, row - 1] == LF).all() and tail.size >= 3 and np.count_nonzero(tail == LF) == 1:
+        sums = (head[:, :MAX_LINE].sum(axis=1, dtype=np.int64) & 0x3F) + 0x30
+        tail_sum = (int(tail[:-2].sum(dtype=np.int64)) & 0x3F) + 0x30
+        if (sums == head[:, MAX_LINE]).all() and tail_sum == tail[-2]:
+            return np.concatenate([head[:, :MAX_LINE].reshape(-1), tail[:-2]])
+    return _strip_general(buf, what)
+
+
+def _strip_general(buf: npt.NDArray[np.uint8], what: str) -> npt.NDArray[np.uint8]:
+    ends = np.flatnonzero(buf == LF)  # buf ends in LF, so every line has one
+    starts = np.empty_like(ends)
     starts[0] = 0
-    starts[1:] = lf + 1
-    ends = np.empty_like(starts)
-    ends[:-1] = lf
-    ends[-1] = buf.size
-    lengths = ends - starts
+    starts[1:] = ends[:-1] + 1
+    lengths = ends - starts  # chars before the LF, sum char included
     if lengths.min() < 2 or lengths.max() > MAX_LINE + 1:
         bad = int(np.flatnonzero((lengths < 2) | (lengths > MAX_LINE + 1))[0])
         raise FormatError(f"{what} line {bad} has {int(lengths[bad])} chars (want 2..65)")
     sum_pos = ends - 1
-    keep = np.ones(buf.size, dtype=bool)
-    keep[lf] = False
-    keep[sum_pos] = False
-    body = np.where(keep, buf, 0).astype(np.int64)
-    sums = (np.add.reduceat(body, starts) & 0x3F) + 0x30
+    totals = np.add.reduceat(buf, starts, dtype=np.int64)  # line + sum char + LF
+    sums = ((totals - buf[sum_pos] - LF) & 0x3F) + 0x30
     bad_sum = sums != buf[sum_pos]
     if bad_sum.any():
         i = int(np.flatnonzero(bad_sum)[0])
         line = bytes(buf[starts[i]:ends[i]])
         raise SumError(f"bad sum in {what} line {i} {line[:70]!r}")
+    keep = np.ones(buf.size, dtype=bool)
+    keep[ends] = False
+    keep[sum_pos] = False
     return buf[keep]
 
 
@@ -315,6 +325,16 @@ class Scan:
 
 def parse_scan(block: bytes, prefix: bytes, nchars: int) -> Scan:
     """One MD/MS scan block: echo starting with `prefix`, status 99, timestamp, data."""
+    # Fast path for a clean block; anything unusual (garbage, other status) takes the general one.
+    e = block.find(b"\n")
+    s = block.find(b"\n", e + 1)
+    t = block.find(b"\n", s + 1)
+    if (e >= 15 and block.startswith(prefix) and block[e + 1:s] == b"99b" and t == s + 6
+            and b"\n" not in block[:e]):
+        ts = check_line(block[s + 1:t], "timestamp")
+        values = decode_values(strip_data_lines(memoryview(block)[t + 1:]), nchars)
+        rem = block[13:15]
+        return Scan(block[:e], int(rem) if rem.isdigit() else 0, decode_value(ts), values)
     reply = parse_reply(block, (prefix,))
     if reply.status != "99":
         raise StatusError(reply.echo[:2].decode("ascii", "replace"), reply.status)
