@@ -23,11 +23,15 @@ _ENC = msgspec.msgpack.Encoder()
 
 
 def start(node: Node, cfg: ControlConfig) -> None:
+    # The odometry watchdog is one of the chain's thresholds, configured in [stale] only.
+    if cfg.odom_timeout_s != ControlConfig().odom_timeout_s:
+        raise ConfigError("[control] odom_timeout_s is set by [stale] odometry_s")
+    cfg = msgspec.structs.replace(cfg, odom_timeout_s=node.stale.odometry_s)
     try:
         core = ControlCore(cfg)
     except ValueError as e:
         raise ConfigError(f"[control] {e}") from None
-    node.health.thresholds.update(odom_timeout_s=cfg.odom_timeout_s, rate_hz=cfg.rate_hz)
+    node.health.thresholds.update(odometry_s=node.stale.odometry_s, rate_hz=cfg.rate_hz)
     lock = threading.Lock()
     cmd_pub = node.publisher(keys.CMD_VEL)
     status_pub = node.publisher(keys.GOAL_STATUS)
