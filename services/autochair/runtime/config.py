@@ -57,7 +57,9 @@ class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             cfg.insert_json5("connect/endpoints", json.dumps(self.connect))
             # Keep retrying the hub instead of failing at start: the launcher, supervisor or
             # compose may start us before it.
-            cfg.insert_json5("connect/timeout_ms", json.dumps(-1 if self.mode == "client" else 0))
+            # Peers: 1 ms, not 0: with 0 zenoh 1.10 never retries a hub that is not up yet
+            # (supervisord/systemd start order); with >0 it keeps retrying in the background.
+            cfg.insert_json5("connect/timeout_ms", json.dumps(-1 if self.mode == "client" else 1))
             cfg.insert_json5("connect/exit_on_failure", "false")
         if self.listen:
             cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
