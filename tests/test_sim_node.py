@@ -30,18 +30,34 @@ def _stop(p: subprocess.Popen[bytes]) -> None:
         p.wait()
 
 
+def _open_session(hub: str) -> zenoh.Session:
+    def try_open() -> zenoh.Session | None:
+        try:
+            return client_session(hub)
+        except zenoh.ZError:
+            return None  # the hub is still starting
+
+    session = wait_for(try_open, 20, "zenoh hub", interval=0.2)
+    assert session is not None
+    return session
+
+
 @pytest.fixture
-def sim(tmp_path: Path) -> Iterator[tuple[str, Path, subprocess.Popen[bytes]]]:
+def sim(tmp_path: Path) -> Iterator[tuple[zenoh.Session, Path, subprocess.Popen[bytes]]]:
     hub = f"tcp/127.0.0.1:{free_port()}"
     link = tmp_path / "arduino"
     procs: list[subprocess.Popen[bytes]] = []
+    session: zenoh.Session | None = None
     try:
         procs.append(subprocess.Popen([sys.executable, "-m", "autochair.router",
                                        "--listen", hub]))
+        session = _open_session(hub)  # the hub is up before the sim joins it
         procs.append(subprocess.Popen([sys.executable, "-m", "autochair.sim.node",
                                        "--connect", hub, "--set", f"pty_link={link}"]))
-        yield hub, link, procs[-1]
+        yield session, link, procs[-1]
     finally:
+        if session is not None:
+            session.close()
         for p in reversed(procs):
             _stop(p)
 
@@ -58,53 +74,41 @@ def _read_frames(port: serial.Serial, seconds: float) -> list[proto.Frame]:
 
 @pytest.mark.slow
 def test_sim_node_telemetry_truth_and_unplug(
-        sim: tuple[str, Path, subprocess.Popen[bytes]]) -> None:
-    hub, link, proc = sim
-
-    def try_open() -> zenoh.Session | None:
-        try:
-            return client_session(hub)
-        except zenoh.ZError:
-            return None  # the hub is still starting
-
-    session = wait_for(try_open, 20, "zenoh hub", interval=0.2)
-    assert session is not None
-    try:
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
-        wait_for(link.exists, 20, "pty link")
-        with serial.Serial(str(link), timeout=0.05) as port:
-            port.reset_input_buffer()
-            frames = _read_frames(port, 2.0)
-            tel = [f for f in frames if isinstance(f, proto.Telemetry)]
-            # ~200 Hz; generous bounds for a busy 2-core machine.
-            assert 250 <= len(tel) <= 450, len(tel)
-            assert all(proto.seq_gap(a.seq, b.seq) == 0 for a, b in itertools.pairwise(tel))
-            # Drive: after boot, an enabled forward command moves the chair (ground truth).
-            seq = 0
-            deadline = time.monotonic() + 20
-            while time.monotonic() < deadline:
-                seq += 1
-                port.write(proto.encode(proto.Command(seq, tel[-1].seq, 3200, 2500,
-                                                      proto.FL_ENABLE)))
-                time.sleep(0.02)  # the host's own command rate, not synchronisation
-                last = truth.latest()
-                if last is not None and last.x_m > 0.05:
-                    break
+        sim: tuple[zenoh.Session, Path, subprocess.Popen[bytes]]) -> None:
+    session, link, proc = sim
+    truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+    wait_for(link.exists, 20, "pty link")
+    with serial.Serial(str(link), timeout=0.05) as port:
+        port.reset_input_buffer()
+        frames = _read_frames(port, 2.0)
+        tel = [f for f in frames if isinstance(f, proto.Telemetry)]
+        # ~200 Hz; generous bounds for a busy 2-core machine.
+        assert 250 <= len(tel) <= 450, len(tel)
+        assert all(proto.seq_gap(a.seq, b.seq) == 0 for a, b in itertools.pairwise(tel))
+        # Drive: after boot, an enabled forward command moves the chair (ground truth).
+        seq = 0
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            seq += 1
+            port.write(proto.encode(proto.Command(seq, tel[-1].seq, 3200, 2500,
+                                                  proto.FL_ENABLE)))
+            time.sleep(0.02)  # the host's own command rate, not synchronisation
             last = truth.latest()
-            assert last is not None and last.x_m > 0.05 and last.longitudinal_v == 3.2
-        # Fault: unplug for 1 s -> the link disappears, then comes back and still talks.
-        reply = session.get(keys.SIM_FAULT.key,
-                            payload=msgspec.msgpack.encode(SimFault(kind="unplug",
-                                                                    duration_s=1.0)))
-        answers = [msgspec.msgpack.decode(r.ok.payload.to_bytes(), type=SimFaultReply)
-                   for r in reply if r.ok is not None]
-        assert answers and answers[0].ok
-        wait_for(lambda: not link.exists(), 5, "link removed")
-        wait_for(link.exists, 10, "link recreated")
-        with serial.Serial(str(link), timeout=0.05) as port:
-            assert len(_read_frames(port, 0.5)) > 20
-        assert proc.poll() is None
-        n = len(truth.messages())
-        wait_for(lambda: len(truth.messages()) > n + 20, 5, "more ground truth")
-    finally:
-        session.close()
+            if last is not None and last.x_m > 0.05:
+                break
+        last = truth.latest()
+        assert last is not None and last.x_m > 0.05 and last.longitudinal_v == 3.2
+    # Fault: unplug for 1 s -> the link disappears, then comes back and still talks.
+    reply = session.get(keys.SIM_FAULT.key,
+                        payload=msgspec.msgpack.encode(SimFault(kind="unplug",
+                                                                duration_s=1.0)))
+    answers = [msgspec.msgpack.decode(r.ok.payload.to_bytes(), type=SimFaultReply)
+               for r in reply if r.ok is not None]
+    assert answers and answers[0].ok
+    wait_for(lambda: not link.exists(), 5, "link removed")
+    wait_for(link.exists, 10, "link recreated")
+    with serial.Serial(str(link), timeout=0.05) as port:
+        assert len(_read_frames(port, 0.5)) > 20
+    assert proc.poll() is None
+    n = len(truth.messages())
+    wait_for(lambda: len(truth.messages()) > n + 20, 5, "more ground truth")
