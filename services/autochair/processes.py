@@ -54,6 +54,9 @@ PROCESSES: tuple[Process, ...] = (
             doc="Hokuyo SCIP 2.0 ingest: checked, stamped scans and the chair→laser transform"),
     Process("mapping", "autochair.mapping.node", "autochair-mapping",
             doc="Occupancy grid and point-cloud map from scans and odometry"),
+    Process("safety", "autochair.safety.node", "autochair-safety",
+            doc="Safety monitor: slows then stops before obstacles in the laser scan "
+                "(SafetyLimit)"),
 )
 
 

@@ -1,0 +1,1 @@
+"""Safety monitor: obstacle slow-down and stop from the laser scan."""
