@@ -203,7 +203,7 @@ def main(argv: list[str]) -> int:
         }
         print(json.dumps(results["latency_us"]), flush=True)
 
-        sustained: list[dict[str, object]] = []
+        sustained: list[dict[str, float | None]] = []
         for rate in (float(r) for r in args.rates.split(",")):
             dropped0 = health_counter(session, "gateway", "dropped_frames")
             bad0 = health_counter(session, "gateway", "bad_frames")
@@ -227,7 +227,7 @@ def main(argv: list[str]) -> int:
         clean = [r for r in sustained
                  if not (r["unanswered"] or r["gateway_dropped"] or r["gateway_bad"])]
         results["sustained"] = sustained
-        results["max_clean_rate_hz"] = max((r["rate_hz"] for r in clean), default=0)
+        results["max_clean_rate_hz"] = max((r["rate_hz"] or 0.0 for r in clean), default=0.0)
         session.close()
     finally:
         stop_cmd.set()

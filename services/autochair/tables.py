@@ -41,7 +41,8 @@ BLOCKS = {"keys": keys_table, "processes": processes_table}
 def render(text: str) -> str:
     for name, make in BLOCKS.items():
         pattern = re.compile(rf"(<!-- {name}:begin -->\n).*?(\n<!-- {name}:end -->)", re.S)
-        text = pattern.sub(lambda m, make=make: m.group(1) + make() + m.group(2), text)
+        body = make()
+        text = pattern.sub(lambda m: m.group(1) + body + m.group(2), text)
     return text
 
 
