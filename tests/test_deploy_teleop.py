@@ -1,0 +1,115 @@
+"""Teleop: the deadman publishes one zero then nothing; speed limits; explicit takeover."""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable
+
+import msgspec
+
+from autochair.commands.teleop import TeleopLink, loop
+from autochair.teleop import Teleop, TeleopLimits
+from autochair_msgs import CommandOwner, VelocityCommand, keys
+from tests.test_deploy_tls import free_port, open_json
+
+
+def wait_for(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if cond():
+            return True
+        time.sleep(0.02)
+    return cond()
+
+
+def test_core_deadman_one_zero_then_silence() -> None:
+    core = Teleop(TeleopLimits(max_v_mps=1.0, max_omega_radps=1.0, deadman_s=0.3))
+    core.scale = 1.0
+    core.request(1.0, 0.0, now=0.0)
+    out = [core.tick(t / 100, link_ok=True) for t in range(0, 100, 5)]  # 0 .. 0.95 s
+    assert out[:7] == [(1.0, 0.0)] * 7  # through 0.30 s
+    assert out[7] == (0.0, 0.0)  # 0.35 s: released -> one zero
+    assert out[8:] == [None] * (len(out) - 8)
+    assert core.deadman_stops == 1
+
+
+def test_core_link_loss_stops_and_limits_hold() -> None:
+    core = Teleop(TeleopLimits(max_v_mps=0.6, max_omega_radps=0.8, deadman_s=0.3))
+    core.scale = 1.0
+    core.request(5.0, -5.0, now=0.0)  # out-of-range input is clamped to the limits
+    assert core.tick(0.0, True) == (0.6, -0.8)
+    core.request(-1.0, 0.0, now=0.1)
+    assert core.tick(0.1, True) == (-0.3, 0.0)  # reverse at half speed
+    assert core.tick(0.15, False) == (0.0, 0.0)  # link lost while pressing
+    assert core.tick(0.2, False) is None
+    for _ in range(20):
+        core.faster(False)
+    assert core.scale == 0.1
+
+
+def test_teleop_over_zenoh_takes_over_and_deadman_stops() -> None:
+    hub = f"tcp/127.0.0.1:{free_port()}"
+    router = open_json({"mode": "router", "listen": {"endpoints": [hub]},
+                        "scouting": {"multicast": {"enabled": False}}})
+    client = {"mode": "client", "connect": {"endpoints": [hub]},
+              "scouting": {"multicast": {"enabled": False}}}
+    chair, laptop = open_json(client), open_json(client)
+    got: list[tuple[float, VelocityCommand]] = []
+    owners: list[str] = []
+    dec, odec = msgspec.msgpack.Decoder(VelocityCommand), msgspec.msgpack.Decoder(CommandOwner)
+    chair.declare_subscriber(keys.TELEOP.key, lambda s: got.append(
+        (time.monotonic(), dec.decode(s.payload.to_bytes()))))
+    chair.declare_subscriber(keys.CMD_OWNER.key, lambda s: owners.append(
+        odec.decode(s.payload.to_bytes()).owner))
+    token = chair.liveliness().declare_token(f"{keys.PREFIX}/alive/pid")
+    events: queue.Queue[str] = queue.Queue()
+    stop = threading.Event()
+    link = TeleopLink(laptop, Teleop(TeleopLimits(deadman_s=0.3)))
+    t = threading.Thread(target=loop, args=(link, events, stop, 50.0), daemon=True)
+    try:
+        assert wait_for(lambda: link.link_ok)
+        t.start()
+        events.put("t")
+        assert wait_for(lambda: owners == ["teleop"])
+        # Hold "w" (auto-repeat every 50 ms) for a while, then release.
+        for _ in range(10):
+            events.put("w")
+            time.sleep(0.05)  # pacing the simulated key repeat, not synchronisation
+        released = time.monotonic()
+        assert wait_for(lambda: any(c.v_mps == 0.0 for _, c in got), 3.0)
+        moving = [c for _, c in got if c.v_mps != 0.0]
+        assert moving and all(c.v_mps == 0.3 and c.source == "teleop" for c in moving)
+        last_t, last = got[-1]
+        assert last.v_mps == 0.0 and last.omega_radps == 0.0
+        assert 0.2 < last_t - released < 1.5
+        n = len(got)
+        time.sleep(0.5)  # silence must hold: nothing more is published without input
+        assert len(got) == n
+        # Press again, then the link drops (the PID's token goes): zero, then silence.
+        events.put("a")
+        assert wait_for(lambda: len(got) > n and got[-1][1].omega_radps > 0)
+        token.undeclare()
+        # Keep pressing: only the lost link can stop it now.
+        deadline = time.monotonic() + 3.0
+        while link.link_ok and time.monotonic() < deadline:
+            events.put("a")
+            time.sleep(0.05)
+        for _ in range(6):
+            events.put("a")
+            time.sleep(0.05)
+        assert not link.link_ok
+        m = len(got)
+        assert got[-1][1].omega_radps == 0.0
+        for _ in range(6):
+            events.put("a")
+            time.sleep(0.05)
+        assert len(got) == m  # still pressing, link still lost: silence
+        events.put("h")
+        assert wait_for(lambda: owners[-1] == "autonomy")
+    finally:
+        stop.set()
+        t.join(timeout=5)
+        for s in (laptop, chair, router):
+            s.close()
