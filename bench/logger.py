@@ -20,7 +20,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import msgspec
 import psutil
@@ -31,8 +31,8 @@ from autochair.logger.writer import LoggerConfig, Recorder
 from autochair_msgs import Health, keys
 
 RESULTS = Path(__file__).parent / "results" / "logger.json"
-MIX = [keys.ENCODERS, keys.JOYSTICK, keys.JOYSTICK_OUT, keys.ODOM, keys.TF, keys.PID_STATUS,
-       keys.SIM_TRUTH]
+MIX: list[keys.Topic[Any]] = [keys.ENCODERS, keys.JOYSTICK, keys.JOYSTICK_OUT, keys.ODOM,
+                              keys.TF, keys.PID_STATUS, keys.SIM_TRUTH]
 RATES = [2000, 5000, 10000, 15000, 20000, 30000, 45000, 60000]
 QUEUE = 5000
 ENC = msgspec.msgpack.Encoder()
@@ -79,7 +79,7 @@ class Bench:
         self.session.declare_subscriber("autochair/health/logger", on_health)
         self.pubs = {t.key: self.session.declare_publisher(
             t.key, congestion_control=zenoh.CongestionControl.BLOCK) for t in MIX}
-        assert wait(lambda: all(p.matching_status.matching for p in self.pubs.values()), 20)
+        assert wait(lambda: all(cast(Any, p.matching_status).matching for p in self.pubs.values()), 20)
         self.payloads = {t.key: ENC.encode(samples(1)[t.key]) for t in MIX}
 
     def _open(self, cfg: zenoh.Config) -> bool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import msgspec
 
@@ -32,8 +33,47 @@ from autochair_msgs import (
 T0 = 1_763_700_000_123_456_789  # a stamp above 2^53: JSON readers in JS would round it
 
 
+def auto_sample(type_: Any, i: int) -> Any:
+    """A non-trivial value of any msgspec type (for key-table rows added without a
+    hand-written sample): NaN in float fields, large ints, non-ASCII text, every byte."""
+    info = msgspec.inspect.type_info(type_) if not isinstance(
+        type_, msgspec.inspect.Type) else type_
+    if isinstance(info, msgspec.inspect.StructType):
+        return info.cls(**{f.name: auto_sample(f.type, i + n)
+                           for n, f in enumerate(info.fields)})
+    if isinstance(info, msgspec.inspect.FloatType):
+        return [math.nan, -math.inf, 0.1 + i, -1e-300][i % 4]
+    if isinstance(info, msgspec.inspect.BoolType):
+        return i % 2 == 0
+    if isinstance(info, msgspec.inspect.IntType):
+        return 2**40 + i
+    if isinstance(info, msgspec.inspect.StrType):
+        return f"x ü {i}"
+    if isinstance(info, msgspec.inspect.BytesType):
+        return bytes(range(256))
+    if isinstance(info, msgspec.inspect.ListType):
+        return [auto_sample(info.item_type, i + k) for k in range(3)]
+    if isinstance(info, msgspec.inspect.DictType):
+        return {f"k{k}": auto_sample(info.value_type, i + k) for k in range(2)}
+    if isinstance(info, msgspec.inspect.UnionType):
+        return auto_sample(next(t for t in info.types
+                                if not isinstance(t, msgspec.inspect.NoneType)), i)
+    if isinstance(info, msgspec.inspect.LiteralType):
+        return info.values[0]
+    raise TypeError(f"add a sample for {info}")
+
+
 def samples(i: int = 0) -> dict[str, msgspec.Struct]:
     """One message per concrete key (per-service rows get the key of service "pid")."""
+    out = _hand_samples(i)
+    for t in keys.TOPICS:  # rows added to the table later: generated samples
+        key = t.for_service("pid") if t.key.endswith("/*") else t.key
+        if t.logged and t.kind == "pub" and key not in out:
+            out[key] = auto_sample(t.type, i)
+    return out
+
+
+def _hand_samples(i: int) -> dict[str, msgspec.Struct]:
     t = T0 + i * 5_000_000
     nan, inf = math.nan, math.inf
     return {
@@ -89,8 +129,23 @@ def samples(i: int = 0) -> dict[str, msgspec.Struct]:
     }
 
 
-QUERY_SAMPLES: dict[str, msgspec.Struct] = {
+_HAND_OTHER: dict[str, msgspec.Struct] = {
     keys.GOAL_SET.key: GoalRequest(
         waypoints=[Pose2D(1.0, 2.0, 0.5), Pose2D(math.nan, 0.0, -math.inf)], vmax_mps=None),
     keys.GOAL_CANCEL.key: GoalRequest(waypoints=[], tolerance_m=0.1, vmax_mps=0.8),
 }
+
+
+def other_samples() -> dict[str, Any]:
+    """Rows the logger does not record (queries, unlogged keys) and query reply types: the
+    codec must still round-trip them (keyed `key` and `key#reply`)."""
+    out: dict[str, Any] = dict(_HAND_OTHER)
+    for t in keys.TOPICS:
+        if not (t.logged and t.kind == "pub"):
+            out.setdefault(t.key, auto_sample(t.type, 1))
+        if t.reply is not None:
+            out[t.key + "#reply"] = auto_sample(t.reply, 2)
+    return out
+
+
+QUERY_SAMPLES = other_samples()

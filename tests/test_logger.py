@@ -34,14 +34,14 @@ def record(path: Path, n: int, **cfg: object) -> tuple[Recorder, list[tuple[str,
 
 def test_samples_cover_every_type_in_the_key_table() -> None:
     covered = {type(m) for m in [*samples().values(), *QUERY_SAMPLES.values()]}
-    assert covered >= {t.type for t in keys.TOPICS}
+    assert covered >= {t.type for t in keys.TOPICS} | {t.reply for t in keys.TOPICS if t.reply}
     assert {keys.by_key(k).key for k in samples()} == {
         t.key for t in keys.TOPICS if t.logged and t.kind == "pub"}
 
 
 @pytest.mark.parametrize("key,msg", [*samples(3).items(), *QUERY_SAMPLES.items()])
 def test_codec_round_trip_is_byte_exact(key: str, msg: msgspec.Struct) -> None:
-    codec = Codec(keys.by_key(key).type)
+    codec = Codec(type(msg))
     wire = ENC.encode(msg)
     data = to_json(codec.decode_wire(wire))
     json.loads(data)  # strict JSON: no bare NaN/Infinity tokens
@@ -215,3 +215,33 @@ def test_paths() -> None:
     assert part_path(Path("a/run.mcap"), 2) == Path("a/run-002.mcap")
     with pytest.raises(ValueError, match="compression"):
         Recorder(LoggerConfig(path="/tmp/never.mcap", compression="gzip"), T0, 0.0)
+
+
+def test_replay_plan_skips_derived_and_scales_time(tmp_path: Path) -> None:
+    from autochair.logger.replay import plan
+
+    rec, sent = record(tmp_path / "r.mcap", 3)
+    rec.finish()
+    items = list(plan(Recording(tmp_path / "r.mcap").messages(), rate=2.0))
+    assert [(i.key, i.payload) for i in items] == [(k, p) for k, p, _ in sent]
+    assert items[-1].offset_s == pytest.approx((sent[-1][2] - sent[0][2]) / 1e9 / 2.0)
+    with pytest.raises(ValueError):
+        list(plan([], rate=0.0))
+
+
+def test_step_analysis_rise_time_and_overshoot() -> None:
+    import numpy as np
+
+    from autochair.logger.analysis import motion, steps
+
+    t = np.arange(0, 4, 0.005)
+    desired = np.where(t >= 1.0, 1.0, 0.0)
+    # First-order rise (tau 0.2 s) plus a 10 % bump at t = 2.5 s once settled.
+    measured = np.where(t >= 1.0, 1 - np.exp(-(t - 1.0) / 0.2), 0.0)
+    measured = measured + 0.1 * np.exp(-((t - 2.5) / 0.1) ** 2)
+    (st,) = steps(t, desired, measured)
+    assert st.t_s == pytest.approx(1.0) and st.before == 0.0 and st.after == 1.0
+    assert st.rise_s == pytest.approx(0.2 * math.log(9), abs=0.01)  # 10→90 % of 1-e^(-t/τ)
+    assert st.overshoot_pct == pytest.approx(10.0, abs=1.0)
+    _tr, _v, a, jerk = motion(t, 0.5 * t)  # constant acceleration 0.5 m/s²
+    assert np.allclose(a, 0.5) and np.allclose(jerk, 0.0, atol=1e-6)

@@ -11,6 +11,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any, cast
 
 import msgspec
 import pytest
@@ -19,7 +20,7 @@ import zenoh
 from autochair.logger.reader import Recording, is_indexed
 from autochair.logger.schema import Codec
 from autochair.logger.writer import LoggerConfig, Recorder
-from autochair_msgs import Health, keys
+from autochair_msgs import Health, Odometry, keys
 from tests.helpers import client_session, wait_for
 from tests.logger_samples import samples
 
@@ -58,6 +59,7 @@ def router(hub: str) -> Iterator[str]:
 @pytest.fixture
 def session(router: str) -> Iterator[zenoh.Session]:
     s = wait_for(lambda: _try_client(router), 15, "hub to accept clients", interval=0.1)
+    assert s is not None
     try:
         yield s
     finally:
@@ -98,7 +100,9 @@ def publishers(session: zenoh.Session) -> dict[str, zenoh.Publisher]:
     pubs = {k: session.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK)
             for k in samples()}
     for k, p in pubs.items():  # the logger's subscriptions have reached us
-        wait_for(lambda p=p: p.matching_status.matching, 20, f"logger subscribed to {k}")
+        def matching(p: zenoh.Publisher = p) -> bool:
+            return bool(cast(Any, p.matching_status).matching)
+        wait_for(matching, 20, f"logger subscribed to {k}")
     return pubs
 
 
@@ -132,6 +136,7 @@ def test_sigkill_loses_at_most_about_a_second(logger: Logger, session: zenoh.Ses
     rate_hz, duration_s = 200.0, 3.0
     stamps: list[int] = []
     base = samples()[keys.ODOM.key]
+    assert isinstance(base, Odometry)
     start = time.monotonic()
     for i in range(int(rate_hz * duration_s)):
         target = start + i / rate_hz

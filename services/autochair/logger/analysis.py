@@ -41,16 +41,15 @@ def steps(t: Array, desired: Array, measured: Array, min_step: float = 0.05) -> 
 
 
 def resample(t: Array, x: Array, period_s: float) -> tuple[Array, Array]:
-    """Bin means on a regular grid (smooths 200 Hz odometry before differentiating)."""
+    """Bin means (of time and value) on a regular grid: smooths 200 Hz odometry before
+    differentiating."""
     if len(t) == 0:
         return t, x
-    edges = np.arange(t[0], t[-1] + period_s, period_s)
-    idx = np.digitize(t, edges) - 1
-    counts = np.bincount(idx, minlength=len(edges))
-    sums = np.bincount(idx, weights=x, minlength=len(edges))
+    idx = np.floor((t - t[0]) / period_s + 1e-6).astype(np.int64)  # 1e-6: float edges
+    counts = np.bincount(idx)
     ok = counts > 0
-    centres = edges + period_s / 2
-    return centres[ok], sums[ok] / counts[ok]
+    tm = np.bincount(idx, weights=t)[ok] / counts[ok]
+    return tm, np.bincount(idx, weights=x)[ok] / counts[ok]
 
 
 def motion(t: Array, v: Array, period_s: float = 0.05) -> tuple[Array, Array, Array, Array]:
