@@ -79,7 +79,8 @@ class Bench:
         self.session.declare_subscriber("autochair/health/logger", on_health)
         self.pubs = {t.key: self.session.declare_publisher(
             t.key, congestion_control=zenoh.CongestionControl.BLOCK) for t in MIX}
-        assert wait(lambda: all(cast(Any, p.matching_status).matching for p in self.pubs.values()), 20)
+        assert wait(lambda: all(cast(Any, p.matching_status).matching
+                                for p in self.pubs.values()), 20)
         self.payloads = {t.key: ENC.encode(samples(1)[t.key]) for t in MIX}
 
     def _open(self, cfg: zenoh.Config) -> bool:
