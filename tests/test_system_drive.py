@@ -12,7 +12,8 @@ import pytest
 import zenoh
 
 from autochair.launcher import Launcher
-from autochair_msgs import GroundTruth, JoystickOutput, VelocityCommand, keys
+from autochair.protocol import arduino
+from autochair_msgs import EncoderSample, GroundTruth, JoystickOutput, VelocityCommand, keys
 from tests.helpers import Recorder, client_session, wait_for
 
 pytestmark = pytest.mark.slow
@@ -33,15 +34,22 @@ def test_velocity_step_settles_within_3_s(stack_factory: Callable[..., Launcher]
     try:
         truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
         out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
+        enc = Recorder(session, keys.ENCODERS.key, EncoderSample)
         wait_for(lambda: truth.latest() and out.latest(), 10, "truth and joystick output")
         assert out.latest().reason.startswith("neutral"), "output must be neutral before a command"
+        # The firmware ignores commands for its first second (ST_BOOT), as a real one would.
+        wait_for(lambda: enc.latest() and not enc.latest().status & arduino.ST_BOOT, 10,
+                 "the chair's MCU out of boot")
         pub = session.declare_publisher(keys.CMD_VEL.key)
         t0 = time.monotonic()
+        sim_t0 = truth.latest().sim_time_s
         while time.monotonic() - t0 < 5.0:
             command(pub, 0.5)
             time.sleep(0.05)  # the 20 Hz rate of the command stream itself, not a sync
-        samples = [(t - t0, m.v_mps) for t, m in truth.items if t >= t0]
-        assert samples[-1][0] > 4.5
+        # Settling is timed on the simulator's clock: on a loaded machine sim time may run
+        # slower than wall time, and the chair's physics with it.
+        samples = [(m.sim_time_s - sim_t0, m.v_mps) for t, m in truth.items if t >= t0]
+        assert samples[-1][0] > 4.0
         outside = [t for t, v in samples if abs(v - 0.5) > 0.05]
         settle = max(outside) if outside else 0.0
         assert settle < 3.0, f"true speed still outside ±10 % of 0.5 m/s at t = {settle:.2f} s"
