@@ -1,0 +1,84 @@
+"""The live Foxglove bridge, read by a real Foxglove client (npm @foxglove/ws-protocol)."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from autochair.commands.foxglove import Bridge
+from autochair.runtime.node import encode
+from autochair_msgs import FrameTransform, LaserScan, Odometry, Quaternion, Vector3, keys
+from tests.test_deploy_tls import free_port, open_json
+
+foxglove = pytest.importorskip("foxglove", reason="foxglove-sdk (the `remote` extra) missing")
+JS = Path(__file__).parent / "js"
+
+
+def npm_ready() -> None:
+    if not (shutil.which("node") and shutil.which("npm")):
+        pytest.fail("node and npm are needed for the Foxglove client test (install nodejs)")
+    stamp = JS / "node_modules" / ".package-lock.json"
+    lock = JS / "package-lock.json"
+    if not stamp.exists() or stamp.stat().st_mtime < lock.stat().st_mtime \
+            or not (JS / "node_modules" / "@foxglove" / "ws-protocol").exists():
+        r = subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"],
+                           cwd=JS, capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, f"npm ci failed: {r.stderr[-2000:]}"
+
+
+@pytest.mark.slow
+def test_bridge_serves_pose_tf_scan_and_plots_to_a_foxglove_client() -> None:
+    npm_ready()
+    hub = f"tcp/127.0.0.1:{free_port()}"
+    router = open_json({"mode": "router", "listen": {"endpoints": [hub]},
+                        "scouting": {"multicast": {"enabled": False}}})
+    client = {"mode": "client", "connect": {"endpoints": [hub]},
+              "scouting": {"multicast": {"enabled": False}}}
+    chair, laptop = open_json(client), open_json(client)
+    Bridge(laptop)
+    server = foxglove.start_server(host="127.0.0.1", port=0)
+    stop = threading.Event()
+
+    def feed() -> None:
+        while not stop.wait(0.05):
+            t = time.time_ns()
+            chair.put(keys.ODOM.key, encode(Odometry(stamp_ns=t, x_m=1.5, y_m=2.0, yaw_rad=0.5,
+                                                     v_mps=0.25, omega_radps=0.1)))
+            chair.put(keys.TF.key, encode(FrameTransform(
+                stamp_ns=t, parent_frame_id="world", child_frame_id="chair",
+                translation=Vector3(1.5, 2.0, 0.0), rotation=Quaternion())))
+            chair.put(keys.SCAN.key, encode(LaserScan(
+                stamp_ns=t, frame_id="laser", angle_min_rad=-1.0, angle_increment_rad=0.5,
+                range_min_m=0.02, range_max_m=5.6, ranges_m=[1.0, math.nan, 2.5])))
+
+    th = threading.Thread(target=feed, daemon=True)
+    th.start()
+    try:
+        r = subprocess.run(["node", str(JS / "foxglove_ws.js"), f"ws://127.0.0.1:{server.port}",
+                            "/pose", "/tf", "/scan", "autochair/odom"],
+                           capture_output=True, text=True, timeout=60)
+    finally:
+        stop.set()
+        th.join()
+        server.stop()
+        for s in (laptop, chair, router):
+            s.close()
+    out = json.loads(r.stdout or "{}")
+    assert "error" not in out, (out, r.stderr)
+    ch, first = out["channels"], out["first"]
+    assert ch["/pose"]["schemaName"] == "foxglove.PoseInFrame"
+    assert ch["/scan"]["schemaName"] == "foxglove.LaserScan"
+    assert ch["/tf"]["schemaName"] == "foxglove.FrameTransforms"
+    assert ch["autochair/odom"] == {"encoding": "json", "schemaName": "autochair_msgs.Odometry"}
+    assert first["/pose"]["pose"]["position"]["x"] == 1.5
+    assert first["/pose"]["frame_id"] == "world"
+    assert first["/scan"]["ranges"] == [1.0, 0.0, 2.5]  # NaN beam drawn at the sensor
+    assert first["/tf"]["transforms"][0]["child_frame_id"] == "chair"
+    assert first["autochair/odom"]["v_mps"] == 0.25
