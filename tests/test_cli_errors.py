@@ -54,13 +54,14 @@ def test_status_without_hub() -> None:
 
 
 @pytest.mark.parametrize("setting,needle", [
-    ("stale_timeout_s=abc", "Expected `float`"),
+    ("keepalive_hz=abc", "Expected `float`"),
+    ("stale.joystick_s=0", "joystick_s"),
     ("no_such_field=1", "no_such_field"),
 ])
 def test_service_bad_setting(setting: str, needle: str) -> None:
     proc = run("-m", "autochair.gateway.node", "--set", setting, "--set", "port=loop://",
                "--connect", f"tcp/127.0.0.1:{free_port()}")
-    one_line_error(proc, "[gateway]", needle)
+    one_line_error(proc, "[stale]" if setting.startswith("stale.") else "[gateway]", needle)
 
 
 def test_service_bad_config_file(tmp_path: Path) -> None:
