@@ -32,7 +32,7 @@ class SafetyParams:
     half_width_m: float = 0.35  # 0.7 m wide
     padding_m: float = 0.05  # grown on every side (laser noise, mounting tolerance)
     decel_mps2: float = 1.0  # planned braking deceleration (comfort limit ~1 m/s²)
-    reaction_s: float = 0.5  # latency margin: scan age + PID + chair controller lag
+    reaction_s: float = 1.0  # latency margin: scan age + PID + chair controller lag (~1 s)
     stop_margin_m: float = 0.10  # stop this short of the obstacle
     alpha_radps2: float = 1.5  # planned angular deceleration
     stop_margin_rad: float = 0.05

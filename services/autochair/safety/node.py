@@ -30,7 +30,7 @@ class SafetyConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     half_width_m: float = 0.35  # 0.7 m wide
     padding_m: float = 0.05  # grown on every side
     decel_mps2: float = 1.0  # planned braking deceleration
-    reaction_s: float = 0.5  # latency margin (scan age, PID, chair controller lag)
+    reaction_s: float = 1.0  # latency margin (scan age, PID, chair controller lag ~1 s)
     stop_margin_m: float = 0.10  # stop this short of the obstacle
     alpha_radps2: float = 1.5  # planned angular deceleration
     v_max_fwd_mps: float = 1.2  # published bound with nothing in view

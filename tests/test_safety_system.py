@@ -1,0 +1,105 @@
+"""Safety monitor in the simulator: drive at the dead end at 1.2 m/s, stop without touching."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import msgspec
+import numpy as np
+import pytest
+
+from autochair.launcher import Launcher
+from autochair.lidar.world import DEFAULT_WORLD, World, parse_world
+from autochair.safety.core import SafetyParams
+from autochair_msgs import EStopState, GroundTruth, SafetyLimit, VelocityCommand, keys
+from tests.helpers import Recorder, client_session, make_stack, wait_for
+
+pytestmark = pytest.mark.slow
+
+STACK = ["estop", "sim", "gateway", "odometry", "pid", "lidar-sim", "lidar", "safety"]
+ENC = msgspec.msgpack.Encoder()
+P = SafetyParams()
+
+
+def footprint_outline(step: float = 0.01) -> np.ndarray:
+    """The unpadded footprint's boundary as chair-frame points."""
+    f, r, w = P.front_m, P.rear_m, P.half_width_m
+    xs = np.arange(-r, f + step, step)
+    ys = np.arange(-w, w + step, step)
+    return np.concatenate([np.column_stack((xs, np.full_like(xs, w))),
+                           np.column_stack((xs, np.full_like(xs, -w))),
+                           np.column_stack((np.full_like(ys, f), ys)),
+                           np.column_stack((np.full_like(ys, -r), ys))])
+
+
+def clearance(world: World, x: float, y: float, yaw: float) -> float:
+    """Distance from the chair's footprint outline at a pose to the nearest world shape."""
+    pts = footprint_outline()
+    c, s = math.cos(yaw), math.sin(yaw)
+    wp = np.column_stack((x + c * pts[:, 0] - s * pts[:, 1], y + s * pts[:, 0] + c * pts[:, 1]))
+    return float(world.distance_to(wp).min())
+
+
+def test_clearance_helper_sees_a_touch() -> None:
+    world = parse_world(DEFAULT_WORLD.read_text())
+    assert clearance(world, 0.0, 0.0, 0.0) == pytest.approx(1.4 - P.half_width_m, abs=0.01)
+    assert clearance(world, 22.0 - P.front_m, 0.0, 0.0) < 0.01
+
+
+@pytest.fixture
+def safe_stack(tmp_path: Path, hub: str) -> Iterator[Launcher]:
+    """The drive chain, the simulated lidar and the monitor; the PID requires the limit."""
+    conf = tmp_path / "autochair.toml"
+    conf.write_text("[pid]\nrequire_safety_limit = true\n")
+    launcher = make_stack(["router", *STACK], hub, tmp_path / "run")
+    launcher.env["AUTOCHAIR_CONFIG"] = str(conf)
+    try:
+        launcher.start(ready_timeout_s=40)
+        yield launcher
+    finally:
+        launcher.stop()
+
+
+def test_drive_at_the_dead_end_stops_without_touching(safe_stack: Launcher, hub: str) -> None:
+    world = parse_world(DEFAULT_WORLD.read_text())
+    session = client_session(hub)
+    try:
+        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+        limits = Recorder(session, keys.SAFETY_LIMIT.key, SafetyLimit)
+        estop = Recorder(session, keys.ESTOP_STATE.key, EStopState)
+        wait_for(lambda: truth.latest() and limits.latest()
+                 and limits.latest().reason != "scan stale", 30, "truth and scan-based limits")
+        pub = session.declare_publisher(keys.CMD_VEL.key)
+        t0 = time.monotonic()
+        stopped_since = math.inf
+        while time.monotonic() - t0 < 45:
+            pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=1.2,
+                                               omega_radps=0.0, source="test")))
+            now, latest = time.monotonic(), truth.latest()
+            if latest.x_m > 15 and abs(latest.v_mps) < 0.01:
+                stopped_since = min(stopped_since, now)
+                if now - stopped_since > 1.5:
+                    break
+            else:
+                stopped_since = math.inf
+            time.sleep(0.05)  # the 20 Hz rate of the command stream itself, not a sync
+        run = [m for t, m in truth.items if t >= t0]
+        v_peak = max(m.v_mps for m in run)
+        final = run[-1]
+        gaps = [clearance(world, m.x_m, m.y_m, m.yaw_rad) for m in run[::5]]
+        gap_end = clearance(world, final.x_m, final.y_m, final.yaw_rad)
+        print(f"peak {v_peak:.2f} m/s, stopped at x = {final.x_m:.2f} m, {gap_end:.3f} m from "
+              f"the nearest obstacle, min clearance {min(gaps):.3f} m; {limits.latest()}")
+        assert v_peak > 1.1, f"never reached vmax (peak {v_peak:.2f} m/s)"
+        assert final.x_m > 15 and abs(final.v_mps) < 0.01, "the chair did not stop at the end"
+        assert min(gaps) > 0.0, f"footprint touched the world (clearance {min(gaps):.3f} m)"
+        assert gap_end < 0.6, f"stopped {gap_end:.2f} m short of the obstacle"
+        # Stopped by slowing down, not by the last-resort e-stop (it never latched).
+        assert estop.latest() is not None and not any(m.latched for m in estop.messages())
+        assert limits.latest().v_max_fwd_mps == 0.0  # still on a collision course: held at 0
+        assert limits.latest().v_max_rev_mps > 0.0  # but it may back away
+    finally:
+        session.close()
