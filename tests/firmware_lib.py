@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -83,3 +84,41 @@ def build_protocol_lib(out_dir: Path) -> ctypes.CDLL:
 
 def buf(data: bytes = b"", size: int = 256) -> ctypes.Array[ctypes.c_uint8]:
     return (ctypes.c_uint8 * max(size, len(data)))(*data)
+
+
+AVR_PACKAGES = ["gcc-avr", "avr-libc", "simavr", "libsimavr-dev", "libelf-dev", "pkg-config",
+                "make"]
+
+
+def _have_avr_tools() -> bool:
+    return all(shutil.which(t) for t in ("avr-gcc", "avr-objcopy", "make", "pkg-config")) and \
+        Path("/usr/include/simavr/sim_avr.h").exists()
+
+
+def ensure_avr_toolchain() -> None:
+    """avr-gcc, avr-libc and libsimavr: install them from Debian if missing, else skip."""
+    if _have_avr_tools():
+        return
+    apt = shutil.which("apt-get")
+    if apt is None or not hasattr(os, "geteuid") or os.geteuid() != 0:
+        pytest.skip("avr-gcc/simavr missing and cannot apt-get install them (need root + apt): "
+                    f"apt-get install -y {' '.join(AVR_PACKAGES)}")
+    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
+    try:
+        subprocess.run([apt, "update"], check=True, capture_output=True, timeout=300, env=env)
+        subprocess.run([apt, "install", "-y", "--no-install-recommends", *AVR_PACKAGES],
+                       check=True, capture_output=True, timeout=600, env=env)
+    except (subprocess.CalledProcessError, subprocess.TimeoutExpired) as e:
+        out = getattr(e, "stderr", b"") or b""
+        pytest.skip(f"could not install {' '.join(AVR_PACKAGES)}: {e}; "
+                    f"{out.decode(errors='replace')[-300:]}")
+    if not _have_avr_tools():
+        pytest.skip("apt-get install ran but avr-gcc/simavr headers are still missing")
+
+
+def build_firmware(build_dir: Path) -> tuple[Path, Path]:
+    """`make` the firmware ELF and the simavr harness into build_dir; return both paths."""
+    ensure_avr_toolchain()
+    subprocess.run(["make", "-s", "-C", str(FIRMWARE_DIR), f"BUILD={build_dir}", "all",
+                    "harness"], check=True, capture_output=True, timeout=300)
+    return build_dir / "autochair_arduino.elf", build_dir / "simavr_harness"

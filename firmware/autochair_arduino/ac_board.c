@@ -159,9 +159,10 @@ void ac_app_setup(void) {
     PCICR |= _BV(PCIE1);
 
     TCCR1A = 0;
-    TCNT1 = 0;
+    TCCR1B = _BV(WGM12); /* CTC first (stopped), then TOP, then the clock: F_CPU/8 */
     OCR1A = TIMER_TOP;
-    TCCR1B = _BV(WGM12) | _BV(CS11); /* CTC, F_CPU/8 */
+    TCNT1 = 0;
+    TCCR1B |= _BV(CS11);
     TIFR1 = _BV(OCF1A);
     TIMSK1 = _BV(OCIE1A);
 
