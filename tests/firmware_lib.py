@@ -119,6 +119,8 @@ def ensure_avr_toolchain() -> None:
 def build_firmware(build_dir: Path) -> tuple[Path, Path]:
     """`make` the firmware ELF and the simavr harness into build_dir; return both paths."""
     ensure_avr_toolchain()
-    subprocess.run(["make", "-s", "-C", str(FIRMWARE_DIR), f"BUILD={build_dir}", "all",
-                    "harness"], check=True, capture_output=True, timeout=300)
+    r = subprocess.run(["make", "-s", "-C", str(FIRMWARE_DIR), f"BUILD={build_dir}", "all",
+                        "harness"], capture_output=True, text=True, timeout=300)
+    if r.returncode != 0:
+        pytest.fail(f"firmware build failed:\n{r.stdout[-2000:]}\n{r.stderr[-2000:]}")
     return build_dir / "autochair_arduino.elf", build_dir / "simavr_harness"
