@@ -187,6 +187,8 @@ def test_replay_reproduces_payloads_and_timing(session: zenoh.Session, router: s
     wait_for(lambda: len(got) >= len(sent), 10, "replayed messages")
     sub.undeclare()
     assert [(k, b) for _, k, b in got] == [(k, b) for _, k, b in sent]
-    # Timing: arrival offsets match the recorded offsets / rate (shared CPU: 60 ms bound).
+    # Timing: arrival offsets match the recorded offsets / rate. The max bound is loose because
+    # the 2-core machine is shared with the rest of the suite; the median is tight.
     errors = [abs((g[0] - got[0][0]) - s[0] / rate) for g, s in zip(got, sent, strict=True)]
-    assert max(errors) < 0.06, max(errors)
+    assert max(errors) < 0.2, max(errors)
+    assert sorted(errors)[len(errors) // 2] < 0.02, sorted(errors)[len(errors) // 2]
