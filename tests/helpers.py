@@ -19,7 +19,7 @@ from autochair.processes import PROCESSES
 T = TypeVar("T")
 
 
-def wait_for(cond: Callable[[], T], timeout: float, what: str = "condition",
+def wait_for(cond: Callable[[], T | None], timeout: float, what: str = "condition",
              interval: float = 0.01) -> T:
     """Poll `cond` until it returns something truthy; fail the test after `timeout` seconds."""
     deadline = time.monotonic() + timeout
