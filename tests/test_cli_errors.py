@@ -1,4 +1,4 @@
-"""People get one clear line, not a traceback, for bad config, a missing port or a wrong argument."""
+"""One clear line, not a traceback, for bad config, a missing port or a wrong argument."""
 
 from __future__ import annotations
 

@@ -67,7 +67,7 @@ def test_sequence_gaps_are_counted_across_wrap() -> None:
 def test_tx_sequence_and_ack() -> None:
     core = GatewayCore()
     core.on_bytes(arduino.encode(Telemetry(77, 0, 0, 0, 0)))
-    first, seq0 = core.frame(core.output(0.0))
+    _, seq0 = core.frame(core.output(0.0))
     second, seq1 = core.frame(core.output(0.0))
     assert (seq0, seq1) == (0, 1)
     assert decode_one(second).ack_seq == 77

@@ -87,12 +87,13 @@ def test_velocity_from_mcu_clock() -> None:
 
 def _next_sample(core: OdometryCore, v: float, omega: float) -> tuple[int, int, int]:
     assert core._prev is not None
-    l, r, t = core._prev
-    return (l + round((v - omega * B / 2) / 200 / M_PER_COUNT),
-            r + round((v + omega * B / 2) / 200 / M_PER_COUNT), t + 5000)
+    left, right, t = core._prev
+    return (left + round((v - omega * B / 2) / 200 / M_PER_COUNT),
+            right + round((v + omega * B / 2) / 200 / M_PER_COUNT), t + 5000)
 
 
 @pytest.mark.parametrize("a,expected", [(math.pi, math.pi), (-math.pi, math.pi),
-                                        (3 * math.pi, math.pi), (0.1, 0.1), (-7.0, -7 + 2 * math.pi)])
+                                        (3 * math.pi, math.pi), (0.1, 0.1),
+                                        (-7.0, -7 + 2 * math.pi)])
 def test_wrap_angle(a: float, expected: float) -> None:
     assert wrap_angle(a) == pytest.approx(expected)

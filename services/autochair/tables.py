@@ -6,7 +6,6 @@ drift from schemas/autochair_msgs/keys.py or services/autochair/processes.py.
 
 from __future__ import annotations
 
-import re
 import sys
 from pathlib import Path
 
@@ -39,10 +38,13 @@ BLOCKS = {"keys": keys_table, "processes": processes_table}
 
 
 def render(text: str) -> str:
+    """Replace the body of each `<!-- name:begin -->` … `<!-- name:end -->` block."""
     for name, make in BLOCKS.items():
-        pattern = re.compile(rf"(<!-- {name}:begin -->\n).*?(\n<!-- {name}:end -->)", re.S)
-        body = make()
-        text = pattern.sub(lambda m: m.group(1) + body + m.group(2), text)
+        begin, end = f"<!-- {name}:begin -->\n", f"\n<!-- {name}:end -->"
+        i = text.find(begin)
+        j = text.find(end, i)
+        if i >= 0 and j >= 0:
+            text = text[: i + len(begin)] + make() + text[j:]
     return text
 
 
