@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
-from autochair.control.law import wrap
+from autochair.geometry import wrap_angle as wrap
 from autochair.odometry.core import OdometryCore
 from autochair.pid.core import VelocityPidCore
 from autochair.sim.model import ChairModel

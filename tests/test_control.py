@@ -9,8 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from autochair.control.core import ControlConfig, ControlCore, OdomSample
-from autochair.control.law import Gains, braking_speed, egocentric, park_kuipers, wrap
+from autochair.control.law import Gains, braking_speed, egocentric, park_kuipers
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
+from autochair.geometry import wrap_angle as wrap
 from autochair_msgs import GoalRequest, Pose2D
 
 DT = 0.005

@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from autochair.odometry.core import OdometryCore, wrap_angle
+from autochair.geometry import wrap_angle
+from autochair.odometry.core import OdometryCore
 
 R, B, CPR = 0.049, 0.367, 10000
 M_PER_COUNT = 2 * math.pi * R / CPR

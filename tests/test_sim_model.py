@@ -7,13 +7,13 @@ from dataclasses import replace
 
 import pytest
 
+from autochair.geometry import wrap_angle
 from autochair.sim.model import (
     NEUTRAL_V,
     ChairModel,
     ChairParams,
     effort,
     volts,
-    wrap_angle,
     ziegler_nichols,
 )
 

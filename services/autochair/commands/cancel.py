@@ -6,12 +6,13 @@ import argparse
 from typing import Any
 
 from autochair.cli import CliError
+from autochair.remote import add_link_args
 
 
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser("cancel", help="cancel the active goal",
                                                 description=__doc__)
-    p.add_argument("--connect", help="Zenoh endpoint of the hub")
+    add_link_args(p)
     p.set_defaults(func=run)
 
 
@@ -19,14 +20,10 @@ def run(args: argparse.Namespace) -> int:
     import msgspec
 
     from autochair.commands.goal import query
-    from autochair.runtime.client import open_client
-    from autochair.runtime.config import ConfigError
+    from autochair.remote import open_session
     from autochair_msgs import GoalReply, GoalRequest, keys
 
-    try:
-        session = open_client(args.connect)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
+    session = open_session(args)
     try:
         reply = msgspec.msgpack.decode(
             query(session, keys.GOAL_CANCEL.key,

@@ -8,6 +8,7 @@ import time
 from typing import Any
 
 from autochair.cli import CliError
+from autochair.remote import add_link_args
 
 MAX_V, MAX_W = 2.0, 2.0
 
@@ -22,15 +23,15 @@ def register(sub: Any) -> None:
     p.add_argument("--for", dest="duration", type=float, default=None, metavar="S",
                    help="seconds to drive (default: until Ctrl-C)")
     p.add_argument("--rate", type=float, default=20.0, help="publish rate, Hz")
-    p.add_argument("--connect", help="Zenoh endpoint of the hub")
+    add_link_args(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.runtime.client import alive_services, open_client
-    from autochair.runtime.config import ConfigError
+    from autochair.remote import open_session
+    from autochair.runtime.client import alive_services
     from autochair_msgs import Odometry, VelocityCommand, keys
 
     if abs(args.v) > MAX_V or abs(args.w) > MAX_W:
@@ -39,10 +40,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--for must be > 0 seconds")
     if not 1 <= args.rate <= 200:
         raise CliError("--rate must be within 1–200 Hz")
-    try:
-        session = open_client(args.connect)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
+    session = open_session(args)
     try:
         if "pid" not in alive_services(session):
             print("warning: no velocity PID is running (see `autochair status`)", flush=True)

@@ -9,17 +9,18 @@ import time
 from typing import Any
 
 from autochair.cli import CliError
+from autochair.remote import add_link_args
 
 
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "estop", help="latch the e-stop: the chair holds neutral until released")
     p.add_argument("reason", nargs="?", default="operator", help="why (shown to everyone)")
-    p.add_argument("--connect", help="Zenoh endpoint of the hub")
+    add_link_args(p)
     p.set_defaults(func=run_estop)
     r: argparse.ArgumentParser = sub.add_parser(
         "release", help="release the e-stop (refused while a cause remains)")
-    r.add_argument("--connect", help="Zenoh endpoint of the hub")
+    add_link_args(r)
     r.set_defaults(func=run_release)
 
 
@@ -30,14 +31,10 @@ def _who() -> str:
 def run_estop(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.runtime.client import open_client
-    from autochair.runtime.config import ConfigError
+    from autochair.remote import open_session
     from autochair_msgs import EStopAssert, EStopState, keys
 
-    try:
-        session = open_client(args.connect)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
+    session = open_session(args)
     try:
         states: list[EStopState] = []
         dec = msgspec.msgpack.Decoder(EStopState)
@@ -61,14 +58,10 @@ def run_estop(args: argparse.Namespace) -> int:
 def run_release(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.runtime.client import open_client
-    from autochair.runtime.config import ConfigError
+    from autochair.remote import open_session
     from autochair_msgs import EStopRelease, EStopReply, keys
 
-    try:
-        session = open_client(args.connect)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
+    session = open_session(args)
     try:
         replies = list(session.get(keys.ESTOP_RELEASE.key,
                                    payload=msgspec.msgpack.encode(EStopRelease(by=_who())),

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from autochair.cli import CliError
+from autochair.remote import add_link_args
 
 
 def register(sub: Any) -> None:
@@ -31,7 +32,7 @@ def register(sub: Any) -> None:
     p.add_argument("--tolerance-deg", type=float, default=3.0, help="heading tolerance, °")
     p.add_argument("--vmax", type=float, default=None, help="speed limit for this goal, m/s")
     p.add_argument("--no-wait", action="store_true", help="set the goal and return")
-    p.add_argument("--connect", help="Zenoh endpoint of the hub")
+    add_link_args(p)
     p.set_defaults(func=run)
 
 
@@ -70,8 +71,7 @@ def query(session: Any, key: str, payload: bytes, timeout_s: float = 2.0) -> byt
 def run(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.runtime.client import open_client
-    from autochair.runtime.config import ConfigError
+    from autochair.remote import open_session
     from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
 
     if args.waypoints and args.pose:
@@ -85,10 +85,7 @@ def run(args: argparse.Namespace) -> int:
     req = GoalRequest(waypoints=[Pose2D(x, y, math.radians(yaw)) for x, y, yaw in rows],
                       tolerance_m=args.tolerance_cm / 100.0,
                       tolerance_rad=math.radians(args.tolerance_deg), vmax_mps=args.vmax)
-    try:
-        session = open_client(args.connect)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
+    session = open_session(args)
     try:
         status: list[GoalStatus] = []
         cond = threading.Condition()

@@ -9,6 +9,7 @@ import time
 from typing import Any
 
 from autochair.cli import CliError
+from autochair.remote import add_link_args
 
 
 def register(sub: Any) -> None:
@@ -18,7 +19,7 @@ def register(sub: Any) -> None:
     p.add_argument("file", help="an .mcap recording")
     p.add_argument("--rate", type=float, default=1.0, help="speed factor (2 = twice as fast)")
     p.add_argument("--loop", action="store_true", help="start over at the end until Ctrl-C")
-    p.add_argument("--connect", help="Zenoh endpoint(s) of the hub")
+    add_link_args(p)
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=run)
 
@@ -28,8 +29,7 @@ def run(args: argparse.Namespace) -> int:
 
     from autochair.logger import replay
     from autochair.logger.reader import Recording
-    from autochair.runtime.client import open_client
-    from autochair.runtime.config import ConfigError
+    from autochair.remote import open_session
 
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
@@ -38,10 +38,7 @@ def run(args: argparse.Namespace) -> int:
     except FileNotFoundError as e:
         raise CliError(str(e)) from None
     total_s = rec.summary().duration_s / args.rate if not args.quiet else 0.0
-    try:
-        session = open_client(args.connect)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
+    session = open_session(args)
     pubs: dict[str, zenoh.Publisher] = {}
     try:
         while True:

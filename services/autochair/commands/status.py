@@ -7,14 +7,14 @@ import threading
 import time
 from typing import Any
 
-from autochair.cli import CliError
+from autochair.remote import add_link_args
 
 
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "status", help="list live services and their health",
         description="List the services whose liveliness token is up, with their latest health.")
-    p.add_argument("--connect", help="Zenoh endpoint of the hub")
+    add_link_args(p)
     p.add_argument("--wait", type=float, default=1.5, help="seconds to gather health")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=run)
@@ -23,14 +23,11 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.runtime.client import alive_services, open_client
-    from autochair.runtime.config import ConfigError
+    from autochair.remote import open_session
+    from autochair.runtime.client import alive_services
     from autochair_msgs import Health, keys
 
-    try:
-        session = open_client(args.connect)
-    except ConfigError as e:
-        raise CliError(str(e)) from None
+    session = open_session(args)
     health: dict[str, Health] = {}
     lock = threading.Lock()
     dec = msgspec.msgpack.Decoder(Health)

@@ -15,9 +15,10 @@ from dataclasses import dataclass
 
 import msgspec
 
+from autochair.geometry import wrap_angle as wrap
 from autochair_msgs import GoalReply, GoalRequest, Pose2D
 
-from .law import Gains, align_omega, braking_speed, park_kuipers, wrap
+from .law import Gains, align_omega, braking_speed, park_kuipers
 from .limits import ComfortLimiter, ComfortLimits
 
 IDLE, ACTIVE, ARRIVED, ABORTED, CANCELLED = "idle", "active", "arrived", "aborted", "cancelled"

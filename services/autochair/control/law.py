@@ -28,11 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-
-def wrap(angle: float) -> float:
-    """Angle into (−π, π]."""
-    a = math.remainder(angle, math.tau)
-    return a + math.tau if a <= -math.pi else a
+from autochair.geometry import wrap_angle as wrap
 
 
 @dataclass(frozen=True)

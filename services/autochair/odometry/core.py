@@ -10,15 +10,8 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
+from autochair.geometry import wrap_angle
 from autochair.protocol.arduino import wrap_delta
-
-
-def wrap_angle(a: float) -> float:
-    """Wrap to (−π, π]."""
-    a = math.fmod(a + math.pi, 2 * math.pi)
-    if a <= 0:
-        a += 2 * math.pi
-    return a - math.pi
 
 
 @dataclass(frozen=True)

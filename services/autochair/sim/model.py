@@ -37,6 +37,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
+from autochair.geometry import wrap_angle
+
 NEUTRAL_V = 2.5
 VOLTS_PER_EFFORT = 1.5
 
@@ -47,14 +49,6 @@ def effort(volts: float) -> float:
 
 def volts(c: float) -> float:
     return NEUTRAL_V + VOLTS_PER_EFFORT * c
-
-
-def wrap_angle(a: float) -> float:
-    """Wrap to (-pi, pi]."""
-    a = math.fmod(a + math.pi, 2.0 * math.pi)
-    if a <= 0.0:
-        a += 2.0 * math.pi
-    return a - math.pi
 
 
 @dataclass(frozen=True, slots=True)
