@@ -400,7 +400,8 @@ def table(res: dict[str, Any]) -> str:
     ld = res.get("lidar_unplug", {})
     rows.append(f"| lidar unplug 3 s | stop limit {f(ld.get('stop_limit_ms'))} | "
                 f"{f(ld.get('standstill_ms'))} | scans back "
-                f"{f(ld.get('scans_back_after_replug_s'))} after replug | {f(ld.get('driving_again_s'))} after replug |")
+                f"{f(ld.get('scans_back_after_replug_s'))} after replug | "
+                f"{f(ld.get('driving_again_s'))} after replug |")
     return "\n".join(rows)
 
 
