@@ -95,8 +95,8 @@ class ComfortLimiter:
         # Slow down while the turn rate is still catching up with the curvature (e.g. turning
         # the other way): the chair then stays on the path instead of overshooting it, which
         # near the goal, where κ ~ 1/r, is what made the thesis's chair oscillate.
-        if abs(v_des) * s > 1e-3 and omega_des != 0.0:
-            kappa = omega_des / v_des
+        kappa = omega_des / v_des if abs(v_des) * s > 1e-3 else 0.0
+        if kappa != 0.0:  # (a denormal ω can make κ underflow to 0)
             reach = math.copysign(1.0, kappa) * self.w.value + self.w.amax * self.lookahead_s
             s = min(s, max(reach, 0.0) / abs(kappa) / abs(v_des))
         v_des, omega_des = v_des * s, omega_des * s
