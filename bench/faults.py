@@ -208,6 +208,16 @@ class Probe:
         r: float | None = poll(find, timeout, 0.02)
         return r
 
+    def driving_after(self, t_ns: int, timeout: float) -> int | None:
+        """Stamp of the first command frame written after t_ns (None: not within timeout)."""
+
+        def find() -> int | None:
+            return next((m.stamp_ns for m in self.out.since(t_ns)
+                         if m.enable and m.reason == "command" and m.stamp_ns > t_ns), None)
+
+        r: int | None = poll(find, timeout, 0.02)
+        return r
+
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2)
@@ -255,14 +265,13 @@ def kill_one(stack: Stack, probe: Probe, name: str) -> dict[str, Any]:
     neutral = probe.first_neutral(t, 3.0)
     still = probe.standstill(t, 5.0)
     back = poll(lambda: probe.alive.get(name, 0) > t and probe.alive[name], 20, 0.01)
-    resumed = poll(lambda: probe.driving() and probe.out.latest().stamp_ns > t, 30, 0.02)
+    resumed = probe.driving_after(t + int((neutral or 0) * 1e6), 30)
     row = {"service": name, "in_drive_chain": name in DRIVE_CHAIN,
            "omega_before_radps": round(spin, 3),
            "neutral_ms": None if neutral is None else round(neutral, 1),
            "standstill_ms": None if still is None else round(still, 1),
            "restart_s": None if not back else round((back - t) / 1e9, 3),
-           "driving_again_s": None if not resumed else
-           round((probe.out.latest().stamp_ns - t) / 1e9, 2)}
+           "driving_again_s": None if resumed is None else round((resumed - t) / 1e9, 2)}
     print(row, flush=True)
     return row
 
@@ -288,12 +297,12 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
         t = time.time_ns()
         ok = sim_fault(probe.session, SimFault(kind="unplug", duration_s=2.0))
         neutral = probe.first_neutral(t, 3.0)
-        back = poll(lambda: probe.driving() and probe.out.latest().stamp_ns > t + 2e9, 20, 0.02)
+        back = probe.driving_after(t + 2_000_000_000, 20)
         res["serial_unplug"] = {
             "injected": ok, "unplugged_s": 2.0,
             "neutral_ms": None if neutral is None else round(neutral, 1),
-            "driving_after_replug_s": None if not back else
-            round((probe.out.latest().stamp_ns - t) / 1e9 - 2.0, 2)}
+            "driving_after_replug_s": None if back is None else
+            round((back - t) / 1e9 - 2.0, 2)}
         print(res["serial_unplug"], flush=True)
 
         # --- garbage into serial ---------------------------------------------------------------
@@ -323,7 +332,7 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
         still = probe.standstill(t, 6.0)
         scans_back = poll(lambda: next((m for m in probe.scan.since(t + 3_000_000_000)), None),
                           30, 0.05)
-        resumed = poll(lambda: probe.driving() and probe.out.latest().stamp_ns > t + 3e9, 30)
+        resumed = probe.driving_after(t + 3_000_000_000, 30)
         res["lidar_unplug"] = {
             "unplugged_s": 3.0,
             "stop_limit_ms": None if stop_lim is None else
@@ -331,8 +340,8 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
             "standstill_ms": None if still is None else round(still, 1),
             "scans_back_after_replug_s": None if scans_back is None else
             round((scans_back.stamp_ns - t) / 1e9 - 3.0, 2),
-            "driving_again_s": None if not resumed else
-            round((probe.out.latest().stamp_ns - t) / 1e9 - 3.0, 2)}
+            "driving_again_s": None if resumed is None else
+            round((resumed - t) / 1e9 - 3.0, 2)}
         print(res["lidar_unplug"], flush=True)
 
         # --- a malformed payload on every key -----------------------------------------------

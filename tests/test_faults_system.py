@@ -1,0 +1,90 @@
+"""Fast versions of the fault-injection bench: junk on every key, serial unplug and replug."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import msgspec
+import pytest
+import zenoh
+from bench.faults import decode_errors, junk_every_key, sim_fault
+
+from autochair.launcher import Launcher
+from autochair_msgs import GroundTruth, Health, JoystickOutput, VelocityCommand, keys
+from autochair_msgs.sim import SimFault
+from tests.helpers import Recorder, client_session, wait_for
+
+pytestmark = pytest.mark.slow
+
+DRIVE_CHAIN = ["estop", "sim", "gateway", "odometry", "pid"]
+ENC = msgspec.msgpack.Encoder()
+
+
+def drive(pub: zenoh.Publisher) -> None:
+    pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.0, omega_radps=0.5,
+                                       source="test")))
+
+
+def test_junk_on_every_key_is_counted_and_kills_nothing(
+        stack_factory: Callable[..., Launcher], hub: str) -> None:
+    stack = stack_factory(DRIVE_CHAIN)
+    pids = {n: stack.pid(n) for n in DRIVE_CHAIN}
+    session = client_session(hub)
+    try:
+        health: dict[str, Health] = {}
+        dec = msgspec.msgpack.Decoder(Health)
+
+        def on_health(s: zenoh.Sample) -> None:
+            try:
+                h = dec.decode(s.payload.to_bytes())
+            except msgspec.DecodeError:
+                return  # our own junk on the health key
+            health[h.service] = h
+
+        session.declare_subscriber("autochair/health/*", on_health)
+        wait_for(lambda: set(DRIVE_CHAIN) <= set(health), 10, "health of every service")
+        used = junk_every_key(session)
+        assert len(used) == sum(1 for t in keys.TOPICS if t.kind == "pub")
+        must = {keys.JOYSTICK.key, keys.CMD_VEL.key, keys.ODOM.key, keys.ENCODERS.key,
+                keys.ESTOP_ASSERT.key, keys.ESTOP_STATE.key}
+        counted = wait_for(lambda: (lambda c: c if must <= set(c) else None)(
+            decode_errors(health)), 10, "decode errors counted in health")
+        assert all(n >= 3 for per in counted.values() for n in per.values())  # 3 junk each
+        stack.poll()
+        assert {n: stack.pid(n) for n in DRIVE_CHAIN} == pids, "a process died or restarted"
+    finally:
+        session.close()
+
+
+def test_serial_unplug_gives_neutral_then_reconnects(
+        stack_factory: Callable[..., Launcher], hub: str) -> None:
+    stack_factory(DRIVE_CHAIN)
+    session = client_session(hub)
+    try:
+        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
+        pub = session.declare_publisher(keys.CMD_VEL.key)
+
+        def driving_since(t_ns: int) -> bool:
+            drive(pub)
+            m = out.latest()
+            return m is not None and m.reason == "command" and m.stamp_ns > t_ns
+
+        wait_for(lambda: driving_since(0), 15, "driving", interval=0.05)
+        t = time.time_ns()
+        assert sim_fault(session, SimFault(kind="unplug", duration_s=1.0))
+
+        def neutral() -> list[GroundTruth]:
+            drive(pub)
+            return [m for m in truth.messages() if m.stamp_ns > t
+                    and (m.longitudinal_v, m.angular_v) == (2.5, 2.5)]
+
+        first = wait_for(neutral, 3, "neutral at the chair", interval=0.02)[0]
+        latency_ms = (first.stamp_ns - t) / 1e6
+        # Firmware watchdog 200 ms after the last host frame; generous for a loaded machine.
+        assert latency_ms < 400, f"neutral {latency_ms:.0f} ms after the unplug"
+        wait_for(lambda: driving_since(t + 1_000_000_000), 15, "driving again after replug",
+                 interval=0.05)
+    finally:
+        session.close()
