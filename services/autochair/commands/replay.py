@@ -19,6 +19,10 @@ def register(sub: Any) -> None:
     p.add_argument("file", help="an .mcap recording")
     p.add_argument("--rate", type=float, default=1.0, help="speed factor (2 = twice as fast)")
     p.add_argument("--loop", action="store_true", help="start over at the end until Ctrl-C")
+    p.add_argument("--keys", metavar="EXPR[,EXPR]",
+                   help="replay only keys matching these Zenoh key expressions, e.g. "
+                   "autochair/chair/encoders to re-run odometry and what follows on recorded "
+                   "input (the re-run services then publish their own outputs)")
     add_link_args(p)
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=run)
@@ -34,12 +38,17 @@ def run(args: argparse.Namespace) -> int:
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
     try:
+        wanted = [zenoh.KeyExpr(k.strip()) for k in args.keys.split(",")] if args.keys else []
+    except zenoh.ZError as e:
+        raise CliError(f"--keys: {e}") from None
+    try:
         rec = Recording(args.file)
     except FileNotFoundError as e:
         raise CliError(str(e)) from None
     total_s = rec.summary().duration_s / args.rate if not args.quiet else 0.0
     session = open_session(args)
     pubs: dict[str, zenoh.Publisher] = {}
+    allowed: dict[str, bool] = {}  # key → matches --keys
     try:
         while True:
             skipped: dict[str, int] = {}
@@ -47,6 +56,12 @@ def run(args: argparse.Namespace) -> int:
             start = time.monotonic()
             next_progress = start
             for item in replay.plan(rec.messages(), args.rate, skipped):
+                if wanted:
+                    if item.key not in allowed:
+                        allowed[item.key] = any(w.intersects(zenoh.KeyExpr(item.key))
+                                                for w in wanted)
+                    if not allowed[item.key]:
+                        continue
                 delay = start + item.offset_s - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
