@@ -94,3 +94,15 @@ def test_estop_latched_or_silent_holds_neutral() -> None:
     core.on_estop(False, now_s=0.7)
     core.on_command(3.0, 3.0, True, now_s=0.7)
     assert core.output(0.7).reason == "command"
+
+
+def test_estop_service_death_is_immediate() -> None:
+    core = GatewayCore(estop_stale_s=0.5)
+    core.on_estop(False, now_s=0.0)
+    core.on_command(3.0, 3.0, True, now_s=0.0)
+    assert core.output(0.01).reason == "command"
+    core.on_estop_gone()
+    assert core.output(0.01).reason == "neutral:estop_silent"
+    core.on_estop(False, now_s=0.02)  # a restarted e-stop service speaks again
+    core.on_command(3.0, 3.0, True, now_s=0.02)
+    assert core.output(0.02).reason == "command"

@@ -57,8 +57,11 @@ def test_velocity_step_settles_within_3_s(stack_factory: Callable[..., Launcher]
         session.close()
 
 
-def test_killing_the_pid_gives_neutral_within_150_ms(stack_factory: Callable[..., Launcher],
-                                                     hub: str) -> None:
+@pytest.mark.parametrize("victim,reason", [("pid", "neutral:stale"),
+                                           ("odometry", "neutral:stale"),
+                                           ("estop", "neutral:estop_silent")])
+def test_killing_a_drive_service_gives_neutral_within_150_ms(
+        stack_factory: Callable[..., Launcher], hub: str, victim: str, reason: str) -> None:
     stack = stack_factory(DRIVE_CHAIN)
     session = client_session(hub)
     try:
@@ -71,19 +74,18 @@ def test_killing_the_pid_gives_neutral_within_150_ms(stack_factory: Callable[...
             return latest is not None and latest.reason == "command"
 
         wait_for(driving, 10, "the gateway writing commands", interval=0.05)
-        pid = stack.pid("pid")
+        pid = stack.pid(victim)
         assert pid is not None
         killed_ns = time.time_ns()
         os.kill(pid, signal.SIGKILL)
 
         def neutral() -> list[JoystickOutput]:
-            command(pub, 0.5)  # the desired velocity keeps coming: only the PID is gone
-            return [m for m in out.messages()
-                    if m.stamp_ns > killed_ns and m.reason == "neutral:stale"]
+            command(pub, 0.5)  # the desired velocity keeps coming: only the victim is gone
+            return [m for m in out.messages() if m.stamp_ns > killed_ns and m.reason == reason]
 
-        first = wait_for(neutral, 2, "neutral after the PID died", interval=0.01)[0]
+        first = wait_for(neutral, 2, f"neutral after {victim} died", interval=0.01)[0]
         latency_ms = (first.stamp_ns - killed_ns) / 1e6
-        assert latency_ms < 150, f"neutral {latency_ms:.0f} ms after the PID died"
+        assert latency_ms < 150, f"neutral {latency_ms:.0f} ms after {victim} died"
         assert (first.longitudinal_v, first.angular_v, first.enable) == (2.5, 2.5, False)
         # Nothing but neutral was written after that first neutral frame.
         after = [m for m in out.messages() if m.stamp_ns >= first.stamp_ns]

@@ -83,6 +83,11 @@ class GatewayCore:
     def on_estop(self, latched: bool, now_s: float) -> None:
         self._estop_latched, self._estop_t = latched, now_s
 
+    def on_estop_gone(self) -> None:
+        """The e-stop service's liveliness token vanished (it died): treat it as silent now,
+        instead of waiting out the heartbeat timeout."""
+        self._estop_t = -math.inf
+
     def reset(self) -> None:
         """Forget the last command (e.g. after a reconnect): output goes neutral until a new one."""
         self._cmd, self._cmd_t, self._last_seq = None, -math.inf, None

@@ -10,6 +10,7 @@ import time
 
 import msgspec
 import serial
+import zenoh
 
 from autochair.runtime import Node, service_main
 from autochair_msgs import EncoderSample, EStopState, JoystickCommand, JoystickOutput, keys
@@ -57,6 +58,10 @@ class Gateway:
         h.state, h.detail = "degraded", f"connecting to {cfg.port}"
         node.subscribe(keys.JOYSTICK, self.on_command)
         node.subscribe(keys.ESTOP_STATE, self.on_estop)
+        # A killed process's token disappears within milliseconds, far sooner than the
+        # heartbeat goes stale; a hung one is still caught by the heartbeat.
+        self._estop_token = node.session.liveliness().declare_subscriber(
+            f"{keys.PREFIX}/alive/estop", self.on_estop_token)
         node.every(0.005, self.tick, "tick")
         node.thread(self.serial_loop, "serial")
 
@@ -75,6 +80,12 @@ class Gateway:
             self.core.on_estop(state.latched, time.monotonic())
             if state.latched:
                 self._write(self.core.output(time.monotonic()))  # at once, not at the next tick
+
+    def on_estop_token(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.DELETE:
+            with self.lock:
+                self.core.on_estop_gone()
+                self._write(self.core.output(time.monotonic()))
 
     def tick(self) -> None:
         """Watchdog and keepalive: write when the output changes or the keepalive is due."""
