@@ -22,6 +22,7 @@ import threading
 import time
 import tty
 from pathlib import Path
+from typing import Any
 
 import msgspec
 import zenoh
@@ -51,6 +52,8 @@ class FakeArduino:
         self.sent: dict[int, int] = {}  # seq → perf_counter_ns at write
         self.acked: dict[int, int] = {}  # ack seq → perf_counter_ns of first frame carrying it
         self.frames_in = 0
+        self.frame_index = 0
+        self.mcu_us = 0.0
         self._stop = threading.Event()
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
@@ -70,28 +73,40 @@ class FakeArduino:
                     if f.enable and f.ack_seq not in self.acked:
                         self.acked[f.ack_seq] = now
 
-    def run(self, rate_hz: float, n: int, counts_per_frame: int = 50) -> tuple[int, int]:
-        """Write `n` telemetry frames at `rate_hz`; returns (first seq, last seq)."""
+    def run(self, rate_hz: float, n: int, counts_per_frame: int = 50) -> None:
+        """Write `n` telemetry frames at `rate_hz`. Sequence, clock and counters carry on
+        from the previous run, as a real MCU's would."""
         self.sent.clear()
         self.acked.clear()
         period = 1e9 / rate_hz
         t0 = time.perf_counter_ns()
-        first = 0
         for i in range(n):
-            seq = i & 0xFFFF
             target = t0 + i * period
             while (now := time.perf_counter_ns()) < target:
                 if target - now > 300_000:
                     time.sleep((target - now - 200_000) / 1e9)
-            frame = arduino.encode(arduino.Telemetry(
-                seq, int(i * period / 1000), i * counts_per_frame, i * counts_per_frame, 0))
+            self.frame_index += 1
+            self.mcu_us += period / 1000
+            seq = self.frame_index & 0xFFFF
+            counts = self.frame_index * counts_per_frame
+            frame = arduino.encode(arduino.Telemetry(seq, int(self.mcu_us), counts, counts, 0))
             self.sent[seq] = time.perf_counter_ns()
             os.write(self.master, frame)
-        return first, n - 1
 
     def close(self) -> None:
         self._stop.set()
         os.close(self._slave)
+
+
+# (service, health counter) along the chain, in order
+HOPS = [("gateway", "frames_in"), ("gateway", "dropped_frames"), ("gateway", "bad_frames"),
+        ("gateway", "disconnects"), ("odometry", "samples"), ("pid", "updates"),
+        ("gateway", "commands")]
+
+
+def clean_row(row: dict[str, Any]) -> bool:
+    hops = row["hops"]
+    return not (row["unanswered"] or hops["gateway.dropped_frames"] or hops["gateway.bad_frames"])
 
 
 def chain_latencies(arduino_: FakeArduino) -> list[float]:
@@ -203,34 +218,34 @@ def main(argv: list[str]) -> int:
         }
         print(json.dumps(results["latency_us"]), flush=True)
 
-        sustained: list[dict[str, float | None]] = []
+        sustained: list[dict[str, Any]] = []
         for rate in (float(r) for r in args.rates.split(",")):
-            dropped0 = health_counter(session, "gateway", "dropped_frames")
-            bad0 = health_counter(session, "gateway", "bad_frames")
+            before = {f"{svc}.{c}": health_counter(session, svc, c) for svc, c in HOPS}
             n = int(rate * args.duration)
             print(f"sustained {rate:.0f} Hz for {args.duration:.0f} s ...", flush=True)
             fake.run(rate, n)
             time.sleep(0.5)
             lat = chain_latencies(fake)
+            missing = sorted(set(fake.sent) - set(fake.acked))
             row = {
                 "rate_hz": rate, "frames": n, "answered": len(lat),
-                "unanswered": n - len(lat),
-                "gateway_dropped": health_counter(session, "gateway", "dropped_frames") - dropped0,
-                "gateway_bad": health_counter(session, "gateway", "bad_frames") - bad0,
+                "unanswered": n - len(lat), "unanswered_seqs": missing[:10],
+                # where frames went missing, hop by hop (serial in, Zenoh hops, serial out)
+                "hops": {k: health_counter(session, *k.split(".")) - v for k, v in before.items()},
                 "p50_us": round(statistics.median(lat), 1) if lat else None,
                 "p99_us": round(percentile(lat, 0.99), 1) if lat else None,
             }
             print(json.dumps(row), flush=True)
             sustained.append(row)
-            if row["unanswered"] or row["gateway_dropped"] or row["gateway_bad"]:
+            if not clean_row(row):
                 break
-        clean = [r for r in sustained
-                 if not (r["unanswered"] or r["gateway_dropped"] or r["gateway_bad"])]
+        clean = [r for r in sustained if clean_row(r)]
         results["sustained"] = sustained
-        results["max_clean_rate_hz"] = max((r["rate_hz"] or 0.0 for r in clean), default=0.0)
+        results["max_clean_rate_hz"] = max((r["rate_hz"] for r in clean), default=0.0)
         session.close()
     finally:
         stop_cmd.set()
+        time.sleep(0.1)  # let the command thread see it before the session closes
         launcher.stop()
         fake.close()
     RESULTS.parent.mkdir(exist_ok=True)
