@@ -148,6 +148,17 @@ def test_view_identity_cannot_drive_but_drive_identity_can(chair: Chair, key: st
         driver.close()
 
 
+def test_any_laptop_may_stop_the_chair(chair: Chair) -> None:
+    got = collect(chair.service, keys.ESTOP_ASSERT.key)
+    viewer = chair.laptop("bob")
+    try:
+        pub = viewer.declare_publisher(keys.ESTOP_ASSERT.key)
+        assert wait_for(lambda: (pub.put(b"stop"), b"stop" in got)[1]), \
+            "a view-only laptop could not latch the e-stop"
+    finally:
+        viewer.close()
+
+
 def test_generated_profile_is_the_committed_one() -> None:
     committed = Path(__file__).parent.parent / "deploy" / "zenoh" / "chair.json5"
     body = "\n".join(ln for ln in committed.read_text().splitlines()

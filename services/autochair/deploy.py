@@ -89,7 +89,10 @@ def command(proc: Process, values: Mapping[str, str], bin_dir: str = "") -> list
 def _acl(tls_roles: Mapping[str, str]) -> dict[str, object]:
     everything = [f"{keys.PREFIX}/**"]
     drive_puts = [keys.CMD_VEL.key, keys.TELEOP.key, keys.CMD_OWNER.key]
-    goal_queries = [keys.GOAL_SET.key, keys.GOAL_CANCEL.key]
+    drive_queries = [keys.GOAL_SET.key, keys.GOAL_CANCEL.key, keys.ESTOP_RELEASE.key]
+    # Stopping the chair is never refused: every laptop may latch the e-stop and read goals.
+    stop_puts = [keys.ESTOP_ASSERT.key]
+    watch_queries = [keys.GOAL_GET.key]
     return {
         "enabled": True,
         "default_permission": "deny",
@@ -109,11 +112,15 @@ def _acl(tls_roles: Mapping[str, str]) -> dict[str, object]:
              "messages": ["put", "delete", "reply", "liveliness_token", "declare_subscriber",
                           "declare_queryable"],
              "key_exprs": everything},
-            # Driving: velocity, teleop and ownership puts, goal queries.
+            {"id": "laptop-stop", "permission": "allow", "flows": ["ingress"],
+             "messages": ["put"], "key_exprs": stop_puts},
+            {"id": "laptop-watch-query", "permission": "allow", "flows": ["ingress"],
+             "messages": ["query"], "key_exprs": watch_queries},
+            # Driving: velocity, teleop and ownership puts; goal and e-stop release queries.
             {"id": "laptop-drive-put", "permission": "allow", "flows": ["ingress"],
              "messages": ["put"], "key_exprs": drive_puts},
-            {"id": "laptop-drive-goal", "permission": "allow", "flows": ["ingress"],
-             "messages": ["query"], "key_exprs": goal_queries},
+            {"id": "laptop-drive-query", "permission": "allow", "flows": ["ingress"],
+             "messages": ["query"], "key_exprs": drive_queries},
         ],
         "subjects": [
             # Plain TCP is only reachable on loopback (or the compose network): the services.
@@ -124,10 +131,11 @@ def _acl(tls_roles: Mapping[str, str]) -> dict[str, object]:
         "policies": [
             {"id": "services", "rules": ["services-all"], "subjects": ["services"]},
             {"id": "drive", "subjects": ["laptop-drive"],
-             "rules": ["laptop-watch-in", "laptop-watch-out", "laptop-drive-put",
-                       "laptop-drive-goal"]},
+             "rules": ["laptop-watch-in", "laptop-watch-out", "laptop-stop",
+                       "laptop-watch-query", "laptop-drive-put", "laptop-drive-query"]},
             {"id": "view", "subjects": ["laptop-view"],
-             "rules": ["laptop-watch-in", "laptop-watch-out"]},
+             "rules": ["laptop-watch-in", "laptop-watch-out", "laptop-stop",
+                       "laptop-watch-query"]},
         ],
     }
 
