@@ -18,7 +18,7 @@ import msgspec
 from autochair.geometry import wrap_angle as wrap
 from autochair_msgs import GoalReply, GoalRequest, Pose2D
 
-from .law import Gains, align_omega, braking_speed, park_kuipers
+from .law import Gains, align_omega, braking_speed, egocentric, park_kuipers
 from .limits import ComfortLimiter, ComfortLimits
 
 IDLE, ACTIVE, ARRIVED, ABORTED, CANCELLED = "idle", "active", "arrived", "aborted", "cancelled"
@@ -47,18 +47,30 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # The limiter plans at this fraction of the limits above: the drive chain (PID, chair
     # controller) overshoots smooth ramps, and the limits are for the chair, not the command.
     chain_margin: float = 0.6
+    # The same for the turn axis (ω, ω̇, ω̈): the angular chain overshoots less (measured).
+    chain_margin_omega: float = 0.6
     # beyond the paper
-    predict_s: float = 0.5  # drive-chain lag compensated by predicting the pose; 0 = off
+    predict_s: float = 0.7  # drive-chain lag compensated by predicting the pose; 0 = off
     omega_floor_radps: float = 0.5  # min |ω| on tight curves (law.py); 0 = the paper's v(κ)
     # v ≤ rate·r near the goal: the paper's slowdown (vmax/r_thresh = 1/s) gives a heading loop
     # faster than the comfort-limited turn rate can follow (it oscillated); ≥ 1 = the paper's.
     approach_rate_1ps: float = 0.6
     brake_fraction: float = 0.6  # goal braking curve planned at this fraction of a and jerk max
+    # Straight final: within this distance, once the chair points at the goal so closely that
+    # driving straight on misses it by ≤ capture radius, steering stops (ω = 0) and v brakes
+    # onto the along-track distance; the in-place turn then fixes the yaw. The law's κ ~ 1/r
+    # otherwise needs v ≤ c·r (an exponential crawl) to stay stable. 0 = off.
+    straight_radius_m: float = 1.5
+    # Reverse: a final goal within this distance behind the chair is approached backwards
+    # when that is cheaper (distance/speed + turning) — the law on the mirrored chair. 0 = off.
+    reverse_max_m: float = 2.5
+    reverse_vmax_mps: float = 0.5  # backwards speed cap (the laser cannot see behind)
     pass_radius_m: float = 0.4  # intermediate waypoint counts as passed within this distance
     capture_fraction: float = 0.5  # stop translating at this fraction of the position tolerance
     align_gain_1ps: float = 1.5  # linear tail of the in-place turn
     align_brake_fraction: float = 0.5  # in-place turn brakes at this fraction of ω̇ max
     max_waypoints: int = 1000
+    rest_mps: float = 0.01  # |v| (m/s) and |ω| (rad/s) of the measured chair counted as at rest
 
     def check(self) -> None:
         if not self.rate_hz >= 20.0:
@@ -71,9 +83,13 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, not {value}")
         for name in ("capture_fraction", "align_brake_fraction", "brake_fraction",
-                     "chain_margin"):
+                     "chain_margin", "chain_margin_omega"):
             if not 0 < getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in (0, 1]")
+        for name in ("straight_radius_m", "reverse_max_m", "reverse_vmax_mps"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be >= 0, not {value}")
 
     @property
     def gains(self) -> Gains:
@@ -81,10 +97,10 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
     @property
     def limits(self) -> ComfortLimits:
-        m = self.chain_margin
+        m, mw = self.chain_margin, self.chain_margin_omega
         return ComfortLimits(self.vmax_mps, m * self.a_max_mps2, m * self.jerk_max_mps3,
-                             m * self.omega_max_radps, m * self.omega_acc_max_radps2,
-                             m * self.omega_jerk_max_radps3)
+                             mw * self.omega_max_radps, mw * self.omega_acc_max_radps2,
+                             mw * self.omega_jerk_max_radps3)
 
 
 @dataclass(frozen=True)
@@ -144,6 +160,8 @@ class ControlCore:
         self.tol_rad = math.radians(3)
         self.vmax = self.cfg.vmax_mps
         self.aligning = False
+        self.straight = False  # straight final engaged (see ControlConfig.straight_radius_m)
+        self.reverse: bool | None = None  # direction for the final goal, chosen once
         self.odom: OdomSample | None = None
         self._last_t: float | None = None
         self._ended_t = -math.inf
@@ -173,7 +191,8 @@ class ControlCore:
         self.index = 0
         self.tol_m, self.tol_rad = req.tolerance_m, req.tolerance_rad
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
-        self.aligning = False
+        self.aligning = self.straight = False
+        self.reverse = None
         self.state, self.reason = ACTIVE, ""
         self._count("goals")
         return GoalReply(ok=True, goal_id=self.goal_id)
@@ -234,27 +253,70 @@ class ControlCore:
             self.index += 1
         goal = self.waypoints[-1]
         r = math.hypot(goal.x_m - o.x, goal.y_m - o.y)
-        if r <= self.tol_m * cfg.capture_fraction:
+        if self.reverse is None:
+            self.reverse = self._choose_reverse(o, goal, r)
+        flip = math.pi if self.reverse else 0.0  # reverse = the law on the mirrored chair
+        sign = -1.0 if self.reverse else 1.0
+        vmax = min(self.vmax, cfg.reverse_vmax_mps) if self.reverse else self.vmax
+        capture = self.tol_m * cfg.capture_fraction
+        if r <= capture:
             self.aligning = True
         elif r > self.tol_m:
             self.aligning = False  # drifted out: approach again
         if not self.aligning:
-            out = park_kuipers(o.x, o.y, o.yaw, goal.x_m, goal.y_m, goal.yaw_rad, self.gains,
-                               self.vmax, omega_floor=cfg.omega_floor_radps)
+            out = park_kuipers(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m,
+                               wrap(goal.yaw_rad + flip), self.gains, vmax,
+                               omega_floor=cfg.omega_floor_radps)
+            along = r * math.cos(out.delta_rad)
+            lateral = abs(r * math.sin(out.delta_rad))
+            if not self.straight and r <= cfg.straight_radius_m and along > 0.0 \
+                    and lateral <= 0.5 * capture:
+                self.straight = True
+            elif self.straight and lateral > self.tol_m:
+                self.straight = False  # pushed off the line: steer again
+            if self.straight and along <= capture:
+                self.aligning = True  # stopped beside the goal, within tolerance
+                return self._align(goal, o, now)
+            dist = along if self.straight else r
             # Braking curve, evaluated where the chair will be once the limiter has swung its
             # acceleration round to braking (it may still be accelerating now).
             f = cfg.brake_fraction
             ax = self.limiter.v
-            swing = max(ax.rate + f * ax.amax, 0.0) / ax.jmax
-            r_eff = r - max(ax.value, 0.0) * swing
-            v = min(out.v_mps, braking_speed(r_eff, f * ax.amax, f * ax.jmax),
-                    cfg.approach_rate_1ps * r)
-            return v, out.kappa_1pm * v
+            swing = max(sign * ax.rate + f * ax.amax, 0.0) / ax.jmax
+            r_eff = dist - max(sign * ax.value, 0.0) * swing
+            v = braking_speed(r_eff, f * ax.amax, f * ax.jmax)
+            if self.straight:  # no steering, so no slowdown needed: the braking curve alone
+                return sign * min(vmax, v), 0.0
+            v = min(v, out.v_mps, cfg.approach_rate_1ps * r)
+            return sign * v, out.kappa_1pm * v
+        return self._align(goal, o, now)
+
+    def _choose_reverse(self, o: OdomSample, goal: Pose2D, r: float) -> bool:
+        """Backwards if the goal is close behind and that is cheaper: distance at each
+        direction's speed plus the turning the law has to do (|θ| + |δ| at the floor rate)."""
+        cfg = self.cfg
+        if r > cfg.reverse_max_m or cfg.reverse_vmax_mps <= 0.0 or abs(o.v) > 0.1:
+            return False  # never reverse out of motion (a stop and a direction change)
+
+        def cost(flip: float, vmax: float) -> float:
+            _, theta, delta = egocentric(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m,
+                                         wrap(goal.yaw_rad + flip))
+            return r / vmax + (abs(theta) + abs(delta)) / cfg.omega_floor_radps
+
+        return cost(math.pi, min(self.vmax, cfg.reverse_vmax_mps)) < cost(0.0, self.vmax)
+
+    def _align(self, goal: Pose2D, o: OdomSample, now: float) -> tuple[float, float]:
+        cfg = self.cfg
         e = wrap(goal.yaw_rad - o.yaw)
         # Turn down to the capture band, then brake; arrived once braked to rest in tolerance.
         if abs(e) <= self.tol_rad * cfg.capture_fraction or (
                 abs(e) <= self.tol_rad and self.limiter.at_rest):
-            if self.limiter.at_rest:
+            # Arrived once the chair itself is at rest, not just the command: the drive chain
+            # still coasts for ~0.5 s after the last non-zero command.
+            a = self.odom
+            if self.limiter.at_rest and a is not None and abs(a.v) < cfg.rest_mps \
+                    and abs(a.omega) < cfg.rest_mps \
+                    and math.hypot(goal.x_m - a.x, goal.y_m - a.y) <= self.tol_m:
                 self._end(ARRIVED, "", now)
             return 0.0, 0.0
         lim = self.limiter.lim

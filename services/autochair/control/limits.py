@@ -97,7 +97,9 @@ class ComfortLimiter:
         # near the goal, where κ ~ 1/r, is what made the thesis's chair oscillate.
         kappa = omega_des / v_des if abs(v_des) * s > 1e-3 else 0.0
         if kappa != 0.0:  # (a denormal ω can make κ underflow to 0)
-            reach = math.copysign(1.0, kappa) * self.w.value + self.w.amax * self.lookahead_s
+            # (signed as ω: backwards, ω and κ have opposite signs)
+            reach = math.copysign(1.0, omega_des) * self.w.value \
+                + self.w.amax * self.lookahead_s
             s = min(s, max(reach, 0.0) / abs(kappa) / abs(v_des))
         v_des, omega_des = v_des * s, omega_des * s
         v = self.v.step(v_des, dt)
