@@ -106,7 +106,13 @@ def test_converges_from_a_grid_of_start_poses(goal: tuple[float, float, float]) 
     r = drive((0.0, 0.0, 0.0), goal)
     assert r["state_ok"], f"did not arrive: {r}"
     assert r["pos"] <= 0.05 and r["yaw"] <= math.radians(3.0), r
-    assert r["rev"] <= 1, f"ω oscillates on the final approach: {r}"  # one S-bend allowed
+    # No ω sign reversal near the goal, except the one S-bend the geometry forces: when
+    # turning to face the goal and then to the goal yaw go opposite ways (a lateral offset
+    # at the same yaw cannot be removed with ω of one sign, short of a full circle).
+    bearing = math.atan2(goal[1], goal[0])
+    s1, s2 = bearing, wrap(goal[2] - bearing)
+    forced = abs(s1) > 0.02 and abs(s2) > 0.02 and (s1 > 0) != (s2 > 0)
+    assert r["rev"] <= (1 if forced else 0), f"ω oscillates on the final approach: {r}"
 
 
 @pytest.mark.parametrize("goal", [(-2.0, 0.0, 0.0), (-2.0, 0.0, math.pi), (0.0, 2.0, 0.0),

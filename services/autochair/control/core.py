@@ -65,6 +65,10 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # when that is cheaper (distance/speed + turning) — the law on the mirrored chair. 0 = off.
     reverse_max_m: float = 2.5
     reverse_vmax_mps: float = 0.5  # backwards speed cap (the laser cannot see behind)
+    # Pre-turn: a goal starting more than this far off the chair's (chosen) heading is first
+    # faced by turning in place; the law, moving forward only, would drive a loop, and its
+    # heading overshoot is an ω reversal near the goal. π = off.
+    pre_turn_min_rad: float = 1.0
     pass_radius_m: float = 0.4  # intermediate waypoint counts as passed within this distance
     capture_fraction: float = 0.5  # stop translating at this fraction of the position tolerance
     align_gain_1ps: float = 1.5  # linear tail of the in-place turn
@@ -86,7 +90,8 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
                      "chain_margin", "chain_margin_omega"):
             if not 0 < getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in (0, 1]")
-        for name in ("straight_radius_m", "reverse_max_m", "reverse_vmax_mps"):
+        for name in ("straight_radius_m", "reverse_max_m", "reverse_vmax_mps",
+                     "pre_turn_min_rad"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be >= 0, not {value}")
@@ -162,6 +167,7 @@ class ControlCore:
         self.aligning = False
         self.straight = False  # straight final engaged (see ControlConfig.straight_radius_m)
         self.reverse: bool | None = None  # direction for the final goal, chosen once
+        self.pre_turn = False  # turning in place to face the goal first
         self.odom: OdomSample | None = None
         self._last_t: float | None = None
         self._ended_t = -math.inf
@@ -192,7 +198,7 @@ class ControlCore:
         self.tol_m, self.tol_rad = req.tolerance_m, req.tolerance_rad
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
         self.aligning = self.straight = False
-        self.reverse = None
+        self.reverse, self.pre_turn = None, False
         self.state, self.reason = ACTIVE, ""
         self._count("goals")
         return GoalReply(ok=True, goal_id=self.goal_id)
@@ -253,8 +259,12 @@ class ControlCore:
             self.index += 1
         goal = self.waypoints[-1]
         r = math.hypot(goal.x_m - o.x, goal.y_m - o.y)
+        flip = 0.0
         if self.reverse is None:
             self.reverse = self._choose_reverse(o, goal, r)
+            flip = math.pi if self.reverse else 0.0
+            delta = egocentric(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m, goal.yaw_rad)[2]
+            self.pre_turn = abs(o.v) < 0.1 and abs(delta) > cfg.pre_turn_min_rad
         flip = math.pi if self.reverse else 0.0  # reverse = the law on the mirrored chair
         sign = -1.0 if self.reverse else 1.0
         vmax = min(self.vmax, cfg.reverse_vmax_mps) if self.reverse else self.vmax
@@ -263,6 +273,13 @@ class ControlCore:
             self.aligning = True
         elif r > self.tol_m:
             self.aligning = False  # drifted out: approach again
+        if self.pre_turn and not self.aligning:
+            delta = egocentric(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m, goal.yaw_rad)[2]
+            if r * abs(math.sin(delta)) > 0.5 * capture or abs(delta) > math.pi / 2:
+                lim = self.limiter.lim
+                return 0.0, align_omega(-delta, lim.omega_max_radps, cfg.align_brake_fraction
+                                        * lim.omega_acc_max_radps2, cfg.align_gain_1ps)
+            self.pre_turn = False  # facing it: drive (straight final or the law)
         if not self.aligning:
             out = park_kuipers(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m,
                                wrap(goal.yaw_rad + flip), self.gains, vmax,
@@ -270,7 +287,7 @@ class ControlCore:
             along = r * math.cos(out.delta_rad)
             lateral = abs(r * math.sin(out.delta_rad))
             if not self.straight and r <= cfg.straight_radius_m and along > 0.0 \
-                    and lateral <= 0.5 * capture:
+                    and lateral <= capture:
                 self.straight = True
             elif self.straight and lateral > self.tol_m:
                 self.straight = False  # pushed off the line: steer again
