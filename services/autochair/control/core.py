@@ -3,7 +3,10 @@
 Waypoints are driven in order; intermediate ones are passed through without stopping (switch to
 the next once within `pass_radius_m`, no slowdown towards them); the last one is approached with
 the paper's slowdown, then, inside the capture radius, the chair turns in place to the goal yaw
-(see law.py). Stale odometry aborts the goal and brakes through the limiter.
+(see law.py). Additions for the final goal (reasons at the ControlConfig fields and in README):
+reverse for goals close behind, a pre-turn in place for goals far off the heading, and a
+straight final (no steering, braking curve only) once the chair points at the goal. Stale
+odometry aborts the goal and brakes through the limiter.
 """
 
 from __future__ import annotations
