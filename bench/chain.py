@@ -49,8 +49,8 @@ class FakeArduino:
         tty.setraw(slave)
         self.slave_path = os.ttyname(slave)
         self._slave = slave  # keep open so the pty exists before the gateway opens it
-        self.sent: dict[int, int] = {}  # seq → perf_counter_ns at write
-        self.acked: dict[int, int] = {}  # ack seq → perf_counter_ns of first frame carrying it
+        self.sent: dict[int, int] = {}  # frame index → perf_counter_ns at write
+        self.acked: dict[int, int] = {}  # frame index → perf_counter_ns of its first ack
         self.frames_in = 0
         self.frame_index = 0
         self.mcu_us = 0.0
@@ -70,8 +70,11 @@ class FakeArduino:
             for f in dec.feed(data):
                 if isinstance(f, arduino.Command):
                     self.frames_in += 1
-                    if f.enable and f.ack_seq not in self.acked:
-                        self.acked[f.ack_seq] = now
+                    # acks are 16-bit: unwrap against the newest frame written
+                    idx = self.frame_index + arduino.wrap_delta(
+                        self.frame_index & 0xFFFF, f.ack_seq, 16)
+                    if f.enable and idx not in self.acked:
+                        self.acked[idx] = now
 
     def run(self, rate_hz: float, n: int, counts_per_frame: int = 50) -> None:
         """Write `n` telemetry frames at `rate_hz`. Sequence, clock and counters carry on
@@ -90,7 +93,7 @@ class FakeArduino:
             seq = self.frame_index & 0xFFFF
             counts = self.frame_index * counts_per_frame
             frame = arduino.encode(arduino.Telemetry(seq, int(self.mcu_us), counts, counts, 0))
-            self.sent[seq] = time.perf_counter_ns()
+            self.sent[self.frame_index] = time.perf_counter_ns()
             os.write(self.master, frame)
 
     def close(self) -> None:
@@ -156,17 +159,23 @@ def baseline(hub: str, n: int, rate_hz: float, payload_size: int) -> list[float]
             r.wait(5)
 
 
-def health_counter(session: zenoh.Session, service: str, name: str) -> int:
-    """Latest value of one health counter of a service (waits for the next health message)."""
-    box: list[Health] = []
+def health_counters(session: zenoh.Session, since_ns: int) -> dict[str, int]:
+    """The HOPS counters from the first health messages stamped after `since_ns`."""
+    got: dict[str, Health] = {}
     dec = msgspec.msgpack.Decoder(Health)
-    sub = session.declare_subscriber(keys.HEALTH.for_service(service),
-                                     lambda s: box.append(dec.decode(s.payload.to_bytes())))
+
+    def on(sample: zenoh.Sample) -> None:
+        h = dec.decode(sample.payload.to_bytes())
+        if h.stamp_ns > since_ns:
+            got.setdefault(h.service, h)
+
+    sub = session.declare_subscriber(keys.HEALTH.key, on)
+    services = {svc for svc, _ in HOPS}
     deadline = time.monotonic() + 3
-    while not box and time.monotonic() < deadline:
+    while not services <= set(got) and time.monotonic() < deadline:
         time.sleep(0.02)
     sub.undeclare()
-    return box[-1].counters.get(name, 0) if box else -1
+    return {f"{svc}.{c}": got[svc].counters.get(c, 0) if svc in got else -1 for svc, c in HOPS}
 
 
 def main(argv: list[str]) -> int:
@@ -220,18 +229,21 @@ def main(argv: list[str]) -> int:
 
         sustained: list[dict[str, Any]] = []
         for rate in (float(r) for r in args.rates.split(",")):
-            before = {f"{svc}.{c}": health_counter(session, svc, c) for svc, c in HOPS}
+            # Idle gaps stay under the gateway's 2 s stall timeout (a real MCU never stops
+            # sending; a reopen while frames flow would lose some).
+            before = health_counters(session, time.time_ns())
             n = int(rate * args.duration)
             print(f"sustained {rate:.0f} Hz for {args.duration:.0f} s ...", flush=True)
             fake.run(rate, n)
             time.sleep(0.5)
+            after = health_counters(session, time.time_ns())
             lat = chain_latencies(fake)
             missing = sorted(set(fake.sent) - set(fake.acked))
             row = {
                 "rate_hz": rate, "frames": n, "answered": len(lat),
-                "unanswered": n - len(lat), "unanswered_seqs": missing[:10],
+                "unanswered": n - len(lat), "unanswered_frames": missing[:10],
                 # where frames went missing, hop by hop (serial in, Zenoh hops, serial out)
-                "hops": {k: health_counter(session, *k.split(".")) - v for k, v in before.items()},
+                "hops": {k: v - before[k] for k, v in after.items()},
                 "p50_us": round(statistics.median(lat), 1) if lat else None,
                 "p99_us": round(percentile(lat, 0.99), 1) if lat else None,
             }
@@ -242,10 +254,11 @@ def main(argv: list[str]) -> int:
         clean = [r for r in sustained if clean_row(r)]
         results["sustained"] = sustained
         results["max_clean_rate_hz"] = max((r["rate_hz"] for r in clean), default=0.0)
+        stop_cmd.set()
+        time.sleep(0.1)  # let the command thread see it before the session closes
         session.close()
     finally:
         stop_cmd.set()
-        time.sleep(0.1)  # let the command thread see it before the session closes
         launcher.stop()
         fake.close()
     RESULTS.parent.mkdir(exist_ok=True)
