@@ -21,6 +21,7 @@ import tempfile
 import threading
 import time
 import tty
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +40,18 @@ RESULTS = Path(__file__).parent / "results" / "chain.json"
 def percentile(xs: list[float], q: float) -> float:
     xs = sorted(xs)
     return xs[min(len(xs) - 1, int(q * len(xs)))]
+
+
+def paced(n: int, rate_hz: float) -> Iterator[int]:
+    """Yield 0..n-1 at `rate_hz` on the monotonic clock (sleep, then spin the last 0.2 ms)."""
+    period = 1e9 / rate_hz
+    t0 = time.perf_counter_ns()
+    for i in range(n):
+        target = t0 + i * period
+        while (now := time.perf_counter_ns()) < target:
+            if target - now > 300_000:
+                time.sleep((target - now - 200_000) / 1e9)
+        yield i
 
 
 class FakeArduino:
@@ -81,15 +94,9 @@ class FakeArduino:
         from the previous run, as a real MCU's would."""
         self.sent.clear()
         self.acked.clear()
-        period = 1e9 / rate_hz
-        t0 = time.perf_counter_ns()
-        for i in range(n):
-            target = t0 + i * period
-            while (now := time.perf_counter_ns()) < target:
-                if target - now > 300_000:
-                    time.sleep((target - now - 200_000) / 1e9)
+        for _ in paced(n, rate_hz):
             self.frame_index += 1
-            self.mcu_us += period / 1000
+            self.mcu_us += 1e6 / rate_hz
             seq = self.frame_index & 0xFFFF
             counts = self.frame_index * counts_per_frame
             frame = arduino.encode(arduino.Telemetry(seq, int(self.mcu_us), counts, counts, 0))
@@ -141,13 +148,7 @@ def baseline(hub: str, n: int, rate_hz: float, payload_size: int) -> list[float]
             time.sleep(0.05)
         got.clear()
         sent: dict[int, int] = {}
-        period = 1e9 / rate_hz
-        t0 = time.perf_counter_ns()
-        for i in range(n):
-            target = t0 + i * period
-            while (now := time.perf_counter_ns()) < target:
-                if target - now > 300_000:
-                    time.sleep((target - now - 200_000) / 1e9)
+        for i in paced(n, rate_hz):
             sent[i] = time.perf_counter_ns()
             pub.put(i.to_bytes(4, "little") + pad)
         time.sleep(0.5)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import subprocess
 import threading
 import time
 from collections.abc import Callable
@@ -70,3 +71,26 @@ def make_stack(names: list[str], hub: str, run_dir: Path, **values: str) -> Laun
             "serial_port": str(run_dir / "arduino"), "lidar_url": str(run_dir / "lidar"),
             "record_path": str(run_dir / "rec.mcap")}
     return Launcher(procs, {**base, **values}, run_dir, restart=False)
+
+
+def stop_process(p: subprocess.Popen[bytes] | subprocess.Popen[str]) -> None:
+    """Terminate, then kill if it does not exit within 5 s."""
+    if p.poll() is None:
+        p.terminate()
+        try:
+            p.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
+def session_when_up(hub: str, timeout: float = 20) -> zenoh.Session:
+    """A client session, retried until the hub (started by the test) accepts it."""
+
+    def try_open() -> zenoh.Session | None:
+        try:
+            return client_session(hub)
+        except zenoh.ZError:
+            return None  # the hub is still starting
+
+    return wait_for(try_open, timeout, "zenoh hub", interval=0.2)

@@ -25,7 +25,7 @@ from autochair.launcher import free_port
 from autochair.protocol import arduino as proto
 from autochair_msgs import EncoderSample, JoystickCommand, keys
 from tests.firmware_lib import build_firmware
-from tests.helpers import Recorder, client_session, wait_for
+from tests.helpers import Recorder, session_when_up, stop_process, wait_for
 
 LEFT_CPS, RIGHT_CPS = 1000, -2000  # encoder rates driven by the harness, counts/s
 
@@ -74,26 +74,8 @@ class Harness:
             return [[int(v) for v in ln.split()[1:]] for ln in self.lines if ln.startswith(kind)]
 
 
-def _stop(p: subprocess.Popen[bytes] | subprocess.Popen[str]) -> None:
-    if p.poll() is None:
-        p.terminate()
-        try:
-            p.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
 
 
-def _open_session(hub: str) -> zenoh.Session:
-    def try_open() -> zenoh.Session | None:
-        try:
-            return client_session(hub)
-        except zenoh.ZError:
-            return None
-
-    session = wait_for(try_open, 20, "zenoh hub", interval=0.2)
-    assert session is not None
-    return session
 
 
 @pytest.fixture
@@ -107,7 +89,7 @@ def rig(built: tuple[Path, Path]) -> Iterator[tuple[Harness, zenoh.Session,
         harness = Harness(harness_bin, elf)
         procs.append(harness.proc)
         procs.append(subprocess.Popen([sys.executable, "-m", "autochair.router", "--listen", hub]))
-        session = _open_session(hub)
+        session = session_when_up(hub)
         gateway = subprocess.Popen([sys.executable, "-m", "autochair.gateway.node", "--connect",
                                     hub, "--set", f"port={harness.pty}",
                                     "--set", "require_estop=false"])
@@ -117,7 +99,7 @@ def rig(built: tuple[Path, Path]) -> Iterator[tuple[Harness, zenoh.Session,
         if session is not None:
             session.close()
         for p in reversed(procs):
-            _stop(p)
+            stop_process(p)
 
 
 @pytest.mark.slow

@@ -18,28 +18,7 @@ from autochair.launcher import free_port
 from autochair.protocol import arduino as proto
 from autochair_msgs import GroundTruth, keys
 from autochair_msgs.sim import SimFault, SimFaultReply
-from tests.helpers import Recorder, client_session, wait_for
-
-
-def _stop(p: subprocess.Popen[bytes]) -> None:
-    p.terminate()
-    try:
-        p.wait(timeout=5)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        p.wait()
-
-
-def _open_session(hub: str) -> zenoh.Session:
-    def try_open() -> zenoh.Session | None:
-        try:
-            return client_session(hub)
-        except zenoh.ZError:
-            return None  # the hub is still starting
-
-    session = wait_for(try_open, 20, "zenoh hub", interval=0.2)
-    assert session is not None
-    return session
+from tests.helpers import Recorder, session_when_up, stop_process, wait_for
 
 
 @pytest.fixture
@@ -51,7 +30,7 @@ def sim(tmp_path: Path) -> Iterator[tuple[zenoh.Session, Path, subprocess.Popen[
     try:
         procs.append(subprocess.Popen([sys.executable, "-m", "autochair.router",
                                        "--listen", hub]))
-        session = _open_session(hub)  # the hub is up before the sim joins it
+        session = session_when_up(hub)  # the hub is up before the sim joins it
         procs.append(subprocess.Popen([sys.executable, "-m", "autochair.sim.node",
                                        "--connect", hub, "--set", f"pty_link={link}"]))
         yield session, link, procs[-1]
@@ -59,7 +38,7 @@ def sim(tmp_path: Path) -> Iterator[tuple[zenoh.Session, Path, subprocess.Popen[
         if session is not None:
             session.close()
         for p in reversed(procs):
-            _stop(p)
+            stop_process(p)
 
 
 def _read_frames(port: serial.Serial, seconds: float) -> list[proto.Frame]:
