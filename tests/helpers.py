@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import threading
 import time
@@ -94,3 +95,24 @@ def session_when_up(hub: str, timeout: float = 20) -> zenoh.Session:
             return None  # the hub is still starting
 
     return wait_for(try_open, timeout, "zenoh hub", interval=0.2)
+
+
+JS = Path(__file__).parent / "js"
+
+
+def npm_ready() -> Path:
+    """Node and the committed npm packages (Foxglove's reader, schemas, WebSocket client) in
+    tests/js, installed here on a fresh machine: Debian's nodejs if node is missing, then
+    `npm ci` whenever node_modules does not match the lock."""
+    if not (shutil.which("node") and shutil.which("npm")) and shutil.which("apt-get"):
+        subprocess.run(["apt-get", "install", "-y", "-q", "nodejs", "npm"],
+                       capture_output=True, timeout=900)
+    if not (shutil.which("node") and shutil.which("npm")):
+        pytest.fail("node and npm are needed for the Foxglove tests and could not be installed")
+    stamp = JS / "node_modules" / ".package-lock.json"
+    lock = JS / "package-lock.json"
+    if not stamp.exists() or stamp.stat().st_mtime < lock.stat().st_mtime:
+        r = subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"],
+                           cwd=JS, capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, f"npm ci failed: {r.stderr[-2000:]}"
+    return JS

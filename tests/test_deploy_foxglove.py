@@ -4,33 +4,19 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import subprocess
 import threading
 import time
-from pathlib import Path
 
 import pytest
 
 from autochair.commands.foxglove import Bridge
 from autochair.runtime.node import encode
 from autochair_msgs import FrameTransform, LaserScan, Odometry, Quaternion, Vector3, keys
+from tests.helpers import JS, npm_ready
 from tests.test_deploy_tls import free_port, open_json
 
 foxglove = pytest.importorskip("foxglove", reason="foxglove-sdk (the `remote` extra) missing")
-JS = Path(__file__).parent / "js"
-
-
-def npm_ready() -> None:
-    if not (shutil.which("node") and shutil.which("npm")):
-        pytest.fail("node and npm are needed for the Foxglove client test (install nodejs)")
-    stamp = JS / "node_modules" / ".package-lock.json"
-    lock = JS / "package-lock.json"
-    if not stamp.exists() or stamp.stat().st_mtime < lock.stat().st_mtime \
-            or not (JS / "node_modules" / "@foxglove" / "ws-protocol").exists():
-        r = subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"],
-                           cwd=JS, capture_output=True, text=True, timeout=600)
-        assert r.returncode == 0, f"npm ci failed: {r.stderr[-2000:]}"
 
 
 @pytest.mark.slow

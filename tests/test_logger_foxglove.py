@@ -8,7 +8,6 @@ package-lock.json), so a fresh clone needs only node/npm and the npm registry.
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -19,23 +18,13 @@ from mcap.writer import Writer
 
 from autochair.logger import foxglove
 from autochair.logger.writer import LoggerConfig, Recorder
+from tests.helpers import npm_ready
 from tests.logger_samples import T0, samples
-
-JS = Path(__file__).parent / "js"
 
 
 @pytest.fixture(scope="session")
 def node_check() -> Path:
-    """Install the npm packages once per session (skipped when already matching the lock)."""
-    if not (shutil.which("node") and shutil.which("npm")):
-        pytest.fail("node and npm are needed for the Foxglove reader tests (install nodejs)")
-    stamp = JS / "node_modules" / ".package-lock.json"
-    lock = JS / "package-lock.json"
-    if not stamp.exists() or stamp.stat().st_mtime < lock.stat().st_mtime:
-        r = subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"],
-                           cwd=JS, capture_output=True, text=True, timeout=600)
-        assert r.returncode == 0, f"npm ci failed: {r.stderr[-2000:]}"
-    return JS / "check_mcap.js"
+    return npm_ready() / "check_mcap.js"
 
 
 def run_check(script: Path, path: Path, *args: str) -> dict[str, Any]:
