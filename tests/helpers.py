@@ -101,14 +101,12 @@ JS = Path(__file__).parent / "js"
 
 
 def npm_ready() -> Path:
-    """Node and the committed npm packages (Foxglove's reader, schemas, WebSocket client) in
-    tests/js, installed here on a fresh machine: Debian's nodejs if node is missing, then
-    `npm ci` whenever node_modules does not match the lock."""
-    if not (shutil.which("node") and shutil.which("npm")) and shutil.which("apt-get"):
-        subprocess.run(["apt-get", "install", "-y", "-q", "nodejs", "npm"],
-                       capture_output=True, timeout=900)
+    """The committed npm packages (Foxglove's reader, schemas, WebSocket client) in tests/js,
+    installed with `npm ci` whenever node_modules does not match the lock. Node itself comes
+    from `./dev test` (Debian's nodejs) when missing."""
     if not (shutil.which("node") and shutil.which("npm")):
-        pytest.fail("node and npm are needed for the Foxglove tests and could not be installed")
+        pytest.fail("node and npm are needed for the Foxglove tests: run ./dev test as root, "
+                    "or apt-get install -y nodejs npm")
     stamp = JS / "node_modules" / ".package-lock.json"
     lock = JS / "package-lock.json"
     if not stamp.exists() or stamp.stat().st_mtime < lock.stat().st_mtime:
