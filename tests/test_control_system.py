@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -26,7 +29,7 @@ def ask(session: Any, key: str, payload: bytes) -> bytes:
 
 
 def test_goal_set_to_arrival_in_the_simulator(
-        stack_factory: Callable[..., Launcher], hub: str) -> None:
+        stack_factory: Callable[..., Launcher], hub: str, tmp_path: Path) -> None:
     stack_factory(STACK)
     session = client_session(hub)
     try:
@@ -53,5 +56,18 @@ def test_goal_set_to_arrival_in_the_simulator(
         t = truth.latest()
         assert math.hypot(t.x_m - 1.5, t.y_m - 0.5) < 0.10, t  # truth vs odometry: slip-free sim
         assert abs(math.remainder(t.yaw_rad - math.radians(30), math.tau)) < math.radians(6)
+
+        # The people's way: waypoints from a file through the CLI, progress shown to arrival.
+        wp = tmp_path / "wp.csv"
+        wp.write_text("# x, y, yaw_deg\n2.0, 0.0, 0\n2.5, -0.5, -90\n")
+        proc = subprocess.run(
+            [sys.executable, "-m", "autochair.cli", "goal", "--waypoints", str(wp),
+             "--connect", hub], capture_output=True, text=True, timeout=120,
+            stdin=subprocess.DEVNULL)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert "arrived" in proc.stdout.lower(), proc.stdout
+        assert "left" in proc.stdout.lower(), proc.stdout  # progress: distance left was shown
+        t = truth.latest()
+        assert math.hypot(t.x_m - 2.5, t.y_m + 0.5) < 0.10, t
     finally:
         session.close()
