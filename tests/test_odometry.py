@@ -8,6 +8,7 @@ import pytest
 
 from autochair.geometry import wrap_angle
 from autochair.odometry.core import OdometryCore
+from autochair.protocol.arduino import ST_BOOT
 
 R, B, CPR = 0.049, 0.367, 10000
 M_PER_COUNT = 2 * math.pi * R / CPR
@@ -98,3 +99,31 @@ def _next_sample(core: OdometryCore, v: float, omega: float) -> tuple[int, int, 
                                         (-7.0, -7 + 2 * math.pi)])
 def test_wrap_angle(a: float, expected: float) -> None:
     assert wrap_angle(a) == pytest.approx(expected)
+
+
+def test_mcu_restart_rebases_instead_of_jumping() -> None:
+    core = OdometryCore()
+    drive(core, 0.5, 0.0, 2.0, start=(5_000_000, 5_000_000, 600_000_000))
+    x = core.x
+    # The MCU reset (USB replug): counters and clock restart near zero, boot flag possibly
+    # missed while the gateway reconnected. No jump, and driving goes on from the same pose.
+    core.update(10, 10, 1_500_000)
+    assert core.x == pytest.approx(x) and core.restarts == 1
+    core.update(10 + round(0.01 / M_PER_COUNT), 10 + round(0.01 / M_PER_COUNT), 1_505_000)
+    assert core.x == pytest.approx(x + 0.01, abs=M_PER_COUNT)
+
+
+def test_boot_flag_rising_rebases() -> None:
+    core = OdometryCore()
+    core.update(0, 0, 0, status=ST_BOOT)  # our own start during the MCU's boot: no news
+    core.update(100, 100, 5000, status=0)
+    assert core.restarts == 0
+    core.update(999_999, 999_999, 10_000, status=ST_BOOT)  # rising edge: counters reset
+    assert core.restarts == 1 and core.distance == pytest.approx(100 * M_PER_COUNT)
+
+
+def test_forward_gap_keeps_the_distance() -> None:
+    core = OdometryCore()
+    core.update(0, 0, 0)
+    core.update(20_000, 20_000, 3_000_000)  # 3 s without samples (a reconnect), no reset
+    assert core.x == pytest.approx(20_000 * M_PER_COUNT) and core.restarts == 0

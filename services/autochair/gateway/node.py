@@ -12,7 +12,7 @@ import msgspec
 import serial
 import zenoh
 
-from autochair.runtime import Node, service_main
+from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import EncoderSample, EStopState, JoystickCommand, JoystickOutput, keys
 
 from .core import GatewayCore, Output
@@ -33,12 +33,8 @@ class GatewayConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 class Gateway:
     def __init__(self, node: Node, cfg: GatewayConfig) -> None:
         if not cfg.port:
-            from autochair.runtime import ConfigError
-
             raise ConfigError("[gateway] port is not set (device path, pty or pyserial URL)")
         if not 0.5 <= cfg.min_v < 2.5 < cfg.max_v <= 4.5:
-            from autochair.runtime import ConfigError
-
             raise ConfigError(f"[gateway] window {cfg.min_v}–{cfg.max_v} V must contain 2.5 V")
         self.node, self.cfg = node, cfg
         stale = node.stale

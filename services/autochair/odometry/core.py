@@ -11,7 +11,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from autochair.geometry import wrap_angle
-from autochair.protocol.arduino import wrap_delta
+from autochair.protocol.arduino import ST_BOOT, wrap_delta
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,8 @@ class OdometryCore:
     y: float = 0.0
     yaw: float = 0.0
     distance: float = 0.0
+    restarts: int = 0  # MCU restarts seen (counters re-based)
+    _booting: bool = True  # as if booting: the first frames after our own start are no news
     _prev: tuple[int, int, int] | None = None
     _window: deque[tuple[float, float, float]] = field(default_factory=deque)  # (dt, d, dψ)
 
@@ -50,8 +52,20 @@ class OdometryCore:
         self._prev = None
         self._window.clear()
 
-    def update(self, left: int, right: int, t_us: int) -> OdomState:
-        """Integrate one encoder sample (raw wrapping counters, raw wrapping µs clock)."""
+    def update(self, left: int, right: int, t_us: int, status: int = 0) -> OdomState:
+        """Integrate one encoder sample (raw wrapping counters, raw wrapping µs clock).
+
+        A restarted MCU (its clock went backwards, or its boot flag rose) has reset counters:
+        the sample re-bases them instead of being integrated as a huge jump. A forward gap (a
+        reconnect without reset) is integrated: absolute counters lose no distance.
+        """
+        booting = bool(status & ST_BOOT)
+        if self._prev is not None and (
+                wrap_delta(self._prev[2], t_us, self.clock_bits) <= 0
+                or (booting and not self._booting)):
+            self.restarts += 1
+            self.rebase()
+        self._booting = booting
         if self._prev is None:
             self._prev = (left, right, t_us)
             return OdomState(self.x, self.y, self.yaw, 0.0, 0.0, self.distance, 0.0)

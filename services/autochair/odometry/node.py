@@ -8,7 +8,7 @@ import time
 
 import msgspec
 
-from autochair.runtime import Node, service_main
+from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import EncoderSample, FrameTransform, Odometry, Quaternion, Vector3, keys
 
 from .core import OdometryCore
@@ -24,22 +24,19 @@ class OdometryConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
 def start(node: Node, cfg: OdometryConfig) -> None:
     if cfg.wheel_radius_m <= 0 or cfg.base_m <= 0 or cfg.counts_per_rev <= 0:
-        from autochair.runtime import ConfigError
-
         raise ConfigError("[odometry] wheel_radius_m, base_m and counts_per_rev must be > 0")
     core = OdometryCore(wheel_radius_m=cfg.wheel_radius_m, base_m=cfg.base_m,
                         counts_per_rev=cfg.counts_per_rev,
                         velocity_window_s=cfg.velocity_window_s)
     odom_pub = node.publisher(keys.ODOM)
     tf_pub = node.publisher(keys.TF)
-    last_status = [0x04]  # as if booting: the first frames after our own start are no news
 
     def on_sample(s: EncoderSample) -> None:
-        if s.status & 0x04 and not last_status[0] & 0x04:  # ST_BOOT rising: the MCU restarted
+        restarts = core.restarts
+        st = core.update(s.left_counts, s.right_counts, s.mcu_time_us, s.status)
+        if core.restarts != restarts:
+            node.health.count("mcu_restarts")
             node.event("warning", "chair MCU restarted; odometry continues from the last pose")
-            core.rebase()
-        last_status[0] = s.status
-        st = core.update(s.left_counts, s.right_counts, s.mcu_time_us)
         stamp = s.stamp_ns or time.time_ns()
         odom_pub.put(Odometry(stamp_ns=stamp, x_m=st.x, y_m=st.y, yaw_rad=st.yaw, v_mps=st.v,
                               omega_radps=st.omega, distance_m=st.distance,
