@@ -35,6 +35,7 @@ from autochair.runtime.config import ZenohSettings
 from autochair_msgs import EncoderSample, Health, VelocityCommand, keys
 
 RESULTS = Path(__file__).parent / "results" / "chain.json"
+BLOCKS = 6  # latency runs alternate chain / baseline blocks
 
 
 def percentile(xs: list[float], q: float) -> float:
@@ -124,38 +125,41 @@ def chain_latencies(arduino_: FakeArduino) -> list[float]:
             if s in arduino_.acked]
 
 
-def baseline(hub: str, n: int, rate_hz: float, payload_size: int) -> list[float]:
+class Baseline:
     """Three raw Zenoh hops: here → relay 1 → relay 2 → here, equal payloads, same hub."""
-    env = {**os.environ, "AUTOCHAIR_CONNECT": hub}
-    relays = [subprocess.Popen([sys.executable, "-m", "bench.relay", f"bench/k{i}",
-                                f"bench/k{i + 1}"], env=env, stdout=subprocess.PIPE, text=True)
-              for i in (0, 1)]
-    try:
-        for r in relays:
+
+    def __init__(self, hub: str, payload_size: int) -> None:
+        env = {**os.environ, "AUTOCHAIR_CONNECT": hub}
+        self.relays = [subprocess.Popen(
+            [sys.executable, "-m", "bench.relay", f"bench/k{i}", f"bench/k{i + 1}"], env=env,
+            stdout=subprocess.PIPE, text=True) for i in (0, 1)]
+        for r in self.relays:
             assert r.stdout is not None and r.stdout.readline().strip() == "relay ready"
-        settings = ZenohSettings(connect=[hub])
-        session = zenoh.open(settings.to_zenoh())
-        got: dict[int, int] = {}
-        session.declare_subscriber(
-            "bench/k2", lambda s: got.setdefault(
+        self.session = zenoh.open(ZenohSettings(connect=[hub]).to_zenoh())
+        self.got: dict[int, int] = {}
+        self.session.declare_subscriber(
+            "bench/k2", lambda s: self.got.setdefault(
                 int.from_bytes(s.payload.to_bytes()[:4], "little"), time.perf_counter_ns()))
-        pub = session.declare_publisher("bench/k0", express=True)
-        pad = b"x" * (payload_size - 4)
-        # warm up until the path works end to end
-        deadline = time.monotonic() + 10
-        while not got and time.monotonic() < deadline:
-            pub.put((0xFFFFFFFF).to_bytes(4, "little") + pad)
+        self.pub = self.session.declare_publisher("bench/k0", express=True)
+        self.pad = b"x" * (payload_size - 4)
+        self.next = 0
+        deadline = time.monotonic() + 10  # warm up until the path works end to end
+        while not self.got and time.monotonic() < deadline:
+            self.pub.put((0xFFFFFFFF).to_bytes(4, "little") + self.pad)
             time.sleep(0.05)
-        got.clear()
+
+    def run(self, n: int, rate_hz: float) -> list[float]:
         sent: dict[int, int] = {}
-        for i in paced(n, rate_hz):
-            sent[i] = time.perf_counter_ns()
-            pub.put(i.to_bytes(4, "little") + pad)
+        for _ in paced(n, rate_hz):
+            self.next += 1
+            sent[self.next] = time.perf_counter_ns()
+            self.pub.put(self.next.to_bytes(4, "little") + self.pad)
         time.sleep(0.5)
-        session.close()
-        return [(got[i] - t) / 1000 for i, t in sent.items() if i in got]
-    finally:
-        for r in relays:
+        return [(self.got[i] - t) / 1000 for i, t in sent.items() if i in self.got]
+
+    def close(self) -> None:
+        self.session.close()
+        for r in self.relays:
             r.terminate()
             r.wait(5)
 
@@ -211,16 +215,24 @@ def main(argv: list[str]) -> int:
         fake.run(200, 400)  # warm-up: connections, caches, the PID becoming active
         time.sleep(0.5)
 
-        fake.run(200, args.samples)
-        time.sleep(0.5)
-        lat = chain_latencies(fake)
+        # Chain and baseline alternate in blocks, so both see the same machine noise.
         payload = len(enc.encode(EncoderSample(stamp_ns=time.time_ns(), seq=1, mcu_time_us=1,
                                                left_counts=1, right_counts=1, status=0)))
-        base = baseline(hub, args.samples, 200, payload)
+        base_run = Baseline(hub, payload)
+        lat, base = [], []
+        try:
+            for _ in range(BLOCKS):
+                fake.run(200, args.samples // BLOCKS)
+                time.sleep(0.5)
+                lat += chain_latencies(fake)
+                base += base_run.run(args.samples // BLOCKS, 200)
+        finally:
+            base_run.close()
         chain_p50, chain_p99 = statistics.median(lat), percentile(lat, 0.99)
         base_p50, base_p99 = statistics.median(base), percentile(base, 0.99)
         results["latency_us"] = {
-            "rate_hz": 200, "samples": args.samples, "answered": len(lat),
+            "rate_hz": 200, "samples": args.samples, "blocks": BLOCKS, "answered": len(lat),
+            "baseline_answered": len(base),
             "chain_p50": round(chain_p50, 1), "chain_p99": round(chain_p99, 1),
             "baseline_3hop_p50": round(base_p50, 1), "baseline_3hop_p99": round(base_p99, 1),
             "p99_ratio_to_baseline": round(chain_p99 / base_p99, 2),
