@@ -75,3 +75,14 @@ def test_service_bad_config_file(tmp_path: Path) -> None:
 def test_gateway_without_port() -> None:
     proc = run("-m", "autochair.gateway.node", "--connect", f"tcp/127.0.0.1:{free_port()}")
     one_line_error(proc, "port is not set")
+
+
+def test_up_refuses_a_busy_hub_port() -> None:
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        one_line_error(run("-m", "autochair.cli", "up", "--sim", "--hub",
+                           f"tcp/127.0.0.1:{port}"), "already listens")

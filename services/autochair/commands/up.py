@@ -67,6 +67,13 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"--hub must look like tcp/127.0.0.1:7447, not {hub!r}") from None
     import tempfile
 
+    from autochair.launcher import wait_port
+
+    host, _, port = hub.partition("/")[2].rpartition(":")
+    if port.isdigit() and wait_port(host, int(port), 0.2):
+        raise CliError(f"something already listens on {hub}: is another `autochair up` running? "
+                       "(`autochair status`, or pick another --hub)")
+
     run_dir = Path(args.run_dir or tempfile.mkdtemp(prefix="autochair-"))
     values = {
         "run_dir": str(run_dir), "hub": hub, "hub_port": hub_port,
