@@ -111,3 +111,16 @@ def test_scan_points_mount_and_invalid_beams() -> None:
 def test_bad_params_rejected() -> None:
     with pytest.raises(ValueError, match="decel_mps2"):
         SafetyCore(SafetyParams(decel_mps2=0.0))
+
+
+def test_far_points_are_dropped_without_changing_the_limits() -> None:
+    core = SafetyCore(SafetyParams())
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        pts = rng.uniform(-6, 6, size=(400, 2))
+        v, omega = rng.uniform(-0.5, 1.2), rng.uniform(-0.8, 0.8)
+        fast = core.limit(pts, v, omega)
+        core.reach_m = math.inf  # the same core without the prefilter
+        full = core.limit(pts, v, omega)
+        core.reach_m = SafetyCore(SafetyParams()).reach_m
+        assert fast == full

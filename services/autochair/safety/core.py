@@ -105,6 +105,10 @@ class SafetyCore:
         self.horizon_rad = min(math.pi, p.omega_max_radps * p.reaction_s
                                + p.omega_max_radps ** 2 / (2 * p.alpha_radps2)
                                + p.stop_margin_rad + 0.2)
+        # No pose of any sweep puts the padded footprint beyond this distance from the axle:
+        # points farther away cannot block, and dropping them first saves most of the work.
+        self.reach_m = self.horizon_m + math.hypot(max(p.front_m, p.rear_m) + p.padding_m,
+                                                   p.half_width_m + p.padding_m)
 
     def _penetration(self, pts: F64, x: F64, y: F64, th: F64, pad: float) -> F64:
         """(K, N): how deep each point is inside the rectangle at each pose (> 0 inside)."""
@@ -137,15 +141,16 @@ class SafetyCore:
     def limit(self, pts: F64, v: float, omega: float) -> Limit:
         """Bounds for chair-frame scan points `pts` (N, 2) while moving at (v, ω)."""
         p = self.p
+        close = pts[np.hypot(pts[:, 0], pts[:, 1]) <= self.reach_m]
         kappa = 0.0
         if abs(v) > p.moving_mps:
             kappa = max(-p.kappa_max_per_m, min(p.kappa_max_per_m, omega / v))
-        free_fwd = self._free(pts, *self._arc(kappa if v > 0 else 0.0, 1.0))
-        free_rev = self._free(pts, *self._arc(kappa if v < 0 else 0.0, -1.0))
+        free_fwd = self._free(close, *self._arc(kappa if v > 0 else 0.0, 1.0))
+        free_rev = self._free(close, *self._arc(kappa if v < 0 else 0.0, -1.0))
         phi = np.arange(0.0, self.horizon_rad + p.step_rad, p.step_rad)
         zero = np.zeros_like(phi)
-        free_ccw = self._free(pts, zero, zero, phi, phi)
-        free_cw = self._free(pts, zero, zero, -phi, phi)
+        free_ccw = self._free(close, zero, zero, phi, phi)
+        free_cw = self._free(close, zero, zero, -phi, phi)
         v_fwd = min(p.v_max_fwd_mps, stop_speed(free_fwd, p.decel_mps2, p.reaction_s,
                                                 p.stop_margin_m))
         v_rev = min(p.v_max_rev_mps, stop_speed(free_rev, p.decel_mps2, p.reaction_s,
