@@ -245,3 +245,30 @@ def test_step_analysis_rise_time_and_overshoot() -> None:
     assert st.overshoot_pct == pytest.approx(10.0, abs=1.0)
     _tr, _v, a, jerk = motion(t, 0.5 * t)  # constant acceleration 0.5 m/s²
     assert np.allclose(a, 0.5) and np.allclose(jerk, 0.0, atol=1e-6)
+
+
+def test_packed_chunk_indexes_give_the_same_file(tmp_path: Path) -> None:
+    """The writer keeps chunk indexes packed as bytes (memory over long runs); the file must be
+    byte-identical to mcap's own, and readable, with many chunks."""
+    from mcap.reader import make_reader
+
+    from autochair.logger.writer import _File
+
+    cfg = LoggerConfig(path=str(tmp_path / "a.mcap"))
+    packed = _File(tmp_path / "a.mcap", cfg)
+    plain = _File(tmp_path / "b.mcap", cfg)
+    for f in (packed, plain):
+        cids = [f.channel(f"k{i}", "s", b"{}", {}) for i in range(5)]
+        for n in range(300):
+            f.add(cids[n % 5], 1000 + n, 1000 + n, b"{}")
+            if n % 7 == 0 and f is packed:
+                f.flush()
+            elif n % 7 == 0:
+                f.mcap.flush()  # type: ignore[no-untyped-call]  # mcap's own: unpacked
+        f.finish()
+    a, b = (tmp_path / "a.mcap").read_bytes(), (tmp_path / "b.mcap").read_bytes()
+    assert a == b
+    with open(tmp_path / "a.mcap", "rb") as fh:
+        reader = make_reader(fh)
+        assert len(reader.get_summary().chunk_indexes) > 40  # type: ignore[union-attr]
+        assert sum(1 for _ in reader.iter_messages()) == 300
