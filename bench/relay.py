@@ -8,7 +8,7 @@ import threading
 import zenoh
 
 from autochair.runtime.config import load_zenoh
-from autochair.runtime.node import _install_signal_handlers
+from autochair.runtime.node import _install_signal_handlers, wait_for_stop
 
 
 def main(argv: list[str]) -> int:
@@ -19,7 +19,7 @@ def main(argv: list[str]) -> int:
     stop = threading.Event()
     _install_signal_handlers(stop)
     print("relay ready", flush=True)
-    stop.wait()
+    wait_for_stop(stop)
     session.close()
     return 0
 

@@ -59,6 +59,7 @@ class Child:
     exit_code: int | None = None
     next_start: float = 0.0
     log_path: Path | None = None
+    killed: bool = False  # had to be SIGKILLed on stop
 
 
 @dataclass
@@ -206,7 +207,7 @@ class Launcher:
         except subprocess.TimeoutExpired:
             child.popen.kill()
             code = child.popen.wait()
-            clean = False
+            clean, child.killed = False, True
         child.exit_code, child.popen = code, None
         self._set(child, "stopped")
         return clean

@@ -14,7 +14,7 @@ import threading
 import zenoh
 
 from autochair.runtime.config import ConfigError, ZenohSettings, load_section
-from autochair.runtime.node import _install_signal_handlers, setup_logging
+from autochair.runtime.node import _install_signal_handlers, setup_logging, wait_for_stop
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -38,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     _install_signal_handlers(stop)
     logging.getLogger("router").info("listening on %s", ", ".join(settings.listen))
-    stop.wait()
+    wait_for_stop(stop)
     session.close()
     return 0
 

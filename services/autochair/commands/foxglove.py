@@ -94,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
 
     from autochair.cli import CliError
     from autochair.remote import open_session
+    from autochair.runtime.node import wait_for_stop
 
     session = open_session(args)
     try:
@@ -103,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         except Exception as e:  # e.g. port in use: one line for the user
             raise CliError(f"cannot serve on {args.host}:{args.port}: {e}") from None
         print(f"Foxglove bridge on ws://{args.host}:{server.port} (Ctrl-C quits)", flush=True)
-        threading.Event().wait()
+        wait_for_stop(threading.Event())  # until Ctrl-C (KeyboardInterrupt)
         return 0
     finally:
         session.close()

@@ -87,6 +87,10 @@ def run(args: argparse.Namespace) -> int:
         extra = ""
         if child.state in ("restarting", "exited") and child.exit_code is not None:
             extra = f" (exit {child.exit_code}; log {child.log_path})"
+        elif child.state == "stopped" and child.killed:
+            extra = f" (killed: did not stop within 5 s; log {child.log_path})"
+        elif child.state == "stopped" and child.exit_code not in (0, -signal.SIGTERM, None):
+            extra = f" (exit {child.exit_code}; log {child.log_path})"
         pid = f"pid {child.popen.pid}" if child.popen else ""
         print(f"{time.strftime('%H:%M:%S')}  {child.proc.name:<10} {child.state:<10} {pid}{extra}",
               flush=True)

@@ -106,8 +106,7 @@ def start(node: Node, cfg: ControlConfig) -> None:
     node.subscribe(keys.ODOM, on_odom)
     for topic, handler in ((keys.GOAL_SET, on_set), (keys.GOAL_CANCEL, on_cancel),
                            (keys.GOAL_GET, on_get)):
-        q = node.session.declare_queryable(topic.key, handler)
-        node._closers.append(q.undeclare)  # undeclared with the node's other entities
+        node.queryable(topic, handler)
     node.every(1.0 / cfg.rate_hz, tick, "control")
     node.every(1.0 / cfg.status_rate_hz, publish_status, "status")
 

@@ -60,6 +60,10 @@ class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         cfg.insert_json5("transport/link/tx/queue/size/data", "16")
         cfg.insert_json5("transport/link/tx/queue/congestion_control/drop/wait_before_drop",
                          "20000")
+        # A blocked link (its peer stopping too, as when a whole stack shuts down) held
+        # session.close() for the default 5 s, so SIGTERM sometimes ended in SIGKILL.
+        cfg.insert_json5("transport/link/tx/queue/congestion_control/block/wait_before_close",
+                         "500000")
         if self.connect:
             cfg.insert_json5("connect/endpoints", json.dumps(self.connect))
             # Keep retrying the hub instead of failing at start: the launcher, supervisor or

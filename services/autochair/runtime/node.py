@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import faulthandler
 import logging
 import signal
 import sys
@@ -77,11 +78,16 @@ class HealthState:
 class Publisher:
     """A declared publisher of one table row; encodes with the shared msgpack encoder."""
 
-    def __init__(self, pub: zenoh.Publisher) -> None:
+    def __init__(self, pub: zenoh.Publisher, stopping: threading.Event) -> None:
         self._pub = pub
+        self._stopping = stopping
 
     def put(self, msg: msgspec.Struct) -> None:
-        self._pub.put(_ENCODER.encode(msg))
+        try:
+            self._pub.put(_ENCODER.encode(msg))
+        except zenoh.ZError:
+            if not self._stopping.is_set():  # a callback racing shutdown is not an error
+                raise
 
 
 class Node:
@@ -110,11 +116,12 @@ class Node:
     def publisher(self, topic: keys.Topic[Any], key: str | None = None, *,
                   express: bool = True) -> Publisher:
         # express: send at once instead of batching; the drive chain is latency-bound.
+        # Publishers are not undeclared one by one: a callback may be using one, and
+        # session.close() undeclares them all.
         pub = self.session.declare_publisher(
             key or topic.key, express=express, congestion_control=zenoh.CongestionControl.DROP
         )
-        self._closers.append(pub.undeclare)
-        return Publisher(pub)
+        return Publisher(pub, self.stop_event)
 
     def subscribe(self, topic: keys.Topic[T], callback: Callable[[T], None],
                   key: str | None = None) -> None:
@@ -133,6 +140,8 @@ class Node:
             try:
                 callback(msg)
             except Exception as e:  # a bug in one callback must not kill the Zenoh thread
+                if self.stop_event.is_set():
+                    return  # racing shutdown (e.g. a publisher already closed): not a fault
                 self.health.count("callback_errors")
                 self.health.fault(f"{type(e).__name__}: {e}")
                 self.log.exception("callback for %s failed", sample.key_expr)
@@ -153,6 +162,10 @@ class Node:
 
         q = self.session.declare_queryable(topic.key, guarded)
         self._closers.append(q.undeclare)
+
+    def on_close(self, fn: Callable[[], Any]) -> None:
+        """Run `fn` at shutdown, after the loops have stopped (last registered, first run)."""
+        self._closers.append(fn)
 
     def event(self, level: str, message: str) -> None:
         """Log locally and publish a LogEvent (warnings and worse also become `last_fault`)."""
@@ -203,19 +216,36 @@ class Node:
         if self.health.state == "starting":
             self.health.state = "ok"
         self.publish_health()
-        self.stop_event.wait()
+        wait_for_stop(self.stop_event)
+        # A shutdown that hangs leaves its stacks in the log before the supervisor kills it.
+        faulthandler.dump_traceback_later(3.0, exit=False)
         self.close()
+        faulthandler.cancel_dump_traceback_later()
 
     def close(self) -> None:
+        """Stop loops, stop inflow (subscribers, queryables), then close the session."""
         self.stop_event.set()
         for t in self._threads:
             if t is not threading.current_thread():
                 t.join(timeout=2.0)
         for closer in reversed(self._closers):
-            with contextlib.suppress(zenoh.ZError):
+            # RuntimeError: pyo3's "Already borrowed" if a callback holds it at this moment
+            with contextlib.suppress(zenoh.ZError, RuntimeError):
                 closer()
-        self._token.undeclare()
+        with contextlib.suppress(zenoh.ZError, RuntimeError):
+            self._token.undeclare()
         self.session.close()
+
+
+def wait_for_stop(stop: threading.Event) -> None:
+    """Block the main thread until `stop` is set, waking often.
+
+    Python runs signal handlers in the main thread, but the kernel may deliver SIGTERM to any
+    thread (Zenoh runs many): a main thread in an untimed wait then never runs the handler, and
+    the process ignored SIGTERM until SIGKILL (seen: 1 in 3 `autochair up` shutdowns).
+    """
+    while not stop.wait(0.2):
+        pass
 
 
 def _install_signal_handlers(stop: threading.Event) -> None:

@@ -203,15 +203,14 @@ def start(node: Node, cfg: SimConfig) -> None:
         sim.port.open()
     except OSError as e:
         raise ConfigError(f"cannot create pty link {cfg.pty_link}: {e.strerror}") from None
-    node._closers.append(sim.port.close)  # after the loop thread has stopped
+    node.on_close(sim.port.close)
     for name in ("frames_out", "host_frames", "host_bad_frames", "host_timeouts"):
         node.health.count(name, 0)
     node.health.thresholds.update({"telemetry_rate_hz": cfg.telemetry_rate_hz,
                                    "time_scale": cfg.time_scale,
                                    "firmware_watchdog_s": sim.fw.watchdog_s})
     node.health.detail = f"pty {sim.port.slave_name} via {cfg.pty_link}"
-    q = node.session.declare_queryable(keys.SIM_FAULT.key, sim.on_fault)
-    node._closers.append(q.undeclare)
+    node.queryable(keys.SIM_FAULT, sim.on_fault)
     node.every(sim.dt / cfg.time_scale, sim.tick, "sim")
 
 
