@@ -11,10 +11,11 @@ import time
 import pytest
 
 from autochair.commands.foxglove import Bridge
+from autochair.launcher import free_port
 from autochair.runtime.node import encode
 from autochair_msgs import FrameTransform, LaserScan, Odometry, Quaternion, Vector3, keys
 from tests.helpers import JS, npm_ready
-from tests.test_deploy_tls import free_port, open_json
+from tests.test_deploy_tls import open_json
 
 foxglove = pytest.importorskip("foxglove", reason="foxglove-sdk (the `remote` extra) missing")
 

@@ -5,23 +5,14 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from collections.abc import Callable
 
 import msgspec
 
 from autochair.commands.teleop import TeleopLink, loop
+from autochair.launcher import free_port
 from autochair.teleop import Teleop, TeleopLimits
 from autochair_msgs import CommandOwner, VelocityCommand, keys
-from tests.test_deploy_tls import free_port, open_json
-
-
-def wait_for(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.02)
-    return cond()
+from tests.test_deploy_tls import open_json, wait_for
 
 
 def test_core_deadman_one_zero_then_silence() -> None:

@@ -7,7 +7,6 @@ with certificates from `autochair certs`; laptops use deploy.laptop_zenoh.
 from __future__ import annotations
 
 import json
-import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -18,13 +17,8 @@ import zenoh
 
 from autochair import deploy
 from autochair.commands.certs import make_all
+from autochair.launcher import free_port
 from autochair_msgs import keys
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def wait_for(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
