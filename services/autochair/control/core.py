@@ -33,7 +33,6 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     rate_hz: float = 50.0  # command rate while a goal is active (≥ 20)
     status_rate_hz: float = 5.0
     stop_burst_s: float = 0.5  # zeros published after the chair has been braked to rest
-    odom_timeout_s: float = 0.3  # older odometry aborts the goal
     # Park & Kuipers gains (thesis values)
     k1: float = 1.5
     k2: float = 3.0
@@ -82,7 +81,7 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     def check(self) -> None:
         if not self.rate_hz >= 20.0:
             raise ValueError(f"rate_hz must be >= 20, not {self.rate_hz}")
-        for name in ("status_rate_hz", "odom_timeout_s", "k1", "k2", "vmax_mps", "r_thresh_m",
+        for name in ("status_rate_hz", "k1", "k2", "vmax_mps", "r_thresh_m",
                      "a_max_mps2", "jerk_max_mps3", "omega_max_radps", "omega_acc_max_radps2",
                      "omega_jerk_max_radps3", "pass_radius_m", "align_gain_1ps",
                      "approach_rate_1ps"):
@@ -154,9 +153,13 @@ def validate(req: GoalRequest, cfg: ControlConfig) -> str:
 
 
 class ControlCore:
-    def __init__(self, cfg: ControlConfig | None = None) -> None:
+    def __init__(self, cfg: ControlConfig | None = None, odom_timeout_s: float = 0.3) -> None:
+        """`odom_timeout_s`: older odometry aborts the goal ([stale] odometry_s in the node)."""
         self.cfg = cfg or ControlConfig()
         self.cfg.check()
+        if not odom_timeout_s > 0:
+            raise ValueError(f"odom_timeout_s must be > 0, not {odom_timeout_s}")
+        self.odom_timeout_s = odom_timeout_s
         self.gains = self.cfg.gains
         self.limiter = ComfortLimiter(self.cfg.limits)
         self.goal_id = 0
@@ -189,7 +192,7 @@ class ControlCore:
         if error:
             self._count("rejected_goals")
             return GoalReply(ok=False, error=error)
-        if self.odom is None or now - self.odom.t > self.cfg.odom_timeout_s:
+        if self.odom is None or now - self.odom.t > self.odom_timeout_s:
             self._count("rejected_goals")
             return GoalReply(ok=False, error="no fresh odometry: is the odometry service up?")
         if self.state != ACTIVE and self.limiter.at_rest:
@@ -219,11 +222,11 @@ class ControlCore:
         self._last_t = now
         v_des = w_des = 0.0
         if self.state == ACTIVE:
-            if self.odom is None or now - self.odom.t > self.cfg.odom_timeout_s:
+            if self.odom is None or now - self.odom.t > self.odom_timeout_s:
                 age = math.inf if self.odom is None else now - self.odom.t
                 self._count("stale_odom_aborts")
                 self._end(ABORTED, f"stale odometry ({age:.2f} s > "
-                          f"{self.cfg.odom_timeout_s} s)", now)
+                          f"{self.odom_timeout_s} s)", now)
             else:
                 v_des, w_des = self._desired(self._predicted(self.odom), now)
         if self.state != ACTIVE and self.limiter.at_rest \

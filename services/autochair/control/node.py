@@ -23,12 +23,8 @@ _ENC = msgspec.msgpack.Encoder()
 
 
 def start(node: Node, cfg: ControlConfig) -> None:
-    # The odometry watchdog is one of the chain's thresholds, configured in [stale] only.
-    if cfg.odom_timeout_s != ControlConfig().odom_timeout_s:
-        raise ConfigError("[control] odom_timeout_s is set by [stale] odometry_s")
-    cfg = msgspec.structs.replace(cfg, odom_timeout_s=node.stale.odometry_s)
-    try:
-        core = ControlCore(cfg)
+    try:  # the odometry watchdog is one of the chain's thresholds, set in [stale] only
+        core = ControlCore(cfg, odom_timeout_s=node.stale.odometry_s)
     except ValueError as e:
         raise ConfigError(f"[control] {e}") from None
     node.health.thresholds.update(odometry_s=node.stale.odometry_s, rate_hz=cfg.rate_hz)
