@@ -29,7 +29,7 @@ import msgspec
 import zenoh
 
 from autochair.launcher import Launcher, free_port
-from autochair.processes import PROCESSES
+from autochair.processes import PROCESSES, local_values
 from autochair.protocol import arduino
 from autochair.runtime.config import ZenohSettings
 from autochair_msgs import EncoderSample, Health, VelocityCommand, keys
@@ -195,9 +195,8 @@ def main(argv: list[str]) -> int:
     fake = FakeArduino()
     names = {"router", "estop", "gateway", "odometry", "pid"}
     procs = [p for p in PROCESSES if p.name in names]
-    values = {"run_dir": str(run_dir), "hub": hub, "hub_port": hub.rsplit(":", 1)[1],
-              "serial_port": fake.slave_path}
-    launcher = Launcher(procs, values, run_dir, restart=False)
+    launcher = Launcher(procs, local_values(run_dir, hub, serial_port=fake.slave_path), run_dir,
+                        restart=False)
     results: dict[str, object] = {"python": sys.version.split()[0], "cpus": os.cpu_count()}
     stop_cmd = threading.Event()
     try:

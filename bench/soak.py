@@ -29,7 +29,7 @@ import msgspec
 import psutil
 
 from autochair.launcher import Launcher, free_port
-from autochair.processes import PROCESSES
+from autochair.processes import PROCESSES, local_values
 from autochair.runtime.client import open_client
 from autochair_msgs import GroundTruth, Health, VelocityCommand, keys
 from bench.faults import Tap, poll
@@ -64,10 +64,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"time_scale = {args.time_scale}\n")
     hub = f"tcp/127.0.0.1:{free_port()}"
     procs = [p for p in PROCESSES if p.name in NAMES]
-    values = {"run_dir": str(run), "hub": hub, "hub_port": hub.rsplit(":", 1)[1],
-              "serial_port": str(run / "arduino"), "lidar_url": str(run / "lidar"),
-              "record_path": str(run)}
-    launcher = Launcher(procs, values, run, restart=False)
+    launcher = Launcher(procs, local_values(run, hub), run, restart=False)
     launcher.env["AUTOCHAIR_CONFIG"] = str(conf)
     launcher.start(ready_timeout_s=60)
     session = open_client(hub, timeout_ms=10000)

@@ -16,7 +16,7 @@ import pytest
 import zenoh
 
 from autochair.launcher import Launcher
-from autochair.processes import PROCESSES
+from autochair.processes import PROCESSES, local_values
 
 T = TypeVar("T")
 
@@ -68,10 +68,8 @@ class Recorder:
 
 def make_stack(names: list[str], hub: str, run_dir: Path, **values: str) -> Launcher:
     procs = [p for p in PROCESSES if p.name in names]
-    base = {"run_dir": str(run_dir), "hub": hub, "hub_port": hub.rsplit(":", 1)[1],
-            "serial_port": str(run_dir / "arduino"), "lidar_url": str(run_dir / "lidar"),
-            "record_path": str(run_dir / "rec.mcap")}
-    return Launcher(procs, {**base, **values}, run_dir, restart=False)
+    values = {"record_path": str(run_dir / "rec.mcap"), **values}
+    return Launcher(procs, local_values(run_dir, hub, **values), run_dir, restart=False)
 
 
 def stop_process(p: subprocess.Popen[bytes] | subprocess.Popen[str]) -> None:

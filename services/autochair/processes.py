@@ -12,6 +12,7 @@ autochair-<UTC time>.mcap per run; a path ending in .mcap is that file).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,14 @@ def by_name(name: str) -> Process:
         if p.name == name:
             return p
     raise KeyError(name)
+
+
+def local_values(run_dir: Path, hub: str, **overrides: str) -> dict[str, str]:
+    """Placeholder values for a stack on this machine: the simulators' ptys in `run_dir`,
+    recordings there too, unless `overrides` (e.g. serial_port=/dev/ttyACM0) say otherwise."""
+    return {"run_dir": str(run_dir), "hub": hub, "hub_port": hub.rsplit(":", 1)[-1],
+            "serial_port": str(run_dir / "arduino"), "lidar_url": str(run_dir / "lidar"),
+            "record_path": str(run_dir), **overrides}
 
 
 def selected(sim: bool) -> list[Process]:

@@ -60,27 +60,22 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(f"unknown process(es): {', '.join(sorted(unknown))}; known: "
                            f"{', '.join(p.name for p in processes.PROCESSES)}")
         procs = [p for p in procs if p.name in wanted]
-    hub = args.hub
-    try:
-        hub_port = hub.rsplit(":", 1)[1]
-    except IndexError:
-        raise CliError(f"--hub must look like tcp/127.0.0.1:7447, not {hub!r}") from None
     import tempfile
 
     from autochair.launcher import wait_port
 
+    hub = args.hub
     host, _, port = hub.partition("/")[2].rpartition(":")
-    if port.isdigit() and wait_port(host, int(port), 0.2):
+    if not (host and port.isdigit()):
+        raise CliError(f"--hub must look like tcp/127.0.0.1:7447, not {hub!r}")
+    if wait_port(host, int(port), 0.2):
         raise CliError(f"something already listens on {hub}: is another `autochair up` running? "
                        "(`autochair status`, or pick another --hub)")
 
     run_dir = Path(args.run_dir or tempfile.mkdtemp(prefix="autochair-"))
-    values = {
-        "run_dir": str(run_dir), "hub": hub, "hub_port": hub_port,
-        "serial_port": args.port or str(run_dir / "arduino"),
-        "lidar_url": args.lidar or str(run_dir / "lidar"),
-        "record_path": str(Path(args.record).resolve()),
-    }
+    devices = {"serial_port": args.port, "lidar_url": args.lidar}
+    values = processes.local_values(run_dir, hub, record_path=str(Path(args.record).resolve()),
+                                    **{k: v for k, v in devices.items() if v})
     env = {"AUTOCHAIR_CONFIG": str(Path(args.config).resolve())} if args.config else {}
 
     def show(child: Child) -> None:
