@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     import msgspec
 
     from autochair.remote import open_session
-    from autochair.runtime.client import alive_services
+    from autochair.runtime.client import alive_services, subscribe
     from autochair_msgs import Odometry, VelocityCommand, keys
 
     if abs(args.v) > MAX_V or abs(args.w) > MAX_W:
@@ -46,19 +46,14 @@ def run(args: argparse.Namespace) -> int:
             print("warning: no velocity PID is running (see `autochair status`)", flush=True)
         pub = session.declare_publisher(keys.CMD_VEL.key)
         enc = msgspec.msgpack.Encoder()
-        dec = msgspec.msgpack.Decoder(Odometry)
         latest: list[Odometry] = []
         lock = threading.Lock()
 
-        def on_odom(sample: Any) -> None:
-            try:
-                msg = dec.decode(sample.payload.to_bytes())
-            except msgspec.DecodeError:
-                return
+        def on_odom(msg: Odometry) -> None:
             with lock:
                 latest[:] = [msg]
 
-        session.declare_subscriber(keys.ODOM.key, on_odom)
+        subscribe(session, keys.ODOM, on_odom)
 
         def send(v: float, w: float) -> None:
             pub.put(enc.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,

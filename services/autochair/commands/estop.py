@@ -32,14 +32,13 @@ def run_estop(args: argparse.Namespace) -> int:
     import msgspec
 
     from autochair.remote import open_session
+    from autochair.runtime.client import subscribe
     from autochair_msgs import EStopAssert, EStopState, keys
 
     session = open_session(args)
     try:
         states: list[EStopState] = []
-        dec = msgspec.msgpack.Decoder(EStopState)
-        session.declare_subscriber(keys.ESTOP_STATE.key,
-                                   lambda s: states.append(dec.decode(s.payload.to_bytes())))
+        subscribe(session, keys.ESTOP_STATE, states.append)
         msg = EStopAssert(stamp_ns=time.time_ns(), source=f"cli:{_who()}", reason=args.reason)
         pub = session.declare_publisher(keys.ESTOP_ASSERT.key)
         deadline = time.monotonic() + 3.0
@@ -49,6 +48,9 @@ def run_estop(args: argparse.Namespace) -> int:
         if not (states and states[-1].latched):
             raise CliError("no e-stop service confirmed the latch (is it running? "
                            "`autochair status`)")
+        # A person's press is a button, not a lasting condition: the latch stays, but this
+        # cause is not "still active", so an explicit release can clear it.
+        pub.put(msgspec.msgpack.encode(msgspec.structs.replace(msg, active=False)))
         print(f"e-stop LATCHED ({args.reason}); `autochair release` to clear")
     finally:
         session.close()

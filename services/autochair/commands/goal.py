@@ -72,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
     import msgspec
 
     from autochair.remote import open_session
+    from autochair.runtime.client import subscribe
     from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
 
     if args.waypoints and args.pose:
@@ -89,18 +90,13 @@ def run(args: argparse.Namespace) -> int:
     try:
         status: list[GoalStatus] = []
         cond = threading.Condition()
-        dec = msgspec.msgpack.Decoder(GoalStatus)
 
-        def on_status(sample: Any) -> None:
-            try:
-                msg = dec.decode(sample.payload.to_bytes())
-            except msgspec.DecodeError:
-                return
+        def on_status(msg: GoalStatus) -> None:
             with cond:
                 status.append(msg)
                 cond.notify()
 
-        sub = session.declare_subscriber(keys.GOAL_STATUS.key, on_status)
+        sub = subscribe(session, keys.GOAL_STATUS, on_status)
         reply = msgspec.msgpack.decode(
             query(session, keys.GOAL_SET.key, msgspec.msgpack.encode(req)), type=GoalReply)
         if not reply.ok:

@@ -24,24 +24,19 @@ def run(args: argparse.Namespace) -> int:
     import msgspec
 
     from autochair.remote import open_session
-    from autochair.runtime.client import alive_services
+    from autochair.runtime.client import alive_services, subscribe
     from autochair_msgs import Health, keys
 
     session = open_session(args)
     health: dict[str, Health] = {}
     lock = threading.Lock()
-    dec = msgspec.msgpack.Decoder(Health)
 
-    def on_health(sample: Any) -> None:
-        try:
-            h = dec.decode(sample.payload.to_bytes())
-        except msgspec.DecodeError:
-            return
+    def on_health(h: Health) -> None:
         with lock:
             health[h.service] = h
 
     try:
-        session.declare_subscriber(keys.HEALTH.key, on_health)
+        subscribe(session, keys.HEALTH, on_health)
         alive = alive_services(session)
         deadline = time.monotonic() + args.wait
         while time.monotonic() < deadline and not alive <= set(health):

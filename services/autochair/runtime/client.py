@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import msgspec
 import zenoh
 
 from .config import ConfigError, load_zenoh
@@ -21,6 +25,25 @@ def open_client(connect: str | None = None, config: str | None = None,
         raise ConfigError(
             f"no autochair hub at {', '.join(settings.connect)} (is `autochair up` running? "
             "set --connect or AUTOCHAIR_CONNECT)") from None
+
+
+T = TypeVar("T", bound=msgspec.Struct)
+
+
+def subscribe(session: zenoh.Session, topic: Any, on_msg: Callable[[T], None],
+              key: str | None = None) -> zenoh.Subscriber[None]:
+    """Typed subscription for people's tools: decodes a key-table row's messages and skips
+    malformed payloads (the CLI must not die on someone else's bad sample)."""
+    decoder = msgspec.msgpack.Decoder(topic.type)
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        try:
+            msg = decoder.decode(sample.payload.to_bytes())
+        except (msgspec.DecodeError, msgspec.ValidationError):
+            return
+        on_msg(msg)
+
+    return session.declare_subscriber(key or topic.key, on_sample)
 
 
 def alive_services(session: zenoh.Session, timeout_s: float = 1.0) -> set[str]:

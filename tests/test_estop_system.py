@@ -1,0 +1,49 @@
+"""The e-stop as a person uses it: `autochair estop` latches, the gateway holds neutral while a
+command keeps coming, `autochair release` clears it and driving resumes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+
+import msgspec
+import pytest
+
+from autochair.launcher import Launcher
+from autochair_msgs import JoystickCommand, JoystickOutput, keys
+from tests.helpers import Recorder, client_session, wait_for
+
+pytestmark = pytest.mark.slow
+
+
+def cli(hub: str, *argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "autochair.cli", *argv, "--connect", hub],
+                          capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL)
+
+
+def test_estop_latches_holds_neutral_and_releases(stack_factory: Callable[..., Launcher],
+                                                  hub: str) -> None:
+    stack_factory(["estop", "sim", "gateway"])
+    session = client_session(hub)
+    try:
+        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
+        pub = session.declare_publisher(keys.JOYSTICK.key)
+        enc = msgspec.msgpack.Encoder()
+
+        def reason() -> str:  # a joystick command keeps coming, as from a running PID
+            pub.put(enc.encode(JoystickCommand(stamp_ns=time.time_ns(), longitudinal_v=3.0,
+                                               angular_v=2.5)))
+            latest = out.latest()
+            return latest.reason if latest else ""
+
+        wait_for(lambda: reason() == "command", 10, "commands applied", interval=0.02)
+        latched = cli(hub, "estop", "test")
+        assert latched.returncode == 0, latched.stderr
+        wait_for(lambda: reason() == "neutral:estop", 2, "neutral while latched", interval=0.02)
+        released = cli(hub, "release")
+        assert released.returncode == 0, released.stderr
+        wait_for(lambda: reason() == "command", 2, "commands again after release", interval=0.02)
+    finally:
+        session.close()
