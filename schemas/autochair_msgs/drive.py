@@ -53,6 +53,10 @@ class VelocityCommand(msgspec.Struct, kw_only=True, frozen=True):
     v_mps: float
     omega_radps: float
     source: str = ""  # "cli" | "control" | "teleop" | ...
+    # When the deliberate act that began this command stream happened (a goal accepted, a
+    # deadman pressed, a `drive` started), Unix ns. No unexpected start-up (ISO 14118): after
+    # any stop the chair did not ask for, the velocity PID obeys only streams begun after it.
+    stream_start_ns: int = 0
 
 
 class Odometry(msgspec.Struct, kw_only=True, frozen=True):
@@ -83,6 +87,9 @@ class PidStatus(msgspec.Struct, kw_only=True, frozen=True):
     omega_effort: float
     active: bool  # False while the desired velocity is stale (zero effort)
     saturated: bool = False
+    # Why the PID obeys no command now ("" while it does): e.g. "e-stop latched", "stopped
+    # (owner change): waiting for a command begun after the stop".
+    inhibit: str = ""
 
 
 class GroundTruth(msgspec.Struct, kw_only=True, frozen=True):

@@ -98,6 +98,9 @@ MAP_CLOUD = Topic("autochair/map/cloud", PointCloud, 1, True,
 # --- safety --------------------------------------------------------------------------------
 ESTOP_ASSERT = Topic("autochair/estop/assert", EStopAssert, None, True,
                      "Latch the e-stop (any service, the CLI, an allowed laptop)")
+ESTOP_CLEAR = Topic("autochair/estop/clear", EStopAssert, None, True,
+                    "A source's e-stop cause has cleared (services only: a laptop may latch, "
+                    "never clear); the latch stays until a release")
 ESTOP_STATE = Topic("autochair/estop/state", EStopState, 10, True,
                     "E-stop latch and causes (estop); gateway holds neutral if latched or silent")
 ESTOP_RELEASE = Topic("autochair/estop/release", EStopRelease, None, False,

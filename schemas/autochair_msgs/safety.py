@@ -6,8 +6,10 @@ import msgspec
 
 
 class EStopAssert(msgspec.Struct, kw_only=True, frozen=True):
-    """Latch the e-stop. `active` says the cause persists; the source sends active=False when
-    it has cleared (the latch stays until an explicit release)."""
+    """On keys.ESTOP_ASSERT: latch the e-stop. `active` says the cause persists (a service's
+    condition, held until that service clears it on keys.ESTOP_CLEAR); active=False is a
+    momentary press (a button, the CLI): latched, with nothing left to clear. On keys.ESTOP_CLEAR
+    (services only): `source`'s cause has cleared; the latch stays until an explicit release."""
 
     stamp_ns: int
     source: str  # who asserts: a service name, "cli", a laptop's name
@@ -45,6 +47,9 @@ class SafetyLimit(msgspec.Struct, kw_only=True, frozen=True):
 
     stamp_ns: int
     v_max_fwd_mps: float
-    v_max_rev_mps: float  # a positive number: the bound on backward speed
+    v_max_rev_mps: float  # a positive number: the bound on backward speed (attended: teleop)
     omega_max_radps: float
     reason: str = ""
+    # Bound on backward speed for autonomy: 0 while nothing senses behind the chair, unless
+    # [safety] allows blind reversing.
+    v_max_rev_autonomy_mps: float = 0.0

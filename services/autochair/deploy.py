@@ -35,6 +35,8 @@ CHAIR_VALUES: dict[str, str] = {
     "serial_port": "/dev/ttyACM0",  # the Arduino (USB CDC); udev rule or by-id path in practice
     "lidar_url": "/dev/ttyACM1",  # the Hokuyo URG (USB CDC, SCIP 2.0)
     "record_path": "/var/lib/autochair/recordings",
+    "state_dir": "/var/lib/autochair/state",  # the e-stop latch: kept across restarts
+    "safety_required": "true",  # every deployed stack runs the safety monitor
 }
 # Inside docker-compose the hub is the `router` service on the compose network.
 COMPOSE_VALUES: dict[str, str] = {**CHAIR_VALUES, "hub": f"tcp/router:{HUB_PORT}"}

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import zenoh
 
-from autochair.processes import Process
+from autochair.processes import Process, stack_values
 
 PR_SET_PDEATHSIG = 1
 
@@ -77,6 +77,7 @@ class Launcher:
 
     def __post_init__(self) -> None:
         self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.values = stack_values(self.processes, self.values)
         for p in self.processes:
             argv = [sys.executable, "-m", p.module, *(a.format(**self.values) for a in p.args)]
             self.children[p.name] = Child(p, argv, log_path=self.run_dir / f"{p.name}.log")

@@ -7,6 +7,10 @@ pty links and recordings), {hub} (the hub endpoint) and {hub_port}.
 autochair-<UTC time>.mcap per run; a path ending in .mcap is that file).
 {lidar_url}: the lidar the ingest reads: a serial device (e.g. /dev/ttyACM0), a pty path
 (with --sim: {run_dir}/lidar, the simulated URG-04LX) or tcp://HOST:PORT (UST/UTM class).
+{state_dir}: state that must outlive any run (the e-stop latch): a FIXED directory, so `up`,
+supervisord and systemd restarts keep the latch.
+{safety_required}: "true" whenever the stack runs the safety monitor (see `stack_values`), so
+a dead monitor stops the chair instead of leaving it unlimited.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ PROCESSES: tuple[Process, ...] = (
     Process("router", "autochair.router", "autochair-router",
             ("--listen", "{hub}"), after=(), doc="Zenoh hub for discovery"),
     Process("estop", "autochair.estop.node", "autochair-estop",
-            ("--set", "state_file={run_dir}/estop.json"),
+            ("--set", "state_file={state_dir}/estop.json"),
             doc="E-stop latch; the gateway holds neutral while latched or silent"),
     Process("sim", "autochair.sim.node", "autochair-sim",
             ("--set", "pty_link={run_dir}/arduino"), sim_only=True,
@@ -42,6 +46,7 @@ PROCESSES: tuple[Process, ...] = (
     Process("odometry", "autochair.odometry.node", "autochair-odometry",
             doc="Encoder counts to pose and velocity"),
     Process("pid", "autochair.pid.node", "autochair-pid",
+            ("--set", "require_safety_limit={safety_required}"),
             doc="Velocity PID: desired (v, ω) to joystick voltages"),
     Process("control", "autochair.control.node", "autochair-control",
             doc="Smooth control law: goals and waypoints to comfort-limited (v, ω)"),
@@ -70,10 +75,18 @@ def by_name(name: str) -> Process:
 
 def local_values(run_dir: Path, hub: str, **overrides: str) -> dict[str, str]:
     """Placeholder values for a stack on this machine: the simulators' ptys in `run_dir`,
-    recordings there too, unless `overrides` (e.g. serial_port=/dev/ttyACM0) say otherwise."""
+    recordings and state there too, unless `overrides` (e.g. serial_port=/dev/ttyACM0,
+    state_dir=...) say otherwise. `autochair up` passes its fixed state directory."""
     return {"run_dir": str(run_dir), "hub": hub, "hub_port": hub.rsplit(":", 1)[-1],
             "serial_port": str(run_dir / "arduino"), "lidar_url": str(run_dir / "lidar"),
-            "record_path": str(run_dir), **overrides}
+            "record_path": str(run_dir), "state_dir": str(run_dir), **overrides}
+
+
+def stack_values(procs: list[Process], values: dict[str, str]) -> dict[str, str]:
+    """`values` plus what follows from the selection itself: a stack that runs the safety
+    monitor always requires its limit (fail closed; not left to a config file)."""
+    running = {p.name for p in procs}
+    return {**values, "safety_required": "true" if "safety" in running else "false"}
 
 
 def selected(sim: bool) -> list[Process]:

@@ -31,7 +31,15 @@ def register(sub: Any) -> None:
     p.add_argument("--only", help="comma-separated subset of processes to run")
     p.add_argument("--run-dir", help="directory for pty links and logs (default: a temp dir)")
     p.add_argument("--no-restart", action="store_true", help="do not restart exited processes")
+    p.add_argument("--state-dir", default=default_state_dir(),
+                   help="state kept across runs, e.g. the e-stop latch (default %(default)s)")
     p.set_defaults(func=run)
+
+
+def default_state_dir() -> str:
+    """A fixed place (XDG state dir), not the per-run temp dir: the latch survives restarts."""
+    base = os.environ.get("XDG_STATE_HOME") or os.path.expanduser("~/.local/state")
+    return os.path.join(base, "autochair")
 
 
 def _is_url(port: str) -> bool:
@@ -74,7 +82,13 @@ def run(args: argparse.Namespace) -> int:
 
     run_dir = Path(args.run_dir or tempfile.mkdtemp(prefix="autochair-"))
     devices = {"serial_port": args.port, "lidar_url": args.lidar}
+    state_dir = Path(args.state_dir).resolve()
+    try:
+        state_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise CliError(f"cannot create the state directory {state_dir}: {e}") from None
     values = processes.local_values(run_dir, hub, record_path=str(Path(args.record).resolve()),
+                                    state_dir=str(state_dir),
                                     **{k: v for k, v in devices.items() if v})
     env = {"AUTOCHAIR_CONFIG": str(Path(args.config).resolve())} if args.config else {}
 

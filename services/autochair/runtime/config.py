@@ -88,6 +88,8 @@ class StaleConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     desired_velocity_s: float = 0.3  # velocity PID: no desired velocity → zero effort
     odometry_s: float = 0.3  # control law: no odometry → abort the goal and stop
     scan_s: float = 0.5  # safety monitor: no laser scan → stop
+    clock_skew_s: float = 0.1  # commands stamped further in the future than this are rejected
+    watchdog_s: float = 1.5  # a service whose loops stop for this long is killed and restarted
     safety_limit_s: float = 0.5  # velocity PID: no safety limit (when required) → stop
     firmware_host_s: float = 0.2  # Arduino: no host frame → neutral (fixed in the firmware)
 
@@ -96,6 +98,38 @@ class StaleConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
             if not 0 < getattr(self, name) <= 10:
                 raise ConfigError(f"[stale] {name} must be within (0, 10] s")
         return self
+
+
+class ChairGeometry(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """The chair's body and laser mount: the [chair] section, defined ONCE for every service
+    (safety monitor, mapping, lidar ingest, simulators). Two different mounts on one chair
+    would be a hazard: the monitor would see obstacles where they are not.
+
+    Chair frame (REP-103): origin at the drive-axle centre, x forward, y left, z up.
+    """
+
+    front_m: float = 0.95  # footprint ahead of the drive axle
+    rear_m: float = 0.25  # footprint behind the axle (1.2 m long in all)
+    half_width_m: float = 0.35  # 0.7 m wide
+    laser_x_m: float = 0.8636  # the laser's pose in the chair frame (thesis mount)
+    laser_y_m: float = 0.2032
+    laser_z_m: float = 0.3937
+    laser_yaw_rad: float = 0.0
+
+    def validate(self) -> ChairGeometry:
+        for name in ("front_m", "rear_m", "half_width_m"):
+            if not 0 < getattr(self, name) <= 5:
+                raise ConfigError(f"[chair] {name} must be within (0, 5] m")
+        for name in ("laser_x_m", "laser_y_m", "laser_z_m", "laser_yaw_rad"):
+            value = getattr(self, name)
+            if not (value == value and abs(value) <= 10):  # finite and sane
+                raise ConfigError(f"[chair] {name} must be a finite number within ±10")
+        return self
+
+    @property
+    def laser_mount(self) -> tuple[float, float, float]:
+        """(x, y, yaw) of the laser in the chair frame."""
+        return (self.laser_x_m, self.laser_y_m, self.laser_yaw_rad)
 
 
 def _parse_value(text: str) -> Any:

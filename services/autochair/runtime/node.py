@@ -18,7 +18,14 @@ import zenoh
 
 from autochair_msgs import Health, LogEvent, keys
 
-from .config import ConfigError, StaleConfig, ZenohSettings, load_section, load_zenoh
+from .config import (
+    ChairGeometry,
+    ConfigError,
+    StaleConfig,
+    ZenohSettings,
+    load_section,
+    load_zenoh,
+)
 
 T = TypeVar("T", bound=msgspec.Struct)
 C = TypeVar("C")
@@ -94,9 +101,10 @@ class Node:
     """What every service process has. Callbacks run on Zenoh threads: keep them short."""
 
     def __init__(self, name: str, settings: ZenohSettings | None = None,
-                 stale: StaleConfig | None = None) -> None:
+                 stale: StaleConfig | None = None, chair: ChairGeometry | None = None) -> None:
         self.name = name
         self.stale = stale or StaleConfig()  # the watchdog chain's thresholds ([stale])
+        self.chair = chair or ChairGeometry()  # footprint and laser mount ([chair])
         self.log = logging.getLogger(name)
         self.stop_event = threading.Event()
         self.health = HealthState(name)
@@ -279,18 +287,25 @@ def service_main(
     parser = argparse.ArgumentParser(prog=f"autochair-{name}", description=description)
     parser.add_argument("--config", help="TOML config file (default: $AUTOCHAIR_CONFIG)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help=f"override a [{name}] setting (or stale.KEY); repeatable")
+                        help=f"override a [{name}] setting (or stale.KEY, chair.KEY); "
+                             "repeatable")
     parser.add_argument("--connect", help="Zenoh endpoint(s) of the hub, comma-separated")
     parser.add_argument("--log-level", default="INFO")
     args = parser.parse_args(argv)
     setup_logging(args.log_level)
-    own = [o for o in args.set if not o.startswith("stale.")]
-    stale_overrides = [o.removeprefix("stale.") for o in args.set if o.startswith("stale.")]
+    shared = ("stale.", "chair.")
+    own = [o for o in args.set if not o.startswith(shared)]
+
+    def overrides(prefix: str) -> list[str]:
+        return [o.removeprefix(prefix) for o in args.set if o.startswith(prefix)]
+
     try:
         config = load_section(config_type, name, args.config, own)
-        stale = load_section(StaleConfig, "stale", args.config, stale_overrides).validate()
+        stale = load_section(StaleConfig, "stale", args.config, overrides("stale.")).validate()
+        chair = load_section(ChairGeometry, "chair", args.config,
+                             overrides("chair.")).validate()
         settings = load_zenoh(args.config, args.connect)
-        node = Node(name, settings, stale)
+        node = Node(name, settings, stale, chair)
     except ConfigError as e:
         print(f"autochair-{name}: error: {e}", file=sys.stderr)
         return 2
