@@ -26,7 +26,7 @@ import numpy as np
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
 from autochair.geometry import wrap_angle as wrap
 from autochair.odometry.core import OdometryCore
-from autochair.pid.core import VelocityPidCore
+from autochair.pid.core import Command, VelocityPidCore
 from autochair.sim.model import ChairModel
 from autochair_msgs import GoalRequest, Pose2D
 
@@ -114,7 +114,7 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
     model.x, model.y, model.yaw = start
     odom = OdometryCore()
     odom.reset(*start)
-    pid = VelocityPidCore()
+    pid = VelocityPidCore(require_estop=False)  # no e-stop service in the lockstep loop
     core = ControlCore(cfg)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
     volts = (2.5, 2.5)
@@ -133,9 +133,10 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
         if k % ctrl_every == 0:
             out = core.step(t)
             if out is not None:
-                pid.set_desired(out[0], out[1], t)
+                now_ns = round(t * 1e9)
+                pid.set_desired(Command(out[0], out[1], "autonomy", now_ns, 1), t, now_ns)
                 cmds.append(out)
-        p = pid.update(st.v, st.omega, DT, t)
+        p = pid.update(st.v, st.omega, DT, t, round(t * 1e9))
         volts = (p.longitudinal_v, p.angular_v)
         rows.append((t, st.x, st.y, st.yaw, st.v, st.omega, st.distance,
                      model.x, model.y, model.yaw))

@@ -307,3 +307,97 @@ def test_bad_config_is_refused() -> None:
         ControlCore(ControlConfig(rate_hz=10))
     with pytest.raises(ValueError, match="a_max_mps2"):
         ControlCore(ControlConfig(a_max_mps2=0))
+
+
+# --- stops the chair did not ask for ----------------------------------------------------------
+def driving(cfg: ControlConfig | None = None, until: float = 2.0) -> tuple[ControlCore, float]:
+    """A core driving a goal 5 m ahead with a chair that follows at the commanded speed."""
+    core = fresh_core(cfg)
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+    t, x = 0.0, 0.0
+    while t < until:
+        out = core.step(t) or (0.0, 0.0)
+        x += out[0] * 0.02
+        core.on_odom(OdomSample(x, 0, 0, out[0], 0, t))
+        t += 0.02
+    assert core.state == "active"
+    return core, t
+
+
+def test_estop_latch_aborts_the_goal_and_refuses_new_ones_until_released() -> None:
+    core, t = driving()
+    core.on_estop(True, t)
+    assert core.state == "aborted" and "e-stop" in core.reason
+    reply = core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), t)
+    assert not reply.ok and "e-stop is latched" in reply.error
+    core.on_estop(False, t)
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), t).ok
+
+
+def test_owner_change_aborts_the_goal() -> None:
+    core, t = driving()
+    core.on_owner("autonomy", t)
+    assert core.state == "active"  # positive control: a repeated claim changes nothing
+    core.on_owner("teleop", t)
+    assert core.state == "aborted" and "teleop" in core.reason
+    assert "hand it back" in core.set_goal(GoalRequest(waypoints=[Pose2D(1, 0, 0)]), t).error
+
+
+def test_a_new_goal_after_a_stop_starts_from_the_measured_velocity() -> None:
+    core, t = driving()
+    assert core.limiter.v.value > 0.5
+    core.on_estop(True, t)
+    core.on_estop(False, t)  # the chair was held at neutral: it is at rest now
+    core.on_odom(OdomSample(2.0, 0, 0, 0.0, 0, t))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6, 0, 0)]), t).ok
+    out = core.step(t + 0.02)
+    assert out is not None and out[0] < 0.01  # from rest, not from the old 0.5+ m/s
+
+
+def test_a_chair_that_does_not_follow_aborts_the_goal() -> None:
+    core = fresh_core(ControlConfig(follow_timeout_s=2.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+    t = 0.0
+    while core.state == "active" and t < 10:
+        core.step(t)
+        core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))  # the chair stays at rest
+        t += 0.02
+    assert core.state == "aborted" and "does not follow" in core.reason
+    assert 2.0 < t < 3.0
+
+
+def test_a_goal_without_progress_aborts() -> None:
+    core = fresh_core(ControlConfig(no_progress_s=3.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+    t = 0.0
+    while core.state == "active" and t < 20:
+        out = core.step(t) or (0.0, 0.0)
+        # the chair moves (so it "follows") but circles instead of approaching
+        core.on_odom(OdomSample(0.1 * math.sin(t), 0.1 * math.cos(t), t, out[0], 0.3, t))
+        t += 0.02
+    assert core.state == "aborted" and "no progress for 3 s" in core.reason
+
+
+def test_goals_beyond_the_maximum_distance_are_refused() -> None:
+    core = fresh_core(ControlConfig(max_goal_distance_m=10.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(9, 0, 0)]), 0.0).ok
+    reply = core.set_goal(GoalRequest(waypoints=[Pose2D(1, 0, 0), Pose2D(10, 5, 0)]), 0.0)
+    assert not reply.ok and "waypoint 1 is 11.2 m away" in reply.error
+
+
+def test_no_reverse_when_blind_reversing_is_not_allowed() -> None:
+    core = fresh_core()
+    core.reverse_allowed = False
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(-1, 0, 0)]), 0.0).ok
+
+    def min_v(c: ControlCore) -> float:
+        vs = []
+        for k in range(90):
+            c.on_odom(OdomSample(0, 0, 0, 0, 0, k * 0.02))
+            vs.append((c.step(k * 0.02) or (0.0, 0.0))[0])
+        return min(vs)
+
+    assert min_v(core) >= 0.0
+    positive = fresh_core()  # positive control: the same goal is reversed to when allowed
+    assert positive.set_goal(GoalRequest(waypoints=[Pose2D(-1, 0, 0)]), 0.0).ok
+    assert min_v(positive) < -0.05

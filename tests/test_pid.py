@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+from typing import Any
+
 import pytest
 
-from autochair.pid.core import PID, VelocityPidCore, effort_to_volts
+from autochair.pid.core import PID, Caps, Command, VelocityPidCore, Verdict, effort_to_volts
 
 
 def test_proportional_and_integral() -> None:
@@ -59,37 +63,58 @@ def test_effort_maps_to_thesis_voltage_and_clamps() -> None:
     assert effort_to_volts(-1.0) == 1.1
 
 
+def cmd(v: float, w: float, t: float, source: str = "autonomy", began: float = 0.0) -> Command:
+    """A command stamped at t (s) from a stream begun at `began` (s); the core starts at 0."""
+    return Command(v, w, source, ns(t), ns(began) + 1)
+
+
+def ns(t: float) -> int:
+    return round(t * 1e9)
+
+
+def core_(**kw: Any) -> VelocityPidCore:
+    """A core as the node makes it, with the e-stop heard as released at t = 0."""
+    core = VelocityPidCore(**kw)
+    core.set_estop(False, 0.0, 0)
+    return core
+
+
+def drive(core: VelocityPidCore, v: float, w: float, t: float, source: str = "autonomy",
+          began: float = 0.0) -> Verdict:
+    return core.set_desired(cmd(v, w, t, source, began), t, ns(t))
+
+
 def test_stale_desired_gives_exact_neutral() -> None:
-    core = VelocityPidCore(stale_s=0.3)
-    assert core.set_desired(0.5, 0.0, now_s=0.0) == "ok"
-    out = core.update(0.0, 0.0, 0.005, now_s=0.1)
+    core = core_(stale_s=0.3)
+    assert drive(core, 0.5, 0.0, 0.0) is Verdict.OK
+    out = core.update(0.0, 0.0, 0.005, 0.1, ns(0.1))
     assert out.active and out.longitudinal_v > 2.5
-    out = core.update(0.0, 0.0, 0.005, now_s=0.31)
+    out = core.update(0.0, 0.0, 0.005, 0.31, ns(0.31))
     assert not out.active
     assert (out.longitudinal_v, out.angular_v, out.v_effort) == (2.5, 2.5, 0.0)
 
 
 def test_never_commanded_is_neutral() -> None:
-    out = VelocityPidCore().update(0.0, 0.0, 0.005, now_s=100.0)
+    out = core_().update(0.0, 0.0, 0.005, 0.1, ns(0.1))
     assert (out.longitudinal_v, out.angular_v, out.active) == (2.5, 2.5, False)
 
 
 def test_parked_is_exact_neutral_and_integrator_cleared() -> None:
-    core = VelocityPidCore()
+    core = core_()
     for i in range(100):
-        core.set_desired(0.5, 0.0, i * 0.005)
-        core.update(0.1, 0.0, 0.005, i * 0.005)
+        drive(core, 0.5, 0.0, i * 0.005)
+        core.update(0.1, 0.0, 0.005, i * 0.005, ns(i * 0.005))
     assert core.v_pid.integral > 0
-    core.set_desired(0.0, 0.0, 0.5)
-    out = core.update(0.0, 0.0, 0.005, 0.5)
+    drive(core, 0.0, 0.0, 0.5)
+    out = core.update(0.0, 0.0, 0.005, 0.5, ns(0.5))
     assert (out.longitudinal_v, out.angular_v) == (2.5, 2.5)
     assert core.v_pid.integral == 0.0
 
 
 def test_non_finite_desired_is_rejected() -> None:
-    core = VelocityPidCore()
-    assert core.set_desired(float("nan"), 0.0, 0.0) == "rejected"
-    assert core.desired(0.0) is None
+    core = core_()
+    assert drive(core, float("nan"), 0.0, 0.0) is Verdict.REJECTED
+    assert core.desired(0.0, 0) is None
 
 
 def test_thesis_gains_are_default() -> None:
@@ -99,26 +124,135 @@ def test_thesis_gains_are_default() -> None:
 
 
 def test_only_the_owner_drives() -> None:
-    core = VelocityPidCore()
-    assert core.set_desired(0.5, 0.0, 0.0, source="teleop") == "not_owner"
-    assert core.desired(0.0) is None
-    assert core.set_desired(0.5, 0.0, 0.0) == "ok"
-    assert core.set_owner("teleop")
-    assert core.desired(0.0) is None  # autonomy's last command no longer counts
-    assert core.set_desired(0.2, 0.1, 0.0, source="teleop") == "ok"
-    assert core.set_desired(0.9, 0.0, 0.0, source="autonomy") == "not_owner"
-    assert core.desired(0.0) == (0.2, 0.1)
-    assert not core.set_owner("someone")
+    core = core_()
+    assert drive(core, 0.5, 0.0, 0.0, source="teleop") is Verdict.NOT_OWNER
+    assert core.desired(0.0, 0) is None
+    assert drive(core, 0.5, 0.0, 0.0) is Verdict.OK
+    assert core.set_owner("teleop", ns(0.1))
+    assert core.desired(0.1, ns(0.1)) is None  # autonomy's last command no longer counts
+    # The owner change is a stop: teleop's stream must begin after it (a fresh press).
+    assert drive(core, 0.2, 0.1, 0.2, source="teleop") is Verdict.BEFORE_STOP
+    assert drive(core, 0.2, 0.1, 0.2, source="teleop", began=0.15) is Verdict.OK
+    assert drive(core, 0.9, 0.0, 0.2, source="autonomy", began=0.15) is Verdict.NOT_OWNER
+    assert core.desired(0.2, ns(0.2)) == (0.2, 0.1)
+    assert not core.set_owner("someone", ns(0.2))
 
 
 def test_safety_limit_clamps_and_may_be_required() -> None:
-    core = VelocityPidCore(require_limit=True, limit_stale_s=0.5)
-    core.set_desired(1.0, 1.0, 0.0)
-    assert core.desired(0.0) == (0.0, 0.0)  # required but never received: stop
-    assert core.set_limit(0.3, 0.2, 0.5, 0.0)
-    assert core.desired(0.1) == (0.3, 0.5)
-    core.set_desired(-1.0, -1.0, 0.2)
-    assert core.desired(0.2) == (-0.2, -0.5)
-    core.set_desired(-1.0, -1.0, 0.5)
-    assert core.desired(0.51) == (0.0, 0.0)  # limit stale
+    core = core_(require_limit=True, limit_stale_s=0.5)
+    drive(core, 1.0, 1.0, 0.0)
+    assert core.desired(0.0, 0) is None  # required but never received: a stop
+    assert "no fresh safety limit" in core.inhibit
+    assert core.set_limit(0.3, 0.2, 0.5, 0.0, v_rev_autonomy=0.1)
+    assert drive(core, 1.0, 1.0, 0.1, began=0.05) is Verdict.OK
+    assert core.desired(0.1, ns(0.1)) == (0.3, 0.5)
+    drive(core, -1.0, -1.0, 0.2, began=0.05)
+    assert core.desired(0.2, ns(0.2)) == (-0.1, -0.5)  # autonomy: the sensed reverse bound
+    drive(core, -1.0, -1.0, 0.5, began=0.05)
+    assert core.desired(0.51, ns(0.51)) is None  # limit stale
     assert not core.set_limit(float("nan"), 0, 0, 0)
+
+
+def test_teleop_reverses_within_the_attended_bound_autonomy_not_at_all() -> None:
+    core = core_(require_limit=True)
+    core.set_limit(1.0, 0.4, 1.0, 0.0)  # no rear sensor: autonomy may not reverse
+    assert drive(core, -0.3, 0.0, 0.0) is Verdict.OK
+    assert core.desired(0.0, 0) is None and "safety stop" in core.inhibit
+    core.set_owner("teleop", ns(0.01))
+    drive(core, -0.6, 0.0, 0.02, source="teleop", began=0.015)
+    assert core.desired(0.02, ns(0.02)) == (-0.4, 0.0)
+
+
+def test_absolute_caps_whatever_the_source() -> None:
+    core = core_(caps=Caps(0.8, 0.3, 0.6))
+    drive(core, 2.0, -3.0, 0.0)
+    assert core.desired(0.0, 0) == (0.8, -0.6)
+    core.set_owner("teleop", ns(0.01))
+    drive(core, -2.0, 3.0, 0.02, source="teleop", began=0.015)
+    assert core.desired(0.02, ns(0.02)) == (-0.3, 0.6)
+
+
+# --- no unexpected start-up: one test per kind of stop --------------------------------------
+def driving_core(**kw: Any) -> VelocityPidCore:
+    """A core obeying a stream begun at t = 0, driving at 0.5 m/s until t = 1 s."""
+    core = core_(**kw)
+    for i in range(200):
+        t = i * 0.005
+        core.set_estop(False, t, ns(t))
+        if core.require_limit:
+            core.set_limit(1.0, 0.5, 1.0, t, 0.5)
+        assert drive(core, 0.5, 0.0, t) is Verdict.OK
+        assert core.update(0.4, 0.0, 0.005, t, ns(t)).active
+    return core
+
+
+def continue_old_stream(core: VelocityPidCore, t0: float) -> list[bool]:
+    """The old stream simply goes on (estop released, odometry flowing): is it obeyed?"""
+    active = []
+    for i in range(100):
+        t = t0 + i * 0.005
+        core.set_estop(False, t, ns(t))
+        core.set_limit(1.0, 0.5, 1.0, t, 0.5)
+        drive(core, 0.5, 0.0, t)
+        active.append(core.update(0.0, 0.0, 0.005, t, ns(t)).active)
+    return active
+
+
+STOPS: dict[str, Callable[[VelocityPidCore, float], object]] = {
+    "estop latch and release": lambda c, t: c.set_estop(True, t, ns(t)),
+    "estop service gone": lambda c, t: c.estop_gone(ns(t)),
+    "owner change and back": lambda c, t: (c.set_owner("teleop", ns(t)),
+                                           c.set_owner("autonomy", ns(t))),
+    "gateway lost": lambda c, t: c.stop("gateway lost", ns(t)),
+    "safety stop": lambda c, t: (c.set_limit(0.0, 0.0, 0.0, t),
+                                 c.update(0.4, 0.0, 0.005, t, ns(t)),
+                                 c.set_limit(1.0, 0.5, 1.0, t + 0.01, 0.5)),
+    "odometry gap": lambda c, t: c.update(0.0, 0.0, 0.005, t + 0.5, ns(t + 0.5)),
+    "non-finite measurement": lambda c, t: c.update(float("nan"), 0.0, 0.005, t, ns(t)),
+}
+
+
+@pytest.mark.parametrize("kind", list(STOPS))
+def test_after_a_stop_only_a_stream_begun_later_drives(kind: str) -> None:
+    core = driving_core(require_limit=kind == "safety stop")
+    assert continue_old_stream(driving_core(), 1.0) == [True] * 100  # positive control
+    STOPS[kind](core, 1.0)
+    assert core.inhibit.startswith("stopped")
+    assert not any(continue_old_stream(core, 1.6))  # the old stream goes on: refused
+    t = 2.2
+    core.set_estop(False, t, ns(t))
+    core.set_limit(1.0, 0.5, 1.0, t, 0.5)
+    assert drive(core, 0.5, 0.0, t, began=2.1) is Verdict.OK  # a new act after the stop
+    assert core.update(0.0, 0.0, 0.005, t, ns(t)).active
+
+
+def test_restarted_core_obeys_nothing_begun_before_it_started() -> None:
+    core = core_(start_ns=ns(5.0))
+    core.set_estop(False, 5.0, ns(5.0))
+    assert drive(core, 0.5, 0.0, 5.0, began=4.0) is Verdict.BEFORE_STOP
+    assert drive(core, 0.5, 0.0, 5.0, began=5.0) is Verdict.OK
+
+
+def test_estop_silent_is_a_stop() -> None:
+    core = driving_core()
+    assert not core.update(0.4, 0.0, 0.005, 1.6, ns(1.6)).active  # no e-stop state for 0.6 s
+    assert "e-stop silent" in core.inhibit
+
+
+def test_old_and_future_stamps_are_rejected() -> None:
+    core = core_(stale_s=0.3, skew_s=0.1)
+    now = ns(10.0)
+    assert core.set_desired(Command(0.5, 0, "autonomy", now - ns(0.31), 1), 10.0, now) \
+        is Verdict.OLD
+    assert core.set_desired(Command(0.5, 0, "autonomy", now + ns(0.11), 1), 10.0, now) \
+        is Verdict.FUTURE
+    assert core.set_desired(Command(0.5, 0, "autonomy", now - ns(0.2), 1), 10.0, now) \
+        is Verdict.OK
+
+
+def test_non_finite_measurement_does_not_poison_the_integrators() -> None:
+    core = driving_core()
+    core.update(float("inf"), 0.0, 0.005, 1.0, ns(1.0))
+    assert math.isfinite(core.v_pid.integral) and core.v_pid.integral == 0.0
+    out = core.update(0.0, 0.0, float("nan"), 1.005, ns(1.005))
+    assert (out.longitudinal_v, out.angular_v) == (2.5, 2.5)

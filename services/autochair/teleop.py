@@ -34,6 +34,7 @@ class Teleop:
         self._last_input = -1e18
         self._sending = False
         self.deadman_stops = 0
+        self.presses = 0  # deadman presses: each begins a new command stream (a deliberate act)
 
     def request(self, v_unit: float, omega_unit: float, now: float) -> None:
         """An input event: the wanted motion as fractions of the limits."""
@@ -52,6 +53,8 @@ class Teleop:
         """The command to publish now, or None to publish nothing."""
         live = link_ok and now - self._last_input <= self.limits.deadman_s
         if live:
+            if not self._sending:
+                self.presses += 1
             self._sending = True
             return self.command()
         if self._sending:  # released or link lost: one explicit zero, then silence

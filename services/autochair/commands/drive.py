@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     import msgspec
 
     from autochair.remote import open_session
-    from autochair.runtime.client import alive_services, subscribe
+    from autochair.runtime.client import alive_services, pid_caps, subscribe
     from autochair_msgs import Odometry, VelocityCommand, keys
 
     if abs(args.v) > MAX_V or abs(args.w) > MAX_W:
@@ -44,6 +44,13 @@ def run(args: argparse.Namespace) -> int:
     try:
         if "pid" not in alive_services(session):
             print("warning: no velocity PID is running (see `autochair status`)", flush=True)
+        else:
+            caps = pid_caps(session)
+            if caps is not None:
+                fwd, rev, w = caps
+                if not (-rev <= args.v <= fwd and abs(args.w) <= w):
+                    raise CliError(f"beyond the velocity PID's caps: v within [-{rev:g}, "
+                                   f"{fwd:g}] m/s and |w| ≤ {w:g} rad/s ([pid] in the config)")
         pub = session.declare_publisher(keys.CMD_VEL.key)
         enc = msgspec.msgpack.Encoder()
         latest: list[Odometry] = []
@@ -55,9 +62,13 @@ def run(args: argparse.Namespace) -> int:
 
         subscribe(session, keys.ODOM, on_odom)
 
+        # This command is the deliberate act: the PID obeys it only if it began after any
+        # stop (an e-stop, a restart, ...); an old `drive` that simply goes on is refused.
+        stream_start = time.time_ns()
+
         def send(v: float, w: float) -> None:
             pub.put(enc.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,
-                                               source="cli")))
+                                               source="cli", stream_start_ns=stream_start)))
 
         start = time.monotonic()
         next_print = start

@@ -58,6 +58,7 @@ class TeleopLink:
         self._owner_t = -1e18
         self._pid_alive = False
         self.sent = 0
+        self._press, self._stream_start_ns = 0, 0
         session.liveliness().declare_subscriber(f"{keys.PREFIX}/alive/pid", self._on_alive,
                                                 history=True)
 
@@ -78,9 +79,12 @@ class TeleopLink:
         if self.owner and now - self._owner_t >= 1.0:
             self.set_owner(True)  # repeat the claim for late joiners (PID restart)
         cmd = self.core.tick(now, self.link_ok)
+        if self.core.presses != self._press:  # a fresh deadman press begins a new stream
+            self._press, self._stream_start_ns = self.core.presses, time.time_ns()
         if cmd is not None:
             self._pub.put(msgspec_encode(VelocityCommand(
-                stamp_ns=time.time_ns(), v_mps=cmd[0], omega_radps=cmd[1], source="teleop")))
+                stamp_ns=time.time_ns(), v_mps=cmd[0], omega_radps=cmd[1], source="teleop",
+                stream_start_ns=self._stream_start_ns)))
             self.sent += 1
         return cmd
 

@@ -76,6 +76,13 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     align_gain_1ps: float = 1.5  # linear tail of the in-place turn
     align_brake_fraction: float = 0.5  # in-place turn brakes at this fraction of ω̇ max
     max_waypoints: int = 1000
+    max_goal_distance_m: float = 50.0  # every waypoint within this distance of the chair
+    # Abort when the chair does not follow: commanded to move, measured at rest this long
+    # (a safety stop, a refusing PID, a blocked wheel). The drive chain responds in ~0.7 s.
+    follow_timeout_s: float = 2.0
+    # Abort when the remaining distance (+ 0.5 m per rad of yaw error) has not dropped by
+    # 5 cm for this long, whatever the chair does (a person must not watch a frozen ETA).
+    no_progress_s: float = 15.0
     rest_mps: float = 0.01  # |v| (m/s) and |ω| (rad/s) of the measured chair counted as at rest
 
     def check(self) -> None:
@@ -84,7 +91,8 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         for name in ("status_rate_hz", "k1", "k2", "vmax_mps", "r_thresh_m",
                      "a_max_mps2", "jerk_max_mps3", "omega_max_radps", "omega_acc_max_radps2",
                      "omega_jerk_max_radps3", "pass_radius_m", "align_gain_1ps",
-                     "approach_rate_1ps"):
+                     "approach_rate_1ps", "max_goal_distance_m", "follow_timeout_s",
+                     "no_progress_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, not {value}")
@@ -131,8 +139,8 @@ class Status:
     reason: str
 
 
-def validate(req: GoalRequest, cfg: ControlConfig) -> str:
-    """'' if the request is usable, else a one-line reason."""
+def validate(req: GoalRequest, cfg: ControlConfig, x: float = 0.0, y: float = 0.0) -> str:
+    """'' if the request is usable from the chair at (x, y), else a one-line reason."""
     if not req.waypoints:
         return "no waypoints"
     if len(req.waypoints) > cfg.max_waypoints:
@@ -140,6 +148,10 @@ def validate(req: GoalRequest, cfg: ControlConfig) -> str:
     for i, p in enumerate(req.waypoints):
         if not all(math.isfinite(c) for c in (p.x_m, p.y_m, p.yaw_rad)):
             return f"waypoint {i} is not finite: ({p.x_m}, {p.y_m}, {p.yaw_rad})"
+        d = math.hypot(p.x_m - x, p.y_m - y)
+        if d > cfg.max_goal_distance_m:
+            return (f"waypoint {i} is {d:.1f} m away (max_goal_distance_m "
+                    f"{cfg.max_goal_distance_m:g})")
     if not (math.isfinite(req.tolerance_m) and req.tolerance_m > 0):
         return f"tolerance_m must be > 0, not {req.tolerance_m}"
     if not (math.isfinite(req.tolerance_rad) and 0 < req.tolerance_rad < math.pi):
@@ -175,6 +187,13 @@ class ControlCore:
         self.reverse: bool | None = None  # direction for the final goal, chosen once
         self.pre_turn = False  # turning in place to face the goal first
         self.odom: OdomSample | None = None
+        # What the node learns from the rest of the stack (see the on_* methods).
+        self.estop_latched = False
+        self.owner = "autonomy"
+        self.reverse_allowed = True  # False while the safety monitor forbids blind reversing
+        self._still_since: float | None = None  # commanded to move, measured at rest, since
+        self._best_left = math.inf  # least remaining cost seen, and when
+        self._best_t = 0.0
         self._last_t: float | None = None
         self._ended_t = -math.inf
         self.counters: dict[str, int] = {}
@@ -187,17 +206,33 @@ class ControlCore:
             return
         self.odom = odom
 
+    def on_estop(self, latched: bool, now: float) -> None:
+        self.estop_latched = latched
+        if latched and self.state == ACTIVE:
+            self._stopped(ABORTED, "e-stop latched", now)
+
+    def on_owner(self, owner: str, now: float) -> None:
+        self.owner = owner
+        if owner != "autonomy" and self.state == ACTIVE:
+            self._stopped(ABORTED, f"drive handed to {owner}", now)
+
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
-        error = validate(req, self.cfg)
+        o = self.odom
+        error = validate(req, self.cfg, *((o.x, o.y) if o is not None else (0.0, 0.0)))
+        if not error and (o is None or now - o.t > self.odom_timeout_s):
+            error = "no fresh odometry: is the odometry service up?"
+        if not error and self.estop_latched:
+            error = "the e-stop is latched: release it first (autochair release)"
+        if not error and self.owner != "autonomy":
+            error = f"the drive is handed to {self.owner}: hand it back first"
         if error:
             self._count("rejected_goals")
             return GoalReply(ok=False, error=error)
-        if self.odom is None or now - self.odom.t > self.odom_timeout_s:
-            self._count("rejected_goals")
-            return GoalReply(ok=False, error="no fresh odometry: is the odometry service up?")
-        if self.state != ACTIVE and self.limiter.at_rest:
-            # Start from what the chair does now (e.g. teleop), not from a jump to zero.
-            self.limiter.reset(self.odom.v, self.odom.omega)
+        assert o is not None
+        if self.state != ACTIVE:
+            # Start from what the chair does now (at rest, or teleop), never from what an
+            # earlier goal last commanded: nothing lunges.
+            self.limiter.reset(o.v, o.omega)
         self.goal_id += 1
         self.waypoints = [Pose2D(p.x_m, p.y_m, wrap(p.yaw_rad)) for p in req.waypoints]
         self.index = 0
@@ -206,6 +241,7 @@ class ControlCore:
         self.aligning = self.straight = False
         self.reverse, self.pre_turn = None, False
         self.state, self.reason = ACTIVE, ""
+        self._still_since, self._best_left, self._best_t = None, math.inf, now
         self._count("goals")
         return GoalReply(ok=True, goal_id=self.goal_id)
 
@@ -229,6 +265,7 @@ class ControlCore:
                           f"{self.odom_timeout_s} s)", now)
             else:
                 v_des, w_des = self._desired(self._predicted(self.odom), now)
+                self._watch_progress(self.odom, now)
         if self.state != ACTIVE and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
             return None
@@ -240,6 +277,36 @@ class ControlCore:
         if self.state != ACTIVE and not self.limiter.at_rest:
             self._ended_t = now  # the zero burst starts once braked to rest
         return v, w
+
+    def _watch_progress(self, o: OdomSample, now: float) -> None:
+        """Abort a goal the chair does not follow, or that makes no progress."""
+        cfg = self.cfg
+        moving_cmd = abs(self.limiter.v.value) > 0.05 or abs(self.limiter.w.value) > 0.05
+        at_rest = abs(o.v) < cfg.rest_mps and abs(o.omega) < cfg.rest_mps
+        if not (moving_cmd and at_rest):
+            self._still_since = None
+        elif self._still_since is None:
+            self._still_since = now
+        elif now - self._still_since > cfg.follow_timeout_s:
+            self._stopped(ABORTED, f"the chair does not follow: commanded to move, at rest for "
+                                   f"{cfg.follow_timeout_s:g} s (a safety stop, a stopped "
+                                   "drive chain or a blocked wheel?)", now)
+            return
+        goal = self.waypoints[-1]
+        left = self.status().distance_left_m + 0.5 * abs(wrap(goal.yaw_rad - o.yaw))
+        if left < self._best_left - 0.05:
+            self._best_left, self._best_t = left, now
+        elif now - self._best_t > cfg.no_progress_s:
+            self._stopped(ABORTED, f"no progress for {cfg.no_progress_s:g} s "
+                                   f"({self.status().distance_left_m:.2f} m left)", now)
+
+    def _stopped(self, state: str, reason: str, now: float) -> None:
+        """End the goal for a stop the chair did not ask for: the command restarts from the
+        measured velocity, so a later goal never continues an old ramp."""
+        self._end(state, reason, now)
+        if self.odom is not None:
+            self.limiter.reset(self.odom.v, self.odom.omega)
+        self._count("stopped_" + state)
 
     def _predicted(self, o: OdomSample) -> OdomSample:
         """The pose once the commands already sent (last `predict_s`) have acted: the drive
@@ -318,7 +385,8 @@ class ControlCore:
         """Backwards if the goal is close behind and that is cheaper: distance at each
         direction's speed plus the turning the law has to do (|θ| + |δ| at the floor rate)."""
         cfg = self.cfg
-        if r > cfg.reverse_max_m or cfg.reverse_vmax_mps <= 0.0 or abs(o.v) > 0.1:
+        if r > cfg.reverse_max_m or cfg.reverse_vmax_mps <= 0.0 or abs(o.v) > 0.1 \
+                or not self.reverse_allowed:
             return False  # never reverse out of motion (a stop and a direction change)
 
         def cost(flip: float, vmax: float) -> float:

@@ -14,7 +14,17 @@ import msgspec
 import zenoh
 
 from autochair.runtime import ConfigError, Node, service_main
-from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Odometry, VelocityCommand, keys
+from autochair_msgs import (
+    CommandOwner,
+    EStopState,
+    GoalReply,
+    GoalRequest,
+    GoalStatus,
+    Odometry,
+    SafetyLimit,
+    VelocityCommand,
+    keys,
+)
 
 from .core import ControlConfig, ControlCore, OdomSample
 
@@ -38,18 +48,24 @@ def start(node: Node, cfg: ControlConfig) -> None:
             core.on_odom(sample)
         node.health.count("odom")
 
+    # When the current goal was accepted (Unix ns): its commands carry it as their stream
+    # start, so the velocity PID obeys them only if the goal came after its last stop.
+    stream = {"start_ns": 0, "announced": 0}
+
     def tick() -> None:
         with lock:
-            state = core.state
             out = core.step(time.monotonic())
-            ended = state == "active" and core.state != "active"
-        if ended:
+            ended = core.state != "active" and stream["announced"] != core.goal_id
+            if ended:
+                stream["announced"] = core.goal_id
+        if ended and core.goal_id and core.state != "cancelled":  # (cancel says so itself)
             why = f": {core.reason}" if core.reason else ""
             node.event("warning" if core.state == "aborted" else "info",
                        f"goal {core.goal_id} {core.state}{why}")
         if out is not None:
             cmd_pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=out[0],
-                                        omega_radps=out[1], source="control"))
+                                        omega_radps=out[1], source="control",
+                                        stream_start_ns=stream["start_ns"]))
             node.health.count("commands")
 
     def status_msg() -> GoalStatus:
@@ -80,6 +96,8 @@ def start(node: Node, cfg: ControlConfig) -> None:
             return
         with lock:
             result = core.set_goal(req, time.monotonic())
+            if result.ok:
+                stream["start_ns"] = time.time_ns()
         if result.ok:
             last = req.waypoints[-1]
             node.event("info", f"goal {result.goal_id}: {len(req.waypoints)} waypoint(s) to "
@@ -99,7 +117,22 @@ def start(node: Node, cfg: ControlConfig) -> None:
     def on_get(query: zenoh.Query) -> None:
         reply(query, status_msg())
 
+    def on_estop(msg: EStopState) -> None:
+        with lock:
+            core.on_estop(msg.latched, time.monotonic())
+
+    def on_owner(msg: CommandOwner) -> None:
+        with lock:
+            core.on_owner(msg.owner, time.monotonic())
+
+    def on_limit(msg: SafetyLimit) -> None:
+        with lock:  # no blind reversing for autonomy unless the monitor allows it
+            core.reverse_allowed = msg.v_max_rev_autonomy_mps > 0.0
+
     node.subscribe(keys.ODOM, on_odom)
+    node.subscribe(keys.ESTOP_STATE, on_estop)
+    node.subscribe(keys.CMD_OWNER, on_owner)
+    node.subscribe(keys.SAFETY_LIMIT, on_limit)
     for topic, handler in ((keys.GOAL_SET, on_set), (keys.GOAL_CANCEL, on_cancel),
                            (keys.GOAL_GET, on_get)):
         node.queryable(topic, handler)

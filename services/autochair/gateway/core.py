@@ -42,7 +42,9 @@ class GatewayCore:
     decoder: FrameDecoder = field(default_factory=FrameDecoder)
     dropped: int = 0  # telemetry frames lost (sequence gaps)
     clamped: int = 0
+    skew_s: float = 0.1  # commands stamped further ahead than this are rejected
     rejected: int = 0  # commands with non-finite values
+    rejected_age: int = 0  # commands stamped too long ago or in the future
     _last_seq: int | None = None
     _cmd: tuple[float, float, bool, int] | None = None
     _cmd_t: float = -math.inf
@@ -67,14 +69,19 @@ class GatewayCore:
         return out
 
     def on_command(self, longitudinal_v: float, angular_v: float, enable: bool,
-                   now_s: float, source_seq: int = -1) -> bool:
+                   now_s: float, source_seq: int = -1, age_s: float = 0.0) -> bool:
         """Accept a joystick command at monotonic time `now_s`; False if it is unusable.
 
         `source_seq` is the telemetry frame the command was computed from; it goes back to the
-        chair as `ack_seq`, so a round trip can be timed on the wire.
+        chair as `ack_seq`, so a round trip can be timed on the wire. `age_s` is now minus the
+        command's own stamp (Unix clock): a command older than the stale timeout (a delayed or
+        replayed one) or stamped in the future beyond `skew_s` is refused.
         """
         if not (math.isfinite(longitudinal_v) and math.isfinite(angular_v)):
             self.rejected += 1
+            return False
+        if not -self.skew_s <= age_s <= self.stale_s:
+            self.rejected_age += 1
             return False
         self._cmd = (longitudinal_v, angular_v, enable, source_seq)
         self._cmd_t = now_s

@@ -39,6 +39,7 @@ class Gateway:
         self.node, self.cfg = node, cfg
         stale = node.stale
         self.core = GatewayCore(stale_s=stale.joystick_s, estop_stale_s=stale.estop_s,
+                                skew_s=stale.clock_skew_s,
                                 require_estop=cfg.require_estop, min_v=cfg.min_v, max_v=cfg.max_v)
         self.lock = threading.Lock()  # core + port writes: command callback vs tick vs reader
         self.port: serial.SerialBase | None = None
@@ -64,8 +65,9 @@ class Gateway:
     # --- host → chair ----------------------------------------------------------------------
     def on_command(self, cmd: JoystickCommand) -> None:
         with self.lock:
+            age_s = (time.time_ns() - cmd.stamp_ns) / 1e9
             if not self.core.on_command(cmd.longitudinal_v, cmd.angular_v, cmd.enable,
-                                        time.monotonic(), cmd.source_seq):
+                                        time.monotonic(), cmd.source_seq, age_s):
                 self.node.health.count("rejected_commands")
                 return
             self.node.health.count("commands")

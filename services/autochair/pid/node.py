@@ -1,4 +1,8 @@
-"""Velocity PID node: runs both loops on every odometry sample (the encoder rate)."""
+"""Velocity PID node: runs both loops on every odometry sample (the encoder rate).
+
+Every decision (whose command counts, when to stop, the caps and the safety limit) is in
+`VelocityPidCore`; this node only wires Zenoh to it.
+"""
 
 from __future__ import annotations
 
@@ -8,10 +12,12 @@ import time
 from collections.abc import Callable
 
 import msgspec
+import zenoh
 
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import (
     CommandOwner,
+    EStopState,
     JoystickCommand,
     Odometry,
     PidStatus,
@@ -20,7 +26,7 @@ from autochair_msgs import (
     keys,
 )
 
-from .core import VelocityPidCore
+from .core import Caps, Command, VelocityPidCore, Verdict
 
 
 class PidConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -30,54 +36,104 @@ class PidConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     min_v: float = 1.1
     max_v: float = 3.9
     d_filter_n: float = 10.0
-    # Drive only within a fresh limit from the safety monitor (stale limit → stop).
-    require_safety_limit: bool = False
+    # Drive only within a fresh limit from the safety monitor (stale limit → stop). The process
+    # list sets it whenever the stack runs the monitor (processes.stack_values).
+    require_safety_limit: bool = True
+    # Drive only while the e-stop service says "released" (as the gateway does).
+    require_estop: bool = True
+    # Absolute caps whatever the source (CLI, teleop, autonomy); tools read them from health.
+    v_max_fwd_mps: float = 1.2
+    v_max_rev_mps: float = 0.5
+    omega_max_radps: float = 1.0
 
 
 def start(node: Node, cfg: PidConfig) -> None:
     if any(g < 0 for g in (*cfg.v_gains, *cfg.omega_gains)):
         raise ConfigError("[pid] gains must be ≥ 0")
+    if not all(0 < c <= 3 for c in (cfg.v_max_fwd_mps, cfg.v_max_rev_mps, cfg.omega_max_radps)):
+        raise ConfigError("[pid] v_max_fwd_mps, v_max_rev_mps and omega_max_radps must be "
+                          "within (0, 3]")
     stale = node.stale
-    core = VelocityPidCore(v_gains=cfg.v_gains, omega_gains=cfg.omega_gains, min_v=cfg.min_v,
-                           max_v=cfg.max_v, stale_s=stale.desired_velocity_s,
-                           require_limit=cfg.require_safety_limit,
-                           limit_stale_s=stale.safety_limit_s)
+    core = VelocityPidCore(
+        v_gains=cfg.v_gains, omega_gains=cfg.omega_gains, min_v=cfg.min_v, max_v=cfg.max_v,
+        stale_s=stale.desired_velocity_s, skew_s=stale.clock_skew_s,
+        require_limit=cfg.require_safety_limit, limit_stale_s=stale.safety_limit_s,
+        require_estop=cfg.require_estop, estop_stale_s=stale.estop_s,
+        odom_gap_s=stale.odometry_s,
+        caps=Caps(cfg.v_max_fwd_mps, cfg.v_max_rev_mps, cfg.omega_max_radps),
+        start_ns=time.time_ns())
     core.v_pid.d_filter_n = core.omega_pid.d_filter_n = cfg.d_filter_n
-    node.health.thresholds.update(desired_velocity_s=stale.desired_velocity_s,
-                                  safety_limit_s=stale.safety_limit_s)
+    node.health.thresholds.update(
+        desired_velocity_s=stale.desired_velocity_s, safety_limit_s=stale.safety_limit_s,
+        estop_s=stale.estop_s, odometry_s=stale.odometry_s, clock_skew_s=stale.clock_skew_s,
+        v_max_fwd_mps=cfg.v_max_fwd_mps, v_max_rev_mps=cfg.v_max_rev_mps,
+        omega_max_radps=cfg.omega_max_radps,
+        require_safety_limit=float(cfg.require_safety_limit))
     lock = threading.Lock()
     joy_pub = node.publisher(keys.JOYSTICK)
     status_pub = node.publisher(keys.PID_STATUS)
 
+    def stopped(ended: bool) -> None:
+        """Say once, when a stop ends a stream the PID was obeying."""
+        if ended:
+            node.health.count("stops")
+            node.event("warning", f"pid: {core.inhibit}")
+
     def desired_from(source: str) -> Callable[[VelocityCommand], None]:
         def on_desired(cmd: VelocityCommand) -> None:
             with lock:
-                result = core.set_desired(cmd.v_mps, cmd.omega_radps, time.monotonic(), source)
-            node.health.count(f"desired_{result}")
+                verdict = core.set_desired(
+                    Command(cmd.v_mps, cmd.omega_radps, source, cmd.stamp_ns,
+                            cmd.stream_start_ns), time.monotonic(), time.time_ns())
+            node.health.count(f"desired_{verdict.value}")
+            if verdict is Verdict.OK:
+                node.health.detail = f"owner {core.owner}: obeying {cmd.source or source}"
 
         return on_desired
 
     def on_owner(msg: CommandOwner) -> None:
         with lock:
             previous = core.owner
-            ok = core.set_owner(msg.owner)
+            ok = core.set_owner(msg.owner, time.time_ns())
         if not ok:
             node.health.count("rejected_owner")
         elif msg.owner != previous:
-            node.event("warning", f"drive handed to {msg.owner} by {msg.by or '?'}")
+            node.event("warning", f"drive handed to {msg.owner} by {msg.by or '?'}: a stop; "
+                                  "it drives again on a command begun after it")
             node.health.detail = f"owner {msg.owner}"
 
     def on_limit(msg: SafetyLimit) -> None:
         with lock:
             ok = core.set_limit(msg.v_max_fwd_mps, msg.v_max_rev_mps, msg.omega_max_radps,
-                                time.monotonic())
+                                time.monotonic(), msg.v_max_rev_autonomy_mps)
         node.health.count("limits" if ok else "rejected_limits")
 
-    def on_odom(odom: Odometry) -> None:
-        now = time.monotonic()
+    def on_estop(msg: EStopState) -> None:
         with lock:
-            desired = core.desired(now) or (0.0, 0.0)
-            out = core.update(odom.v_mps, odom.omega_radps, odom.sample_dt_s, now)
+            ended = core.set_estop(msg.latched, time.monotonic(), time.time_ns())
+        stopped(ended)
+
+    def on_token(service: str) -> Callable[[zenoh.Sample], None]:
+        def on_sample(sample: zenoh.Sample) -> None:
+            if sample.kind != zenoh.SampleKind.DELETE:
+                return
+            with lock:
+                now_ns = time.time_ns()
+                ended = core.estop_gone(now_ns) if service == "estop" else \
+                    core.stop(f"{service} lost", now_ns)
+            stopped(ended)
+
+        return on_sample
+
+    def on_odom(odom: Odometry) -> None:
+        now, now_ns = time.monotonic(), time.time_ns()
+        with lock:
+            was = core.obeying
+            out = core.update(odom.v_mps, odom.omega_radps, odom.sample_dt_s, now, now_ns)
+            desired = core.desired(now, now_ns) or (0.0, 0.0)
+            inhibit = core.inhibit
+            ended = was and not core.obeying
+        stopped(ended)
         stamp = time.time_ns()
         joy_pub.put(JoystickCommand(stamp_ns=stamp, longitudinal_v=out.longitudinal_v,
                                     angular_v=out.angular_v, enable=out.active,
@@ -88,15 +144,21 @@ def start(node: Node, cfg: PidConfig) -> None:
             stamp_ns=stamp, v_desired_mps=desired[0], v_measured_mps=odom.v_mps,
             v_effort=out.v_effort, omega_desired_radps=desired[1],
             omega_measured_radps=odom.omega_radps, omega_effort=out.omega_effort,
-            active=out.active, saturated=sat))
+            active=out.active, saturated=sat, inhibit=inhibit))
         node.health.count("updates")
 
-    node.health.detail = "owner autonomy"
+    node.health.detail = "owner autonomy: obeying nothing yet"
     node.subscribe(keys.CMD_VEL, desired_from("autonomy"))
     node.subscribe(keys.TELEOP, desired_from("teleop"))
     node.subscribe(keys.CMD_OWNER, on_owner)
     node.subscribe(keys.SAFETY_LIMIT, on_limit)
+    node.subscribe(keys.ESTOP_STATE, on_estop)
     node.subscribe(keys.ODOM, on_odom)
+    # A killed service's token vanishes within milliseconds, sooner than any heartbeat.
+    for service in ("estop", "gateway"):
+        sub = node.session.liveliness().declare_subscriber(
+            f"{keys.PREFIX}/alive/{service}", on_token(service))
+        node.on_close(sub.undeclare)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -53,3 +53,29 @@ def alive_services(session: zenoh.Session, timeout_s: float = 1.0) -> set[str]:
         if reply.ok is not None:
             names.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
     return names
+
+
+def pid_caps(session: zenoh.Session, timeout_s: float = 1.5) -> tuple[float, float, float] | None:
+    """The velocity PID's absolute caps (forward m/s, reverse m/s, |ω| rad/s) from its health,
+    or None when no PID reports within `timeout_s` (health comes once a second)."""
+    import threading
+
+    from autochair_msgs import Health, keys
+
+    got: list[Health] = []
+    done = threading.Event()
+
+    def on_health(h: Health) -> None:
+        if "v_max_fwd_mps" in h.thresholds and not got:
+            got.append(h)
+            done.set()
+
+    sub = subscribe(session, keys.HEALTH, on_health, keys.HEALTH.for_service("pid"))
+    try:
+        done.wait(timeout_s)
+    finally:
+        sub.undeclare()
+    if not got:
+        return None
+    t = got[0].thresholds
+    return t["v_max_fwd_mps"], t.get("v_max_rev_mps", 0.0), t.get("omega_max_radps", 0.0)
