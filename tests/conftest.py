@@ -21,8 +21,8 @@ def stack_factory(tmp_path: Path, hub: str) -> Iterator[Callable[..., Launcher]]
     """Start a private stack (subset of the process list) on a free hub port; always stopped."""
     launchers: list[Launcher] = []
 
-    def start(names: list[str], **values: str) -> Launcher:
-        launcher = make_stack(["router", *names], hub, tmp_path / "run", **values)
+    def start(names: list[str], restart: bool = False, **values: str) -> Launcher:
+        launcher = make_stack(["router", *names], hub, tmp_path / "run", restart, **values)
         launchers.append(launcher)
         launcher.start(ready_timeout_s=30)
         return launcher

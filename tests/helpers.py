@@ -57,6 +57,9 @@ class Recorder:
 
         self._sub = session.declare_subscriber(key, cb)
 
+    def close(self) -> None:
+        self._sub.undeclare()
+
     def messages(self) -> list[Any]:
         with self._lock:
             return [m for _, m in self.items]
@@ -66,10 +69,46 @@ class Recorder:
             return self.items[-1][1] if self.items else None
 
 
-def make_stack(names: list[str], hub: str, run_dir: Path, **values: str) -> Launcher:
+def make_stack(names: list[str], hub: str, run_dir: Path, restart: bool = False,
+               **values: str) -> Launcher:
     procs = [p for p in PROCESSES if p.name in names]
     values = {"record_path": str(run_dir / "rec.mcap"), **values}
-    return Launcher(procs, local_values(run_dir, hub, **values), run_dir, restart=False)
+    return Launcher(procs, local_values(run_dir, hub, **values), run_dir, restart=restart)
+
+
+_ENC = msgspec.msgpack.Encoder()
+
+
+def pid_ready(session: zenoh.Session, timeout: float = 15) -> None:
+    """Wait until the velocity PID would obey a stream begun now: it hears the e-stop (and the
+    safety limit when required), so only the wait for a deliberate act remains."""
+    from autochair_msgs import PidStatus, keys
+
+    status = Recorder(session, keys.PID_STATUS.key, PidStatus)
+    try:
+        wait_for(lambda: (lambda m: m is not None and (m.active or m.inhibit.startswith(
+            "stopped")))(status.latest()), timeout, "the velocity PID ready for a command")
+    finally:
+        status.close()
+
+
+class Stream:
+    """One command stream (a deliberate act): every command carries the time it began, so the
+    velocity PID obeys it only if it began after the PID's last stop."""
+
+    def __init__(self, pub: zenoh.Publisher, v: float, omega: float = 0.0,
+                 source: str = "test") -> None:
+        from autochair_msgs import VelocityCommand
+
+        self.pub, self.v, self.omega, self.source = pub, v, omega, source
+        self.start_ns = time.time_ns()
+        self._type = VelocityCommand
+
+    def put(self, v: float | None = None, omega: float | None = None) -> None:
+        self.pub.put(_ENC.encode(self._type(
+            stamp_ns=time.time_ns(), v_mps=self.v if v is None else v,
+            omega_radps=self.omega if omega is None else omega, source=self.source,
+            stream_start_ns=self.start_ns)))
 
 
 def stop_process(p: subprocess.Popen[bytes] | subprocess.Popen[str]) -> None:

@@ -11,19 +11,14 @@ import zenoh
 from bench.faults import decode_errors, junk_every_key, sim_fault
 
 from autochair.launcher import Launcher
-from autochair_msgs import GroundTruth, Health, JoystickOutput, VelocityCommand, keys
+from autochair_msgs import GroundTruth, Health, JoystickOutput, keys
 from autochair_msgs.sim import SimFault
-from tests.helpers import Recorder, client_session, wait_for
+from tests.helpers import Recorder, Stream, client_session, pid_ready, wait_for
 
 pytestmark = pytest.mark.slow
 
 DRIVE_CHAIN = ["estop", "sim", "gateway", "odometry", "pid"]
 ENC = msgspec.msgpack.Encoder()
-
-
-def drive(pub: zenoh.Publisher) -> None:
-    pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.0, omega_radps=0.5,
-                                       source="test")))
 
 
 def test_junk_on_every_key_is_counted_and_kills_nothing(
@@ -64,19 +59,20 @@ def test_serial_unplug_gives_neutral_then_reconnects(
     try:
         truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
         out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
-        pub = session.declare_publisher(keys.CMD_VEL.key)
+        pid_ready(session)
+        old = Stream(session.declare_publisher(keys.CMD_VEL.key), 0.0, 0.5)
 
-        def driving_since(t_ns: int) -> bool:
-            drive(pub)
+        def driving_since(stream: Stream, t_ns: int) -> bool:
+            stream.put()
             m = out.latest()
             return m is not None and m.reason == "command" and m.stamp_ns > t_ns
 
-        wait_for(lambda: driving_since(0), 15, "driving", interval=0.05)
+        wait_for(lambda: driving_since(old, 0), 15, "driving", interval=0.05)
         t = time.time_ns()
         assert sim_fault(session, SimFault(kind="unplug", duration_s=1.0))
 
         def neutral() -> list[GroundTruth]:
-            drive(pub)
+            old.put()
             return [m for m in truth.messages() if m.stamp_ns > t
                     and (m.longitudinal_v, m.angular_v) == (2.5, 2.5)]
 
@@ -84,7 +80,18 @@ def test_serial_unplug_gives_neutral_then_reconnects(
         latency_ms = (first.stamp_ns - t) / 1e6
         # Firmware watchdog 200 ms after the last host frame; generous for a loaded machine.
         assert latency_ms < 400, f"neutral {latency_ms:.0f} ms after the unplug"
-        wait_for(lambda: driving_since(t + 1_000_000_000), 15, "driving again after replug",
-                 interval=0.05)
+        # Replugged, the link is back (frames written again) but the old stream, which simply
+        # went on, must not drive: the outage was a stop.
+        wait_for(lambda: (old.put(), [m for m in out.messages() if m.stamp_ns > t + 1.5e9])[1],
+                 15, "frames written again after replug", interval=0.05)
+        replugged = time.monotonic()
+        while time.monotonic() - replugged < 1.5:
+            old.put()
+            time.sleep(0.05)  # the stream's own 20 Hz, not a synchronisation
+        enabled = [(m.stamp_ns - t) / 1e6 for m in out.messages()
+                   if m.stamp_ns > first.stamp_ns and m.enable]
+        assert not enabled, f"the old stream drove again after the replug (at +{enabled} ms)"
+        new = Stream(old.pub, 0.0, 0.5)  # positive control: a new command drives
+        wait_for(lambda: driving_since(new, t), 15, "driving on a new command", interval=0.05)
     finally:
         session.close()

@@ -14,8 +14,8 @@ import pytest
 
 from autochair.launcher import Launcher, free_port
 from autochair.logger.reader import Recording
-from autochair_msgs import EncoderSample, Odometry, VelocityCommand, keys
-from tests.helpers import Recorder, client_session, make_stack, wait_for
+from autochair_msgs import EncoderSample, Odometry, keys
+from tests.helpers import Recorder, Stream, client_session, make_stack, pid_ready, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -30,11 +30,11 @@ def test_odometry_rerun_on_replayed_encoders_matches_the_recording(
         odom = Recorder(session, keys.ODOM.key, Odometry)
         wait_for(lambda: odom.latest(), 10, "odometry")
         pub = session.declare_publisher(keys.CMD_VEL.key)
-        enc = msgspec.msgpack.Encoder()
+        pid_ready(session)
+        stream = Stream(pub, 0.4, 0.5)
         t0 = time.monotonic()
         while time.monotonic() - t0 < 3.0:  # an arc: both wheels, both signs of change
-            pub.put(enc.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.4,
-                                               omega_radps=0.5, source="test")))
+            stream.put()
             time.sleep(0.05)
         wait_for(lambda: abs(odom.latest().yaw_rad) > 0.2, 10, "the chair turning")
     finally:

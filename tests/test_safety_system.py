@@ -7,21 +7,19 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import msgspec
 import numpy as np
 import pytest
 
 from autochair.launcher import Launcher
 from autochair.lidar.world import DEFAULT_WORLD, World, parse_world
-from autochair.safety.core import SafetyParams
-from autochair_msgs import EStopState, GroundTruth, SafetyLimit, VelocityCommand, keys
-from tests.helpers import Recorder, client_session, make_stack, wait_for
+from autochair.runtime import ChairGeometry
+from autochair_msgs import EStopState, GroundTruth, SafetyLimit, keys
+from tests.helpers import Recorder, Stream, client_session, make_stack, pid_ready, wait_for
 
 pytestmark = pytest.mark.slow
 
 STACK = ["estop", "sim", "gateway", "odometry", "pid", "lidar-sim", "lidar", "safety"]
-ENC = msgspec.msgpack.Encoder()
-P = SafetyParams()
+P = ChairGeometry()
 
 
 def footprint_outline(step: float = 0.01) -> np.ndarray:
@@ -51,11 +49,9 @@ def test_clearance_helper_sees_a_touch() -> None:
 
 @pytest.fixture
 def safe_stack(tmp_path: Path, hub: str) -> Iterator[Launcher]:
-    """The drive chain, the simulated lidar and the monitor; the PID requires the limit."""
-    conf = tmp_path / "autochair.toml"
-    conf.write_text("[pid]\nrequire_safety_limit = true\n")
+    """The drive chain, the simulated lidar and the monitor (so the PID requires its limit)."""
     launcher = make_stack(["router", *STACK], hub, tmp_path / "run")
-    launcher.env["AUTOCHAIR_CONFIG"] = str(conf)
+    assert launcher.values["safety_required"] == "true"
     try:
         launcher.start(ready_timeout_s=40)
         yield launcher
@@ -72,12 +68,12 @@ def test_drive_at_the_dead_end_stops_without_touching(safe_stack: Launcher, hub:
         estop = Recorder(session, keys.ESTOP_STATE.key, EStopState)
         wait_for(lambda: truth.latest() and limits.latest()
                  and limits.latest().reason != "scan stale", 30, "truth and scan-based limits")
-        pub = session.declare_publisher(keys.CMD_VEL.key)
+        pid_ready(session)
+        stream = Stream(session.declare_publisher(keys.CMD_VEL.key), 1.2)
         t0 = time.monotonic()
         stopped_since = math.inf
         while time.monotonic() - t0 < 45:
-            pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=1.2,
-                                               omega_radps=0.0, source="test")))
+            stream.put()
             now, latest = time.monotonic(), truth.latest()
             if latest.x_m > 15 and abs(latest.v_mps) < 0.01:
                 stopped_since = min(stopped_since, now)
@@ -91,8 +87,12 @@ def test_drive_at_the_dead_end_stops_without_touching(safe_stack: Launcher, hub:
         final = run[-1]
         gaps = [clearance(world, m.x_m, m.y_m, m.yaw_rad) for m in run[::5]]
         gap_end = clearance(world, final.x_m, final.y_m, final.yaw_rad)
+        # A safety stop brakes to rest without reversing (nothing senses behind the chair).
+        reverse = max(m.x_m for m in run) - final.x_m
         print(f"peak {v_peak:.2f} m/s, stopped at x = {final.x_m:.2f} m, {gap_end:.3f} m from "
-              f"the nearest obstacle, min clearance {min(gaps):.3f} m; {limits.latest()}")
+              f"the nearest obstacle, min clearance {min(gaps):.3f} m, reverse travel "
+              f"{reverse * 100:.2f} cm; {limits.latest()}")
+        assert reverse <= 0.01, f"reversed {reverse * 100:.1f} cm while stopping"
         assert v_peak > 1.1, f"never reached vmax (peak {v_peak:.2f} m/s)"
         assert final.x_m > 15 and abs(final.v_mps) < 0.01, "the chair did not stop at the end"
         assert min(gaps) > 0.0, f"footprint touched the world (clearance {min(gaps):.3f} m)"

@@ -197,9 +197,15 @@ class VelocityPidCore:
     def obeying(self) -> bool:
         return self._desired_t > -math.inf
 
-    @property
-    def inhibit(self) -> str:
-        """Why no command moves the chair now ("" while one does)."""
+    def inhibit(self, now_s: float) -> str:
+        """Why no command moves the chair now ("" while one does): a condition that still
+        holds, or "stopped (...)" when a new command would be obeyed."""
+        if self._estop_latched:
+            return "e-stop latched"
+        if self.require_estop and now_s - self._estop_t > self.estop_stale_s:
+            return "e-stop silent"
+        if self.require_limit and now_s - self._limit_t > self.limit_stale_s:
+            return "no fresh safety limit"
         if self.obeying:
             return ""
         return f"stopped ({self.stop_reason}): waiting for a command begun after the stop"

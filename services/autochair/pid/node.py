@@ -77,7 +77,8 @@ def start(node: Node, cfg: PidConfig) -> None:
         """Say once, when a stop ends a stream the PID was obeying."""
         if ended:
             node.health.count("stops")
-            node.event("warning", f"pid: {core.inhibit}")
+            node.event("warning", f"pid: stopped ({core.stop_reason}): it drives again on "
+                                  "a command begun after the stop")
 
     def desired_from(source: str) -> Callable[[VelocityCommand], None]:
         def on_desired(cmd: VelocityCommand) -> None:
@@ -131,7 +132,7 @@ def start(node: Node, cfg: PidConfig) -> None:
             was = core.obeying
             out = core.update(odom.v_mps, odom.omega_radps, odom.sample_dt_s, now, now_ns)
             desired = core.desired(now, now_ns) or (0.0, 0.0)
-            inhibit = core.inhibit
+            inhibit = core.inhibit(now)
             ended = was and not core.obeying
         stopped(ended)
         stamp = time.time_ns()
