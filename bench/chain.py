@@ -206,9 +206,13 @@ def main(argv: list[str]) -> int:
         enc = msgspec.msgpack.Encoder()
 
         def command() -> None:  # keep the PID active, as the control law would
+            # The PID obeys a stream begun after it heard the e-stop (10 Hz): begin after that.
+            stop_cmd.wait(0.5)
+            start_ns = time.time_ns()
             while not stop_cmd.wait(0.05):
                 cmd_pub.put(enc.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.3,
-                                                       omega_radps=0.0, source="bench")))
+                                                       omega_radps=0.0, source="bench",
+                                                       stream_start_ns=start_ns)))
 
         threading.Thread(target=command, daemon=True).start()
         fake.run(200, 400)  # warm-up: connections, caches, the PID becoming active

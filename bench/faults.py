@@ -1,13 +1,15 @@
 """Fault injection on the simulated stack, run under supervisord from the generated config.
 
 `python -m bench.faults` starts the sim stack (every process of the list) under supervisord
-(deploy.supervisord_conf, autorestart) with `[pid] require_safety_limit = true`, keeps the chair
+(deploy.supervisord_conf, autorestart; the PID requires the safety limit), keeps the chair
 turning in place (ω = 0.5 rad/s, free of the walls) as load, and injects, one at a time:
 SIGKILL of each service (time to neutral, time to standstill, time until supervisord has it
 back: its liveliness token reappears), a serial unplug/replug and garbage (the sim's fault
 query), a lidar unplug/replug (the lidar sim's SIGUSR1), a malformed payload on every pub key,
-and a logger SIGKILL (is the file readable, how many seconds were lost). Results:
-bench/results/faults.json and a Markdown table on stdout.
+and a logger SIGKILL (is the file readable, how many seconds were lost). After each fault that
+stopped the chair the OLD command stream goes on for `HOLD_S`: any command frame written then is
+an unexpected restart (ISO 14118); a new stream (a deliberate act) then measures "driving on a
+new command". Results: bench/results/faults.json and a Markdown table on stdout.
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ STACK = ["router", "estop", "sim", "gateway", "odometry", "pid", "control", "log
          "lidar-sim", "lidar", "mapping", "safety"]
 DRIVE_CHAIN = ["estop", "gateway", "odometry", "pid"]  # a failure here must give neutral
 ENC = msgspec.msgpack.Encoder()
+HOLD_S = 2.0  # the old stream goes on this long after the fault has passed
 
 
 def free_port() -> int:
@@ -62,12 +65,13 @@ def free_port() -> int:
 def poll(cond: Callable[[], Any], timeout: float, interval: float = 0.005) -> Any:
     """`cond()` once it is truthy, or None after `timeout` seconds."""
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+    while True:  # at least once, even with timeout 0
         v = cond()
         if v:
             return v
+        if time.monotonic() >= deadline:
+            return None
         time.sleep(interval)
-    return None
 
 
 class Tap:
@@ -111,11 +115,11 @@ class Stack:
         run.mkdir(parents=True, exist_ok=True)
         self.record = run / "rec.mcap"
         self.config = work / "chair.toml"
-        self.config.write_text(f'[zenoh]\nconnect = ["{self.hub}"]\n\n'
-                               "[pid]\nrequire_safety_limit = true\n")
+        self.config.write_text(f'[zenoh]\nconnect = ["{self.hub}"]\n')
         values = {**deploy.CHAIR_VALUES, "hub": self.hub, "hub_port": self.hub.rsplit(":")[-1],
                   "run_dir": str(run), "serial_port": str(run / "arduino"),
-                  "lidar_url": str(run / "lidar"), "record_path": str(self.record)}
+                  "lidar_url": str(run / "lidar"), "record_path": str(self.record),
+                  "state_dir": str(run)}
         paths = deploy.Paths(bin_dir=str(BIN), config=str(self.config), log_dir=str(work),
                              run_dir=str(work))
         self.conf = work / "supervisord.conf"
@@ -172,14 +176,32 @@ class Probe:
                                                                   history=True)
         self.cmd = self.session.declare_publisher(keys.CMD_VEL.key)
         self.omega = 0.5
+        self.stream_start_ns = time.time_ns()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._load, daemon=True)
         self._thread.start()
 
     def _load(self) -> None:
         while not self._stop.wait(0.05):  # 20 Hz, the rate of the command stream
-            self.cmd.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.0,
-                                                    omega_radps=self.omega, source="faults")))
+            self.cmd.put(ENC.encode(VelocityCommand(
+                stamp_ns=time.time_ns(), v_mps=0.0, omega_radps=self.omega, source="faults",
+                stream_start_ns=self.stream_start_ns)))
+
+    def new_stream(self) -> int:
+        """A deliberate act: a command stream begun now (as a new `drive` would)."""
+        self.stream_start_ns = time.time_ns()
+        return self.stream_start_ns
+
+    def resumes(self, since_ns: int) -> dict[str, Any]:
+        """After a stop: the old stream goes on for HOLD_S (a command frame = unexpected
+        restart); then a new stream, timed to its first command frame."""
+        time.sleep(HOLD_S)  # the old stream keeps publishing meanwhile (the load thread)
+        unexpected = self.driving_after(since_ns, 0.0) is not None
+        t = self.new_stream()
+        resumed = self.driving_after(t, 30)
+        return {"unexpected_restart": unexpected,
+                "new_command_drives_s": None if resumed is None else round((resumed - t) / 1e9,
+                                                                           2)}
 
     def driving(self) -> bool:
         m = self.out.latest()
@@ -265,13 +287,17 @@ def kill_one(stack: Stack, probe: Probe, name: str) -> dict[str, Any]:
     neutral = probe.first_neutral(t, 3.0)
     still = probe.standstill(t, 5.0)
     back = poll(lambda: probe.alive.get(name, 0) > t and probe.alive[name], 20, 0.01)
-    resumed = probe.driving_after(t + int((neutral or 0) * 1e6), 30)
     row = {"service": name, "in_drive_chain": name in DRIVE_CHAIN,
            "omega_before_radps": round(spin, 3),
            "neutral_ms": None if neutral is None else round(neutral, 1),
            "standstill_ms": None if still is None else round(still, 1),
-           "restart_s": None if not back else round((back - t) / 1e9, 3),
-           "driving_again_s": None if resumed is None else round((resumed - t) / 1e9, 2)}
+           "restart_s": None if not back else round((back - t) / 1e9, 3)}
+    if neutral is not None or still is not None:  # it stopped: does it start by itself?
+        since = t + int(min(x for x in (neutral, still) if x is not None) * 1e6)
+        poll(lambda: stack.pid(name) is not None and probe.alive.get(name, 0) > t, 20, 0.05)
+        row.update(probe.resumes(since))
+    else:
+        row.update(unexpected_restart=None, new_command_drives_s=None, still_driving=True)
     print(row, flush=True)
     return row
 
@@ -284,8 +310,10 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
     probe: Probe | None = None
     try:
         probe = Probe(stack.hub)
-        if not poll(lambda: set(names) - {"router"} <= set(probe.alive) and probe.driving(),
-                    90, 0.1):
+        # The PID obeys only streams begun after it heard the e-stop and the safety limit:
+        # begin anew until it drives (as a person would press again).
+        if not poll(lambda: set(names) - {"router"} <= set(probe.alive) and (
+                probe.driving() or probe.new_stream() < 0), 90, 0.5):
             raise SystemExit(f"stack did not come up driving: alive {sorted(probe.alive)}; "
                              f"see {work}")
         time.sleep(2.0)  # let the chair spin up (load)
@@ -297,12 +325,11 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
         t = time.time_ns()
         ok = sim_fault(probe.session, SimFault(kind="unplug", duration_s=2.0))
         neutral = probe.first_neutral(t, 3.0)
-        back = probe.driving_after(t + 2_000_000_000, 20)
+        poll(lambda: next((m for m in probe.out.since(t + 2_000_000_000)), None), 20, 0.05)
         res["serial_unplug"] = {
             "injected": ok, "unplugged_s": 2.0,
             "neutral_ms": None if neutral is None else round(neutral, 1),
-            "driving_after_replug_s": None if back is None else
-            round((back - t) / 1e9 - 2.0, 2)}
+            **probe.resumes(t + int((neutral or 0) * 1e6))}
         print(res["serial_unplug"], flush=True)
 
         # --- garbage into serial ---------------------------------------------------------------
@@ -332,7 +359,7 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
         still = probe.standstill(t, 6.0)
         scans_back = poll(lambda: next((m for m in probe.scan.since(t + 3_000_000_000)), None),
                           30, 0.05)
-        resumed = probe.driving_after(t + 3_000_000_000, 30)
+        since = t + int((still or 0) * 1e6)
         res["lidar_unplug"] = {
             "unplugged_s": 3.0,
             "stop_limit_ms": None if stop_lim is None else
@@ -340,8 +367,7 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
             "standstill_ms": None if still is None else round(still, 1),
             "scans_back_after_replug_s": None if scans_back is None else
             round((scans_back.stamp_ns - t) / 1e9 - 3.0, 2),
-            "driving_again_s": None if resumed is None else
-            round((resumed - t) / 1e9 - 3.0, 2)}
+            **probe.resumes(since)}
         print(res["lidar_unplug"], flush=True)
 
         # --- a malformed payload on every key -----------------------------------------------
@@ -393,24 +419,27 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
 
 
 def table(res: dict[str, Any]) -> str:
-    rows = ["| fault | neutral (ms) | standstill (ms) | restart (s) | driving again (s) |",
-            "|---|---|---|---|---|"]
+    rows = ["| fault | neutral (ms) | standstill (ms) | restart (s) | old stream restarts "
+            "the chair | a new command drives (s) |", "|---|---|---|---|---|---|"]
 
     def f(v: Any) -> str:
-        return "—" if v is None else str(v)
+        return "—" if v is None else ("**yes**" if v is True else "no" if v is False else str(v))
+
+    def end(k: dict[str, Any]) -> str:
+        if k.get("still_driving"):
+            return "— (never stopped) | — |"
+        return f"{f(k.get('unexpected_restart'))} | {f(k.get('new_command_drives_s'))} |"
 
     for k in res.get("sigkill", []):
         name = f"SIGKILL {k['service']}" + (" (drive chain)" if k.get("in_drive_chain") else "")
         rows.append(f"| {name} | {f(k.get('neutral_ms'))} | {f(k.get('standstill_ms'))} | "
-                    f"{f(k.get('restart_s'))} | {f(k.get('driving_again_s'))} |")
+                    f"{f(k.get('restart_s'))} | {end(k)}")
     s = res.get("serial_unplug", {})
-    rows.append(f"| serial unplug 2 s | {f(s.get('neutral_ms'))} | — | — | "
-                f"{f(s.get('driving_after_replug_s'))} after replug |")
+    rows.append(f"| serial unplug 2 s | {f(s.get('neutral_ms'))} | — | — | {end(s)}")
     ld = res.get("lidar_unplug", {})
     rows.append(f"| lidar unplug 3 s | stop limit {f(ld.get('stop_limit_ms'))} | "
                 f"{f(ld.get('standstill_ms'))} | scans back "
-                f"{f(ld.get('scans_back_after_replug_s'))} after replug | "
-                f"{f(ld.get('driving_again_s'))} after replug |")
+                f"{f(ld.get('scans_back_after_replug_s'))} after replug | {end(ld)}")
     return "\n".join(rows)
 
 

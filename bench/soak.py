@@ -60,7 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     work = Path(tempfile.mkdtemp(prefix="autochair-soak-"))
     run = work / "run"
     conf = work / "soak.toml"
-    conf.write_text(f"[pid]\nrequire_safety_limit = true\n\n[sim]\n"
+    # The pattern reverses as autonomy: allow that blind (the soak is about resources).
+    conf.write_text(f"[safety]\nblind_reverse_autonomy_mps = 0.4\n\n[sim]\n"
                     f"time_scale = {args.time_scale}\n")
     hub = f"tcp/127.0.0.1:{free_port()}"
     procs = [p for p in PROCESSES if p.name in NAMES]
@@ -84,7 +85,10 @@ def main(argv: list[str] | None = None) -> int:
         h0 = {n: dict(h.counters) for n, h in health.items()}
         sim0 = truth.latest().sim_time_s
         phase, t_phase, cycles = "fwd", time.monotonic(), 0
+        stream = (phase, time.time_ns())  # each phase is a new command stream
         while truth.latest().sim_time_s - sim0 < args.duration:
+            if stream[0] != phase:
+                stream = (phase, time.time_ns())
             m = truth.latest()
             v, w = 0.0, 0.0
             if phase == "fwd":
@@ -104,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
                 if time.monotonic() - t_phase > 3.0 / args.time_scale:
                     phase, cycles = "fwd", cycles + 1
             pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v,
-                                               omega_radps=w, source="soak")))
+                                               omega_radps=w, source="soak",
+                                               stream_start_ns=stream[1])))
             launcher.poll()
             dead = [n for n, c in launcher.children.items() if c.state == "exited"]
             if dead:

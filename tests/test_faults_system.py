@@ -82,8 +82,11 @@ def test_serial_unplug_gives_neutral_then_reconnects(
         assert latency_ms < 400, f"neutral {latency_ms:.0f} ms after the unplug"
         # Replugged, the link is back (frames written again) but the old stream, which simply
         # went on, must not drive: the outage was a stop.
-        wait_for(lambda: (old.put(), [m for m in out.messages() if m.stamp_ns > t + 1.5e9])[1],
-                 15, "frames written again after replug", interval=0.05)
+        def written_again() -> bool:
+            old.put()
+            return any(m.stamp_ns > t + 1.5e9 for m in out.messages())
+
+        wait_for(written_again, 15, "frames written again after replug", interval=0.05)
         replugged = time.monotonic()
         while time.monotonic() - replugged < 1.5:
             old.put()

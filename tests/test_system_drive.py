@@ -96,7 +96,7 @@ def test_a_drive_service_killed_mid_drive_stops_the_chair_until_a_new_command(
 
         def at_rest() -> bool:
             old.put()  # the old stream simply goes on: it is not a deliberate act
-            return abs(truth.latest().v_mps) < 0.005
+            return bool(abs(truth.latest().v_mps) < 0.005)
 
         wait_for(at_rest, 10, "the chair braked to rest", interval=0.05)
         hold_from, x0 = time.monotonic(), truth.latest().x_m
@@ -113,7 +113,7 @@ def test_a_drive_service_killed_mid_drive_stops_the_chair_until_a_new_command(
 
         def driving_again() -> bool:
             new.put()
-            return truth.latest().v_mps > 0.2
+            return bool(truth.latest().v_mps > 0.2)
 
         wait_for(driving_again, 10, "driving on a new command", interval=0.05)
     finally:

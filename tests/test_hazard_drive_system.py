@@ -1,0 +1,93 @@
+"""No unexpected start-up across processes: an e-stop under an active goal, then a release."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import msgspec
+import numpy as np
+import pytest
+import zenoh
+
+from autochair.launcher import Launcher
+from autochair_msgs import (
+    EStopAssert,
+    EStopRelease,
+    EStopReply,
+    GoalReply,
+    GoalRequest,
+    GoalStatus,
+    GroundTruth,
+    JoystickOutput,
+    Pose2D,
+    keys,
+)
+from tests.helpers import Recorder, client_session, pid_ready, wait_for
+
+pytestmark = pytest.mark.slow
+
+STACK = ["estop", "sim", "gateway", "odometry", "pid", "control"]
+A_MAX = 1.0  # the comfort limit (ControlConfig.a_max_mps2)
+
+
+def query(session: zenoh.Session, key: str, msg: msgspec.Struct, reply: type[Any]) -> Any:
+    for r in session.get(key, payload=msgspec.msgpack.encode(msg), timeout=3.0):
+        if r.ok is not None:
+            return msgspec.msgpack.decode(r.ok.payload.to_bytes(), type=reply)
+    pytest.fail(f"no reply on {key}")
+
+
+def peak_accel(truth: list[GroundTruth]) -> float:
+    """Peak |a| of the true speed, averaged over 0.1 s (as the control bench measures)."""
+    t = np.array([m.sim_time_s for m in truth])
+    v = np.array([m.v_mps for m in truth])
+    grid = np.arange(t[0], t[-1], 0.01)
+    vs = np.convolve(np.interp(grid, t, v), np.ones(10) / 10, mode="valid")
+    return float(np.abs(np.diff(vs[::5]) / 0.05).max())
+
+
+def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
+        stack_factory: Callable[..., Launcher], hub: str) -> None:
+    stack_factory(STACK)
+    session = client_session(hub)
+    try:
+        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
+        status = Recorder(session, keys.GOAL_STATUS.key, GoalStatus)
+        pid_ready(session)
+        goal = GoalRequest(waypoints=[Pose2D(8.0, 0.0, 0.0)])
+        assert query(session, keys.GOAL_SET.key, goal, GoalReply).ok
+        wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair cruising to the goal")
+        # A momentary press (a button): latched, nothing left to clear.
+        session.put(keys.ESTOP_ASSERT.key, msgspec.msgpack.encode(EStopAssert(
+            stamp_ns=time.time_ns(), source="test", reason="hazard test", active=False)))
+        wait_for(lambda: (lambda s: s is not None and s.state == "aborted")(status.latest()),
+                 5, "the goal aborted by the e-stop")
+        assert "e-stop" in status.latest().reason
+        wait_for(lambda: abs(truth.latest().v_mps) < 0.005, 10, "the chair at rest")
+        released = query(session, keys.ESTOP_RELEASE.key, EStopRelease(by="test"), EStopReply)
+        assert released.ok, released.error
+        release_ns = time.time_ns()
+        x0, t_rel = truth.latest().x_m, time.monotonic()
+        wait_for(lambda: time.monotonic() - t_rel > 2.0, 3, "two seconds after the release")
+        after = [m for m in out.messages() if m.stamp_ns > release_ns]
+        assert after and not any(m.enable for m in after), "the old goal resumed"
+        assert abs(truth.latest().x_m - x0) < 0.01, "the chair moved after the release"
+        # A new goal (a deliberate act after the stop) starts smoothly from rest.
+        start_ns = time.time_ns()
+        assert query(session, keys.GOAL_SET.key, GoalRequest(
+            waypoints=[Pose2D(x0 + 3.0, 0.0, 0.0)]), GoalReply).ok
+        wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair driving the new goal")
+        frames = [m for m in out.messages() if m.stamp_ns > start_ns and m.enable]
+        first = frames[0]
+        lunge = max(abs(first.longitudinal_v - 2.5), abs(first.angular_v - 2.5))
+        run = [m for m in truth.messages() if m.stamp_ns > start_ns]
+        a = peak_accel(run)
+        print(f"first joystick frame after the new goal {first.longitudinal_v:.3f} V; "
+              f"peak |a| {a:.2f} m/s² (limit {A_MAX})")
+        assert lunge < 0.1, f"first frame {lunge:.2f} V off neutral: a lunge"
+        assert a <= A_MAX, f"peak |a| {a:.2f} m/s² beyond the comfort limit"
+    finally:
+        session.close()
