@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from autochair.gateway.core import GatewayCore
 from autochair.protocol import arduino
 from autochair.protocol.arduino import Command, FrameDecoder, Telemetry
@@ -106,3 +108,13 @@ def test_estop_service_death_is_immediate() -> None:
     core.on_estop(False, now_s=0.02)  # a restarted e-stop service speaks again
     core.on_command(3.0, 3.0, True, now_s=0.02)
     assert core.output(0.02).reason == "command"
+
+
+@pytest.mark.parametrize("age_s,ok", [(0.0, True), (0.099, True), (-0.05, True),
+                                      (0.101, False), (-0.11, False), (5.0, False)])
+def test_commands_stamped_too_long_ago_or_in_the_future_are_refused(age_s: float,
+                                                                    ok: bool) -> None:
+    core = running(stale_s=0.1, skew_s=0.1)
+    assert core.on_command(3.0, 2.5, True, 1.0, age_s=age_s) is ok
+    assert (core.output(1.0).reason == "command") is ok
+    assert core.rejected_age == (0 if ok else 1)

@@ -127,3 +127,15 @@ def test_forward_gap_keeps_the_distance() -> None:
     core.update(0, 0, 0)
     core.update(20_000, 20_000, 3_000_000)  # 3 s without samples (a reconnect), no reset
     assert core.x == pytest.approx(20_000 * M_PER_COUNT) and core.restarts == 0
+
+
+def test_an_implausible_counter_jump_does_not_poison_the_pose() -> None:
+    core = OdometryCore()
+    core.update(0, 0, 0)
+    core.update(100, 100, 5000)  # 3 mm in 5 ms: 0.6 m/s, plausible
+    x = core.x
+    assert x > 0.0
+    core.update(100 + 2_000_000, 100, 10000)  # a glitch: 61 m in 5 ms
+    assert core.implausible == 1 and core.x == x and math.isfinite(core.yaw)
+    core.update(100 + 2_000_000 + 100, 200, 15000)  # then on from the new counters
+    assert core.x > x and core.x - x < 0.05

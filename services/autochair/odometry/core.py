@@ -38,6 +38,10 @@ class OdometryCore:
     yaw: float = 0.0
     distance: float = 0.0
     restarts: int = 0  # MCU restarts seen (counters re-based)
+    # No wheel of a chair moves faster: a sample implying it (a corrupt frame that passed the
+    # CRC, a counter glitch) is dropped and the counters re-based, so the pose is not poisoned.
+    max_wheel_mps: float = 5.0
+    implausible: int = 0  # samples dropped for that
     _booting: bool = True  # as if booting: the first frames after our own start are no news
     _prev: tuple[int, int, int] | None = None
     _window: deque[tuple[float, float, float]] = field(default_factory=deque)  # (dt, d, dψ)
@@ -75,8 +79,11 @@ class OdometryCore:
         d_l = wrap_delta(pl, left, self.counter_bits) * metres_per_count
         d_r = wrap_delta(pr, right, self.counter_bits) * metres_per_count
         dt = ((t_us - pt) % (1 << self.clock_bits)) * 1e-6
-        self.integrate(d_l, d_r)
-        self._window.append((dt, (d_l + d_r) / 2, (d_r - d_l) / self.base_m))
+        if max(abs(d_l), abs(d_r)) > self.max_wheel_mps * dt + 0.01:
+            self.implausible += 1  # not integrated; the velocities stay the window's
+        else:
+            self.integrate(d_l, d_r)
+            self._window.append((dt, (d_l + d_r) / 2, (d_r - d_l) / self.base_m))
         span = sum(w[0] for w in self._window)
         while len(self._window) > 1 and span - self._window[0][0] >= self.velocity_window_s:
             span -= self._window.popleft()[0]

@@ -32,8 +32,12 @@ def start(node: Node, cfg: OdometryConfig) -> None:
     tf_pub = node.publisher(keys.TF)
 
     def on_sample(s: EncoderSample) -> None:
-        restarts = core.restarts
+        restarts, implausible = core.restarts, core.implausible
         st = core.update(s.left_counts, s.right_counts, s.mcu_time_us, s.status)
+        if core.implausible != implausible:
+            node.health.count("implausible_samples")
+            node.event("warning", f"encoder sample {s.seq} implies a wheel faster than "
+                                  f"{core.max_wheel_mps:g} m/s: dropped, counters re-based")
         if core.restarts != restarts:
             node.health.count("mcu_restarts")
             node.event("warning", "chair MCU restarted; odometry continues from the last pose")
