@@ -47,6 +47,10 @@ def test_state_renders_services_pose_scan_and_faults() -> None:
     assert "x   +1.250 m" in text and "yaw   +90.0 deg" in text
     assert "2/3 valid, nearest 0.75 m at +90 deg" in text
     assert "gateway: error: serial lost" in text and "chatter" not in text
+    assert "drive  " not in text  # positive control for the line below
+    st.on_health(Health(stamp_ns=0, service="pid", state="ok", uptime_s=5.0,
+                        detail="owner autonomy: e-stop latched"), 10.0)
+    assert "drive  owner autonomy: e-stop latched" in st.render(10.5)
     stale = st.render(20.0)  # old health and pose are not shown as current
     assert "(no odometry)" in stale and "(no scan)" in stale and "encoder gap" not in stale
 

@@ -26,6 +26,20 @@ def test_core_deadman_one_zero_then_silence() -> None:
     assert core.deadman_stops == 1
 
 
+def test_each_fresh_deadman_press_begins_a_new_stream() -> None:
+    """The PID obeys teleop after a stop only on a stream begun after it: a fresh press."""
+    core = Teleop(TeleopLimits(deadman_s=0.3))
+    core.request(1.0, 0.0, now=0.0)
+    core.tick(0.0, True)
+    core.request(1.0, 0.0, now=0.2)  # held (auto-repeat): the same press
+    core.tick(0.2, True)
+    assert core.presses == 1
+    assert core.tick(0.6, True) == (0.0, 0.0)  # released
+    core.request(1.0, 0.0, now=1.0)
+    core.tick(1.0, True)
+    assert core.presses == 2
+
+
 def test_core_link_loss_stops_and_limits_hold() -> None:
     core = Teleop(TeleopLimits(max_v_mps=0.6, max_omega_radps=0.8, deadman_s=0.3))
     core.scale = 1.0
@@ -72,6 +86,8 @@ def test_teleop_over_zenoh_takes_over_and_deadman_stops() -> None:
         assert wait_for(lambda: any(c.v_mps == 0.0 for _, c in got), 3.0)
         moving = [c for _, c in got if c.v_mps != 0.0]
         assert moving and all(c.v_mps == 0.3 and c.source == "teleop" for c in moving)
+        first_press = {c.stream_start_ns for c in moving}
+        assert len(first_press) == 1 and min(first_press) > 0  # one press, one stream
         last_t, last = got[-1]
         assert last.v_mps == 0.0 and last.omega_radps == 0.0
         assert 0.2 < last_t - released < 1.5
@@ -81,6 +97,7 @@ def test_teleop_over_zenoh_takes_over_and_deadman_stops() -> None:
         # Press again, then the link drops (the PID's token goes): zero, then silence.
         events.put("a")
         assert wait_for(lambda: len(got) > n and got[-1][1].omega_radps > 0)
+        assert got[-1][1].stream_start_ns > max(first_press)  # a fresh press: a new stream
         token.undeclare()
         # Keep pressing: only the lost link can stop it now.
         deadline = time.monotonic() + 3.0

@@ -58,6 +58,9 @@ class MonitorState:
         else:
             lines.append("pose   (no odometry)")
         lines.append(self._scan_line(now, stale_s))
+        pid = self.health.get("pid")
+        if pid and now - pid[0] < stale_s and pid[1].detail:
+            lines.append(f"drive  {pid[1].detail}"[:110])  # who owns it, or why it is stopped
         lines.append("")
         lines.append("faults" + ("" if self.faults else "  (none)"))
         lines += [f"  {e.service}: {e.level}: {e.message}"[:110] for e in self.faults]

@@ -87,8 +87,6 @@ def start(node: Node, cfg: PidConfig) -> None:
                     Command(cmd.v_mps, cmd.omega_radps, source, cmd.stamp_ns,
                             cmd.stream_start_ns), time.monotonic(), time.time_ns())
             node.health.count(f"desired_{verdict.value}")
-            if verdict is Verdict.OK:
-                node.health.detail = f"owner {core.owner}: obeying {cmd.source or source}"
 
         return on_desired
 
@@ -101,7 +99,6 @@ def start(node: Node, cfg: PidConfig) -> None:
         elif msg.owner != previous:
             node.event("warning", f"drive handed to {msg.owner} by {msg.by or '?'}: a stop; "
                                   "it drives again on a command begun after it")
-            node.health.detail = f"owner {msg.owner}"
 
     def on_limit(msg: SafetyLimit) -> None:
         with lock:
@@ -134,6 +131,7 @@ def start(node: Node, cfg: PidConfig) -> None:
             desired = core.desired(now, now_ns) or (0.0, 0.0)
             inhibit = core.inhibit(now)
             ended = was and not core.obeying
+            owner = core.owner
         stopped(ended)
         stamp = time.time_ns()
         joy_pub.put(JoystickCommand(stamp_ns=stamp, longitudinal_v=out.longitudinal_v,
@@ -147,8 +145,9 @@ def start(node: Node, cfg: PidConfig) -> None:
             omega_measured_radps=odom.omega_radps, omega_effort=out.omega_effort,
             active=out.active, saturated=sat, inhibit=inhibit))
         node.health.count("updates")
+        node.health.detail = f"owner {owner}: " + (inhibit or "driving")
 
-    node.health.detail = "owner autonomy: obeying nothing yet"
+    node.health.detail = "owner autonomy: no odometry yet"
     node.subscribe(keys.CMD_VEL, desired_from("autonomy"))
     node.subscribe(keys.TELEOP, desired_from("teleop"))
     node.subscribe(keys.CMD_OWNER, on_owner)
