@@ -7,18 +7,24 @@ with certificates from `autochair certs`; laptops use deploy.laptop_zenoh.
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any, cast
 
+import msgspec
 import pytest
 import zenoh
 
 from autochair import deploy
 from autochair.commands.certs import make_all
 from autochair.launcher import free_port
-from autochair_msgs import keys
+from autochair_msgs import EStopAssert, EStopRelease, EStopReply, EStopState, Health, keys
+from tests.helpers import stop_process
+from tests.helpers import wait_for as wait  # fails the test with what it waited for
 
 
 def wait_for(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
@@ -158,3 +164,99 @@ def test_generated_profile_is_the_committed_one() -> None:
     body = "\n".join(ln for ln in committed.read_text().splitlines()
                      if not ln.startswith("//"))
     assert json.loads(body) == deploy.chair_zenoh()
+
+
+def test_laptop_cannot_clear_an_estop_cause_but_a_service_can(chair: Chair,
+                                                              tmp_path: Path) -> None:
+    """The hazard: a laptop that may latch the e-stop must not clear the safety monitor's
+    cause, neither on keys.ESTOP_CLEAR (denied by the hub's ACL) nor by `active=False` on
+    keys.ESTOP_ASSERT (allowed, but only ever latches). Positive control: a services session's
+    clear does clear it, then a drive laptop's release succeeds."""
+    enc = msgspec.msgpack.Encoder()
+    states: list[EStopState] = []
+    health: list[Health] = []
+    dec_state, dec_health = msgspec.msgpack.Decoder(EStopState), msgspec.msgpack.Decoder(Health)
+    chair.service.declare_subscriber(keys.ESTOP_STATE.key, lambda s: states.append(
+        dec_state.decode(s.payload.to_bytes())))
+    chair.service.declare_subscriber(keys.HEALTH.for_service("estop"), lambda s: health.append(
+        dec_health.decode(s.payload.to_bytes())))
+    estop = subprocess.Popen(
+        [sys.executable, "-m", "autochair.estop.node", "--connect",
+         f"tcp/127.0.0.1:{chair.tcp}", "--set", f"state_file={tmp_path / 'estop.json'}"],
+        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    viewer, driver = chair.laptop("bob"), chair.laptop("alice")
+
+    def cause(source: str) -> bool | None:
+        st = states[-1] if states else None
+        return next((c.active for c in st.causes if c.source == source), None) if st else None
+
+    def counter(name: str) -> int:
+        return health[-1].counters.get(name, 0) if health else -1
+
+    def release() -> EStopReply:
+        replies = list(driver.get(keys.ESTOP_RELEASE.key, timeout=3.0,
+                                  payload=enc.encode(EStopRelease(by="alice"))))
+        oks = [r.ok for r in replies if r.ok is not None]
+        assert len(oks) == 1, replies
+        return msgspec.msgpack.decode(oks[0].payload.to_bytes(), type=EStopReply)
+
+    def msg(source: str, active: bool) -> bytes:
+        return enc.encode(EStopAssert(stamp_ns=time.time_ns(), source=source, reason="x",
+                                      active=active))
+
+    try:
+        service_assert = chair.service.declare_publisher(keys.ESTOP_ASSERT.key)
+        held = EStopAssert(stamp_ns=time.time_ns(), source="safety", reason="imminent collision")
+        wait(lambda: (service_assert.put(enc.encode(held)), cause("safety"))[1], 15,
+             "the e-stop holding the safety cause", interval=0.1)
+        view_clear = viewer.declare_publisher(keys.ESTOP_CLEAR.key)
+        view_assert = viewer.declare_publisher(keys.ESTOP_ASSERT.key)
+        # The viewer knows the e-stop subscribes to both keys: its puts are sent, not dropped
+        # for want of subscribers; what stops the clear is the hub.
+        for pub in (view_clear, view_assert):
+            def matching(p: zenoh.Publisher = pub) -> bool:
+                return bool(cast(Any, p.matching_status).matching)
+            wait(matching, 5, "viewer sees the subscriber")
+        for _ in range(5):
+            view_clear.put(msg("safety", False))
+            view_assert.put(msg("safety", False))
+        view_assert.put(msg("bob-marker", False))  # same link, after the spoofs
+        wait(lambda: cause("bob-marker") is False, 5, "the viewer's press (it may stop)")
+        assert cause("safety") is True, "a laptop cleared the safety monitor's cause"
+        wait(lambda: counter("assert_msgs") >= 7, 5, "the e-stop counting every assert")
+        assert counter("clear_msgs") == 0  # the spoofed clears never reached it
+        reply = release()
+        assert not reply.ok and reply.latched and "safety: imminent collision" in reply.error
+        # Positive control: a service on the chair (plain TCP) clears it; the release then works.
+        chair.service.put(keys.ESTOP_CLEAR.key, msg("safety", False))
+        wait(lambda: cause("safety") is False, 5, "the service's clear applied")
+        wait(lambda: counter("clear_msgs") >= 1, 5, "the e-stop counting the clear")
+        reply = release()
+        assert reply.ok and not reply.latched, reply.error
+        wait(lambda: states and not states[-1].latched, 5, "released state")
+        assert estop.poll() is None
+    finally:
+        viewer.close()
+        driver.close()
+        stop_process(estop)
+
+
+def test_acl_gives_no_laptop_the_clear_key() -> None:
+    """Static check of the generated ACL: no laptop policy has an ingress put on any key
+    expression that intersects keys.ESTOP_CLEAR; control: the assert key is allowed."""
+    acl = cast(dict[str, Any], deploy.chair_zenoh()["access_control"])
+    rules = {r["id"]: r for r in acl["rules"]}
+    clear, press = zenoh.KeyExpr(keys.ESTOP_CLEAR.key), zenoh.KeyExpr(keys.ESTOP_ASSERT.key)
+
+    def puts(policy: dict[str, Any], key: zenoh.KeyExpr) -> bool:
+        return any("ingress" in rules[r]["flows"] and "put" in rules[r]["messages"]
+                   and any(key.intersects(zenoh.KeyExpr(k)) for k in rules[r]["key_exprs"])
+                   for r in policy["rules"])
+
+    laptops = [p for p in acl["policies"] if p["id"] != "services"]
+    assert {p["id"] for p in laptops} == {"drive", "view"}
+    for policy in laptops:
+        assert not puts(policy, clear), policy["id"]
+        assert puts(policy, press), policy["id"]
+    (services,) = [p for p in acl["policies"] if p["id"] == "services"]
+    assert puts(services, clear)

@@ -12,7 +12,7 @@ import msgspec
 import pytest
 
 from autochair.launcher import Launcher
-from autochair_msgs import JoystickCommand, JoystickOutput, keys
+from autochair_msgs import EStopAssert, EStopState, JoystickCommand, JoystickOutput, keys
 from tests.helpers import Recorder, client_session, wait_for
 
 pytestmark = pytest.mark.slow
@@ -45,5 +45,39 @@ def test_estop_latches_holds_neutral_and_releases(stack_factory: Callable[..., L
         released = cli(hub, "release")
         assert released.returncode == 0, released.stderr
         wait_for(lambda: reason() == "command", 2, "commands again after release", interval=0.02)
+    finally:
+        session.close()
+
+
+def test_cli_clear_of_a_held_cause_then_release(stack_factory: Callable[..., Launcher],
+                                                hub: str) -> None:
+    """A service's persistent cause refuses `autochair release`; `autochair estop --clear
+    SOURCE` on the chair (a services identity) clears it, then the release is accepted."""
+    stack_factory(["estop"])
+    session = client_session(hub)
+    try:
+        states = Recorder(session, keys.ESTOP_STATE.key, EStopState)
+        pub = session.declare_publisher(keys.ESTOP_ASSERT.key)
+
+        def held() -> bool:
+            latest = states.latest()
+            return latest is not None and any(c.source == "safety" and c.active
+                                              for c in latest.causes)
+
+        wait_for(lambda: (pub.put(msgspec.msgpack.encode(EStopAssert(
+            stamp_ns=time.time_ns(), source="safety", reason="imminent collision"))),
+            held())[1], 5, "the safety cause held", interval=0.1)
+        refused = cli(hub, "release")
+        assert refused.returncode == 2 and "safety: imminent collision" in refused.stderr
+        nobody = cli(hub, "estop", "--clear", "nobody")
+        assert nobody.returncode == 2 and "nobody holds no active e-stop cause" in nobody.stderr
+        assert "active causes: safety" in nobody.stderr
+        cleared = cli(hub, "estop", "--clear", "safety")
+        assert cleared.returncode == 0, cleared.stderr
+        assert "cause of safety cleared" in cleared.stdout and "autochair release" in cleared.stdout
+        assert not held() and states.latest().latched  # cleared, still latched
+        released = cli(hub, "release")
+        assert released.returncode == 0, released.stderr
+        wait_for(lambda: not states.latest().latched, 2, "released")
     finally:
         session.close()

@@ -10,7 +10,8 @@ def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "record", help="record every logged key to MCAP (the logger alone)",
         description="Run the logger until Ctrl-C. PATH: a directory (one autochair-<UTC "
-                    "time>.mcap per run) or a file ending in .mcap.")
+                    "time>.mcap per run) or a file ending in .mcap. An existing recording is "
+                    "never overwritten: a taken name becomes NAME-1.mcap, NAME-2.mcap, ...")
     p.add_argument("path", nargs="?", default="recordings/", help="default: recordings/")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="other [logger] settings, e.g. max_size_mib=512; repeatable")

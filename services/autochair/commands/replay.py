@@ -1,15 +1,24 @@
-"""`autochair replay FILE [--rate R] [--loop]`: republish a recording onto its Zenoh keys with
-the original timing (scaled by R), as the msgpack bytes the services consume."""
+"""`autochair replay FILE [--rate R] [--loop] [--namespace NS]`: republish a recording onto its
+Zenoh keys with the original timing (scaled by R), as the msgpack bytes the services consume.
+
+A replay never moves a chair: while a drive-chain service (gateway, pid) is alive on the bus it
+is refused, before the first message and at any moment during the replay, unless --namespace NS
+republishes every key as NS/<key>, where no service listens."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
+import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from autochair.cli import CliError
 from autochair.remote import add_link_args
+
+if TYPE_CHECKING:
+    import zenoh
 
 
 def register(sub: Any) -> None:
@@ -23,9 +32,74 @@ def register(sub: Any) -> None:
                    help="replay only keys matching these Zenoh key expressions, e.g. "
                    "autochair/chair/encoders to re-run odometry and what follows on recorded "
                    "input (the re-run services then publish their own outputs)")
+    p.add_argument("--namespace", metavar="NS", default="",
+                   help="republish every key as NS/<key> (e.g. replay/autochair/odom): allowed "
+                   "next to a live chair, since no service listens there")
     add_link_args(p)
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=run)
+
+
+class DriveChainWatch:
+    """Drive-chain liveliness tokens seen on the bus, now and whenever one appears."""
+
+    QUERY_S = 3.0  # the liveliness query; one that does not finish by then fails closed
+
+    def __init__(self, session: zenoh.Session) -> None:
+        import zenoh
+
+        from autochair.logger import replay
+        from autochair_msgs import keys
+
+        self.alive: set[str] = set()
+        self.unsure = ""  # why the bus could not be checked (then replay is refused)
+        self.appeared = threading.Event()
+        self._lock = threading.Lock()
+        expr = f"{keys.PREFIX}/alive/*"
+
+        def name(key: object) -> list[str]:
+            return replay.drive_chain_alive([str(key).rsplit("/", 1)[-1]])
+
+        # Ask the hub first: once this session has a liveliness subscriber, zenoh answers a
+        # query from the session's own (still filling) token cache, often empty (seen).
+        t0 = time.monotonic()
+        replies = list(session.liveliness().get(expr, timeout=self.QUERY_S))
+        if time.monotonic() - t0 >= self.QUERY_S:
+            self.unsure = f"the liveliness query did not finish within {self.QUERY_S:g} s"
+            self.appeared.set()
+        for r in replies:
+            if r.ok is not None:
+                self._add(name(r.ok.key_expr))
+
+        def on_token(sample: zenoh.Sample) -> None:
+            if sample.kind == zenoh.SampleKind.PUT:
+                self._add(name(sample.key_expr))
+
+        # Then watch, with the tokens already there (one that appeared since the query).
+        self._sub = session.liveliness().declare_subscriber(expr, on_token, history=True)
+
+    def _add(self, names: list[str]) -> None:
+        if names:
+            with self._lock:
+                self.alive.update(names)
+            self.appeared.set()
+
+    def refusal(self) -> str:
+        from autochair.logger import replay
+
+        with self._lock:
+            alive = sorted(self.alive)
+        if alive:
+            return replay.refusal(alive)
+        return (f"cannot tell whether a drive-chain service is alive ({self.unsure}), and a "
+                "recording could act on a live chair; replay under a namespace instead "
+                "(--namespace NAME publishes NAME/autochair/...)")
+
+    def close(self) -> None:
+        import zenoh
+
+        with contextlib.suppress(zenoh.ZError):
+            self._sub.undeclare()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -37,6 +111,11 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
+    if args.namespace:
+        try:
+            replay.check_namespace(args.namespace)
+        except ValueError as e:
+            raise CliError(str(e)) from None
     try:
         wanted = [zenoh.KeyExpr(k.strip()) for k in args.keys.split(",")] if args.keys else []
     except zenoh.ZError as e:
@@ -49,7 +128,17 @@ def run(args: argparse.Namespace) -> int:
     session = open_session(args)
     pubs: dict[str, zenoh.Publisher] = {}
     allowed: dict[str, bool] = {}  # key → matches --keys
+    watch = None if args.namespace else DriveChainWatch(session)
+    never = threading.Event()
+    stop = watch.appeared if watch is not None else never
+
+    def refuse() -> CliError:
+        assert watch is not None
+        return CliError(watch.refusal())
+
     try:
+        if stop.is_set():
+            raise refuse()
         while True:
             skipped: dict[str, int] = {}
             n = 0
@@ -64,12 +153,16 @@ def run(args: argparse.Namespace) -> int:
                         continue
                 delay = start + item.offset_s - time.monotonic()
                 if delay > 0:
-                    time.sleep(delay)
+                    stop.wait(delay)  # wakes at once when a drive-chain service appears
+                if stop.is_set():
+                    if not args.quiet:
+                        print(file=sys.stderr)
+                    raise refuse()
                 pub = pubs.get(item.key)
                 if pub is None:
                     # BLOCK: a replay must not silently drop what it was asked to publish.
                     pub = pubs[item.key] = session.declare_publisher(
-                        item.key, express=True,
+                        replay.target_key(item.key, args.namespace), express=True,
                         congestion_control=zenoh.CongestionControl.BLOCK)
                 pub.put(item.payload)
                 n += 1
@@ -80,6 +173,7 @@ def run(args: argparse.Namespace) -> int:
                           end="", file=sys.stderr, flush=True)
             if not args.quiet:
                 print(f"\rreplayed {n} messages in {time.monotonic() - start:.1f} s"
+                      + (f" under {args.namespace}/" if args.namespace else "")
                       + (f"; skipped {sum(skipped.values())} of unknown keys {sorted(skipped)}"
                          if skipped else ""), file=sys.stderr)
             if rec.error:
@@ -87,6 +181,8 @@ def run(args: argparse.Namespace) -> int:
             if not args.loop:
                 return 0
     finally:
+        if watch is not None:
+            watch.close()
         for p in pubs.values():
             p.undeclare()
         session.close()

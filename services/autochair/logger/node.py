@@ -4,7 +4,8 @@ Zenoh callbacks only append (key, payload, receive time) to a bounded queue; one
 decodes, transcodes and writes. A full queue drops the sample, counts it (`dropped` in health)
 and the writer reports it as a warning event and a foxglove.Log in the file. The writer thread
 is not a daemon: on SIGTERM it drains the queue and finishes the file (summary and indexes)
-before the process exits.
+before the process exits. A restart never truncates a recording: files are created
+exclusively, a taken name gets a suffix (see autochair.logger.writer).
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ def start(node: Node, cfg: LoggerConfig) -> None:
     except (ValueError, OSError) as e:
         raise ConfigError(f"[logger] cannot record to {cfg.path}: {e}") from None
     node.log.info("recording to %s", recorder.path)
+    if recorder.path != recorder.requested:
+        node.event("info", f"{recorder.requested} (or its parts) exists and is never "
+                           f"overwritten: recording to {recorder.path}")
     node.health.detail = f"recording to {recorder.path}"
     node.health.thresholds.update(queue_size=cfg.queue_size, flush_period_s=cfg.flush_period_s,
                                   max_size_mib=cfg.max_size_mib,

@@ -1,6 +1,10 @@
 """Replay plan (pure): recorded JSON back to the msgpack bytes services consume, with the time
 offset at which to publish each, scaled by the replay rate. Derived foxglove.* channels are
-not Zenoh keys and are skipped."""
+not Zenoh keys and are skipped.
+
+A replay must never move a chair: onto a bus where a drive-chain service is alive it is refused
+(`refusal`) unless every key goes under a namespace (`target_key`), where no service listens.
+"""
 
 from __future__ import annotations
 
@@ -44,3 +48,37 @@ def plan(messages: Iterable[Msg], rate: float, skipped: dict[str, int] | None = 
         if t0 is None:
             t0 = m.log_ns
         yield Item((m.log_ns - t0) / 1e9 / rate, m.topic, codec.json_to_wire(m.data))
+
+
+# Services whose liveliness token means a chair can move: the gateway drives the joystick
+# output; the PID turns velocity commands into joystick commands.
+DRIVE_CHAIN = ("gateway", "pid")
+
+
+def drive_chain_alive(alive: Iterable[str]) -> list[str]:
+    """The drive-chain services among the names of `autochair/alive/<name>` tokens."""
+    return sorted(set(alive) & set(DRIVE_CHAIN))
+
+
+def refusal(alive: Iterable[str]) -> str:
+    """One line: who is alive, why a replay there is refused, and the way out."""
+    names = drive_chain_alive(alive)
+    return (f"drive-chain service{'s' if len(names) > 1 else ''} alive on this bus "
+            f"({', '.join(f'autochair/alive/{n}' for n in names)}): a recording's drive "
+            "commands, e-stop \"released\" states, limits, odometry or scans would act on the "
+            "live chair; replay under a namespace instead (--namespace NAME publishes "
+            "NAME/autochair/...), or on a bus without the drive chain")
+
+
+def check_namespace(namespace: str) -> None:
+    """ValueError unless `namespace` is a plain key prefix (chunks, no wildcards)."""
+    chunks = namespace.split("/")
+    if not namespace or any(not c or c in (".", "..") or any(ch in c for ch in "*$#?")
+                            for c in chunks):
+        raise ValueError(f"--namespace wants a plain key prefix such as replay, not "
+                         f"{namespace!r} (no wildcards, no empty chunks)")
+
+
+def target_key(key: str, namespace: str) -> str:
+    """Where a recorded key is republished: under `namespace` when one is given."""
+    return f"{namespace}/{key}" if namespace else key

@@ -5,11 +5,17 @@ zstd chunks. log_time = receive time, publish_time = the message's own stamp. Ti
 in: `write` gets the receive time, `tick` the monotonic time that drives the periodic chunk
 flush (so a killed writer loses at most `flush_period_s` of data) and duration rotation uses
 receive times.
+
+Nothing recorded is ever overwritten: every file is created exclusively (O_EXCL); a name that
+is taken (a restart within the same second, a fixed `x.mcap` that exists) gets a suffix:
+NAME-1.mcap, NAME-2.mcap, ... (rotation parts of NAME-1 are NAME-1-001.mcap, ...).
 """
 
 from __future__ import annotations
 
 import datetime
+import os
+import re
 from pathlib import Path
 from typing import IO, Any
 
@@ -63,13 +69,49 @@ def part_path(base: Path, part: int) -> Path:
     return base if part == 0 else base.with_name(f"{base.stem}-{part:03d}{base.suffix}")
 
 
+def suffixed(path: Path, n: int) -> Path:
+    """The n-th name tried for `path` when it is taken: NAME.mcap, NAME-1.mcap, NAME-2.mcap..."""
+    return path if n == 0 else path.with_name(f"{path.stem}-{n}{path.suffix}")
+
+
+def _has_parts(base: Path) -> bool:
+    """Rotation parts of `base` (NAME-001.mcap, ...) already on disk."""
+    part = re.compile(re.escape(base.stem) + r"-\d{3,}" + re.escape(base.suffix))
+    try:
+        return any(part.fullmatch(n) for n in os.listdir(base.parent))
+    except FileNotFoundError:
+        return False
+
+
+def free_base(base: Path) -> Path:
+    """The first of NAME.mcap, NAME-1.mcap, ... for which neither the file nor rotation parts
+    exist, so a new recording (and its parts) never collides with an old one."""
+    n = 0
+    while os.path.lexists(suffixed(base, n)) or _has_parts(suffixed(base, n)):
+        n += 1
+    return suffixed(base, n)
+
+
+def create_exclusive(path: Path) -> tuple[IO[bytes], Path]:
+    """A new file at `path`, or at the next free suffixed name: never an existing file (O_EXCL,
+    also against a name taken between a check and the open)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    n = 0
+    while True:
+        candidate = suffixed(path, n)
+        try:
+            return open(candidate, "xb"), candidate  # the caller closes it
+        except FileExistsError:
+            n += 1
+
+
 class _File:
-    """One open MCAP file and its channel ids."""
+    """One open MCAP file and its channel ids. `path` is the name asked for; the file is
+    created exclusively, so `self.path` may carry a suffix if that name was taken."""
 
     def __init__(self, path: Path, cfg: LoggerConfig) -> None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self.path = path
-        self.stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 (closed in finish)
+        self.stream: IO[bytes]
+        self.stream, self.path = create_exclusive(path)
         self.mcap = Writer(self.stream, chunk_size=cfg.chunk_size_kib * 1024,
                            compression=_compression(cfg.compression))
         self.mcap.start(profile="", library="autochair-logger")
@@ -135,7 +177,8 @@ class Recorder:
     def __init__(self, cfg: LoggerConfig, start_ns: int, start_mono_s: float) -> None:
         _compression(cfg.compression)
         self.cfg = cfg
-        self.base = base_path(cfg.path, start_ns)
+        self.requested = base_path(cfg.path, start_ns)  # the configured name
+        self.base = free_base(self.requested)  # never an existing recording's name
         self.files: list[Path] = []
         self.counters: dict[str, int] = {"written": 0, "derived": 0, "decode_errors": 0,
                                          "unknown_keys": 0, "flushes": 0, "rotations": 0}
