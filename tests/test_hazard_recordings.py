@@ -160,3 +160,22 @@ def test_exclusive_create_fails_loudly_rather_than_overwriting(tmp_path: Path) -
     (tmp_path / "file").write_text("x")
     with pytest.raises(OSError):
         create_exclusive(tmp_path / "file" / "x.mcap")
+
+
+def test_recover_never_overwrites_the_recording_or_any_file(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    src = tmp_path / "run.mcap"
+    rec = Recorder(LoggerConfig(path=str(src)), T0, 0.0)
+    rec.write(keys.ODOM.key, msgspec.msgpack.encode(samples()[keys.ODOM.key]), T0)
+    rec.finish()
+    before = src.read_bytes()
+    cmd = [sys.executable, "-m", "autochair.cli", "info", str(src), "--recover"]
+    same = subprocess.run([*cmd, str(src)], capture_output=True, text=True, timeout=60)
+    assert same.returncode == 2 and "never overwrites" in same.stderr
+    assert src.read_bytes() == before  # the source survives byte for byte
+    fresh = subprocess.run([*cmd, str(tmp_path / "copy.mcap")], capture_output=True,
+                           text=True, timeout=60)
+    assert fresh.returncode == 0, fresh.stderr  # positive control
+    assert (tmp_path / "copy.mcap").exists()

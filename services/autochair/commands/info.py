@@ -28,6 +28,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"recovered {summary.count} messages into {args.recover} (indexed)")
         else:
             summary = Recording(args.file).summary()
+    except FileExistsError:
+        raise CliError(f"{args.recover} exists: --recover writes a new file and never "
+                       "overwrites one (the recording itself included); pick another name") \
+            from None
     except (FileNotFoundError, IsADirectoryError, PermissionError) as e:
         raise CliError(str(e)) from None
     except Exception as e:  # not an MCAP at all (bad magic)

@@ -120,9 +120,11 @@ class Recording:
 
 
 def recover(src: str | Path, out: str | Path) -> Summary:
-    """Write an indexed copy of `src` (every readable message, same channels and schemas)."""
+    """Write an indexed copy of `src` (every readable message, same channels and schemas) to a
+    NEW file `out`: FileExistsError if it exists (nothing recorded is ever overwritten, the
+    source included)."""
     rec = Recording(src)
-    with open(out, "wb") as f:
+    with open(out, "xb") as f:
         w = Writer(f)
         w.start(profile="", library="autochair-recover")
         schemas: dict[str, int] = {}
