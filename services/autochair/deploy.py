@@ -38,6 +38,14 @@ CHAIR_VALUES: dict[str, str] = {
     "state_dir": "/var/lib/autochair/state",  # the e-stop latch: kept across restarts
     "safety_required": "true",  # every deployed stack runs the safety monitor
 }
+# Hung-process watchdog (runtime/watchdog.py): every service but the router (not a Node: no
+# loops, no pings) sends sd_notify pings while its loops run. systemd kills a unit whose pings
+# stop for WatchdogSec; under supervisord the `autochair-watchdog` wrapper does, after
+# WATCHDOG_TIMEOUT_S. Both act at once when a service reports itself hung (WATCHDOG=trigger).
+# Docker has no equivalent: compose restarts only processes that exit.
+WATCHDOG_TIMEOUT_S = 1.5
+SYSTEMD_WATCHDOG_SEC = 2
+UNWATCHED = ("router",)
 # Inside docker-compose the hub is the `router` service on the compose network.
 COMPOSE_VALUES: dict[str, str] = {**CHAIR_VALUES, "hub": f"tcp/router:{HUB_PORT}"}
 COMPOSE_ROUTER_LISTEN = f"tcp/0.0.0.0:{HUB_PORT}"
@@ -87,43 +95,72 @@ def command(proc: Process, values: Mapping[str, str], bin_dir: str = "") -> list
     return [script, *fill(proc, values)]
 
 
+def watched(proc: Process) -> bool:
+    """Whether the process pings the hung-process watchdog (every Node-based service)."""
+    return proc.name not in UNWATCHED
+
+
+def supervised_command(proc: Process, values: Mapping[str, str], bin_dir: str = "") -> list[str]:
+    """supervisord's command: the service under `autochair-watchdog` when it is watched."""
+    cmd = command(proc, values, bin_dir)
+    if not watched(proc):
+        return cmd
+    wrapper = f"{bin_dir}/autochair-watchdog" if bin_dir else "autochair-watchdog"
+    return [wrapper, "--timeout", str(WATCHDOG_TIMEOUT_S), "--", *cmd]
+
+
 # --- Zenoh profiles -------------------------------------------------------------------------------
 def _acl(tls_roles: Mapping[str, str]) -> dict[str, object]:
     everything = [f"{keys.PREFIX}/**"]
     drive_puts = [keys.CMD_VEL.key, keys.TELEOP.key, keys.CMD_OWNER.key]
     drive_queries = [keys.GOAL_SET.key, keys.GOAL_CANCEL.key, keys.ESTOP_RELEASE.key]
     # Stopping the chair is never refused: every laptop may latch the e-stop and read goals.
+    # Never keys.ESTOP_CLEAR: clearing a cause (e.g. the safety monitor's imminent collision)
+    # is for the services on the chair only; default deny keeps it from every laptop.
     stop_puts = [keys.ESTOP_ASSERT.key]
     watch_queries = [keys.GOAL_GET.key]
+    rules: list[dict[str, object]] = [
+        {"id": "services-all", "permission": "allow", "flows": ["ingress", "egress"],
+         "messages": ["put", "delete", "declare_subscriber", "query", "declare_queryable",
+                      "reply", "liveliness_token", "liveliness_query",
+                      "declare_liveliness_subscriber"],
+         "key_exprs": ["**"]},
+        # Watching: subscribe and see liveliness; data flows out to the laptop.
+        {"id": "laptop-watch-in", "permission": "allow", "flows": ["ingress"],
+         "messages": ["declare_subscriber", "liveliness_query",
+                      "declare_liveliness_subscriber"],
+         "key_exprs": everything},
+        # Declarations flow out too: a client drops puts nobody (it knows of) subscribes to.
+        {"id": "laptop-watch-out", "permission": "allow", "flows": ["egress"],
+         "messages": ["put", "delete", "reply", "liveliness_token", "declare_subscriber",
+                      "declare_queryable"],
+         "key_exprs": everything},
+        {"id": "laptop-stop", "permission": "allow", "flows": ["ingress"],
+         "messages": ["put"], "key_exprs": stop_puts},
+        {"id": "laptop-watch-query", "permission": "allow", "flows": ["ingress"],
+         "messages": ["query"], "key_exprs": watch_queries},
+        # Driving: velocity, teleop and ownership puts; goal and e-stop release queries.
+        {"id": "laptop-drive-put", "permission": "allow", "flows": ["ingress"],
+         "messages": ["put"], "key_exprs": drive_puts},
+        {"id": "laptop-drive-query", "permission": "allow", "flows": ["ingress"],
+         "messages": ["query"], "key_exprs": drive_queries},
+    ]
+    import zenoh  # fail generation if any laptop rule would let a clear in
+
+    clear = zenoh.KeyExpr(keys.ESTOP_CLEAR.key)
+    for rule in rules:
+        exprs, flows, messages = rule["key_exprs"], rule["flows"], rule["messages"]
+        if not (isinstance(exprs, list) and isinstance(flows, list)
+                and isinstance(messages, list)):
+            raise TypeError(f"ACL rule {rule['id']}: lists expected")
+        if str(rule["id"]).startswith("laptop") and "ingress" in flows and (
+                {"put", "delete"} & set(messages)) and any(
+                clear.intersects(zenoh.KeyExpr(k)) for k in exprs):
+            raise AssertionError(f"ACL rule {rule['id']} lets a laptop clear an e-stop cause")
     return {
         "enabled": True,
         "default_permission": "deny",
-        "rules": [
-            {"id": "services-all", "permission": "allow", "flows": ["ingress", "egress"],
-             "messages": ["put", "delete", "declare_subscriber", "query", "declare_queryable",
-                          "reply", "liveliness_token", "liveliness_query",
-                          "declare_liveliness_subscriber"],
-             "key_exprs": ["**"]},
-            # Watching: subscribe and see liveliness; data flows out to the laptop.
-            {"id": "laptop-watch-in", "permission": "allow", "flows": ["ingress"],
-             "messages": ["declare_subscriber", "liveliness_query",
-                          "declare_liveliness_subscriber"],
-             "key_exprs": everything},
-            # Declarations flow out too: a client drops puts nobody (it knows of) subscribes to.
-            {"id": "laptop-watch-out", "permission": "allow", "flows": ["egress"],
-             "messages": ["put", "delete", "reply", "liveliness_token", "declare_subscriber",
-                          "declare_queryable"],
-             "key_exprs": everything},
-            {"id": "laptop-stop", "permission": "allow", "flows": ["ingress"],
-             "messages": ["put"], "key_exprs": stop_puts},
-            {"id": "laptop-watch-query", "permission": "allow", "flows": ["ingress"],
-             "messages": ["query"], "key_exprs": watch_queries},
-            # Driving: velocity, teleop and ownership puts; goal and e-stop release queries.
-            {"id": "laptop-drive-put", "permission": "allow", "flows": ["ingress"],
-             "messages": ["put"], "key_exprs": drive_puts},
-            {"id": "laptop-drive-query", "permission": "allow", "flows": ["ingress"],
-             "messages": ["query"], "key_exprs": drive_queries},
-        ],
+        "rules": rules,
         "subjects": [
             # Plain TCP is only reachable on loopback (or the compose network): the services.
             {"id": "services", "link_protocols": ["tcp"]},
@@ -203,7 +240,7 @@ def supervisord_conf(procs: Iterable[Process], values: Mapping[str, str],
            "[supervisorctl]", f"serverurl=unix://{paths.run_dir}/supervisor.sock", ""]
     for i, p in enumerate(procs):
         out += [f"[program:{p.name}]",
-                f"command={shlex.join(command(p, values, paths.bin_dir))}",
+                f"command={shlex.join(supervised_command(p, values, paths.bin_dir))}",
                 f'environment=AUTOCHAIR_CONFIG="{paths.config}",PYTHONUNBUFFERED="1"',
                 f"priority={10 + 10 * i}",  # start in list order: the router first
                 "autostart=true", "autorestart=true",
@@ -220,11 +257,15 @@ def systemd_units(procs: Iterable[Process], values: Mapping[str, str],
     for p in procs:
         after = " ".join(f"autochair-{a}.service" for a in p.after)
         groups = "SupplementaryGroups=dialout\n" if p.hardware else ""
+        # Type=notify: started once it says READY=1; killed (SIGABRT) and restarted when its
+        # pings stop for WatchdogSec or it sends WATCHDOG=trigger.
+        kind = (f"Type=notify\nNotifyAccess=main\nWatchdogSec={SYSTEMD_WATCHDOG_SEC}\n"
+                if watched(p) else "Type=simple\n")
         units[f"autochair-{p.name}.service"] = (
             f"# {HEADER}\n[Unit]\nDescription=autochair {p.name}: {p.doc}\n"
             f"PartOf=autochair.target\n"
             + (f"After={after}\nWants={after}\n" if after else "")
-            + "\n[Service]\nType=simple\n"
+            + f"\n[Service]\n{kind}"
             f"Environment=AUTOCHAIR_CONFIG={paths.config} PYTHONUNBUFFERED=1\n"
             f"ExecStart={shlex.join(command(p, values, paths.bin_dir))}\n"
             f"{groups}Restart=always\nRestartSec=1\nKillSignal=SIGTERM\nTimeoutStopSec=5\n"

@@ -1,6 +1,12 @@
 """Start the processes of the one process list, watch them, restart them, stop them cleanly.
 
 Used by `autochair up` and by the system tests, so both run exactly what deploy/ runs.
+
+Hung children: each child gets its own $NOTIFY_SOCKET (sd_notify, see runtime/watchdog.py).
+Once it has sent its first WATCHDOG=1, `poll()` SIGKILLs it when its pings stop for
+`watchdog_s`, or at once when it reports its own loops late (WATCHDOG=trigger); it shows as
+state "hung", then "restarting" with the usual backoff. `poll()` must be called often (`up`
+does, every 0.1 s).
 """
 
 from __future__ import annotations
@@ -21,14 +27,15 @@ from pathlib import Path
 import zenoh
 
 from autochair.processes import Process, stack_values
+from autochair.runtime.watchdog import NotifyChannel
 
 PR_SET_PDEATHSIG = 1
 
 
-def _die_with_parent() -> None:
-    """Children get SIGTERM if the launcher itself is killed (Linux), so nothing is orphaned."""
+def _die_with_parent(sig: int = signal.SIGTERM) -> None:
+    """Children get `sig` if the launcher itself is killed (Linux), so nothing is orphaned."""
     with contextlib.suppress(Exception):
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, sig)
 
 
 def free_port() -> int:
@@ -54,12 +61,16 @@ class Child:
     proc: Process
     argv: list[str]
     popen: subprocess.Popen[bytes] | None = None
-    state: str = "stopped"  # starting | up | exited | restarting | stopped
+    state: str = "stopped"  # starting | up | hung | exited | restarting | stopped
     restarts: int = 0
     exit_code: int | None = None
     next_start: float = 0.0
     log_path: Path | None = None
     killed: bool = False  # had to be SIGKILLed on stop
+    notify: NotifyChannel | None = None  # its $NOTIFY_SOCKET and ping bookkeeping
+    hangs: int = 0  # times it was killed as hung
+    hung_reason: str = ""  # why, the last time
+    hung_at: float | None = None  # monotonic time of the last kill as hung
 
 
 @dataclass
@@ -70,6 +81,7 @@ class Launcher:
     restart: bool = True
     env: dict[str, str] = field(default_factory=dict)
     on_change: Callable[[Child], None] = lambda c: None
+    watchdog_s: float = 1.5  # a child that pinged, then stops pinging this long, is killed
     children: dict[str, Child] = field(default_factory=dict)
     _session: zenoh.Session | None = None
     _stopping: bool = False
@@ -132,13 +144,17 @@ class Launcher:
         self._session.liveliness().declare_subscriber("autochair/alive/*", on_token, history=True)
 
     def _spawn(self, child: Child) -> None:
-        env = {**os.environ, "PYTHONUNBUFFERED": "1", "AUTOCHAIR_CONNECT": self.hub, **self.env}
+        if child.notify is None:
+            child.notify = NotifyChannel.open(child.proc.name, self.watchdog_s)
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", "AUTOCHAIR_CONNECT": self.hub, **self.env,
+               "NOTIFY_SOCKET": child.notify.address}
         assert child.log_path is not None
         log = child.log_path.open("ab")
         child.popen = subprocess.Popen(child.argv, stdout=log, stderr=subprocess.STDOUT,
                                        stdin=subprocess.DEVNULL, env=env,
                                        start_new_session=True, preexec_fn=_die_with_parent)
         log.close()
+        child.notify.expect(child.popen.pid)
         child.exit_code = None
         self._set(child, "starting")
 
@@ -150,10 +166,12 @@ class Launcher:
         self.on_change(child)
 
     def poll(self) -> None:
-        """Notice exits; restart with exponential backoff (0.5 s doubling to 8 s)."""
+        """Notice exits and hangs; restart with exponential backoff (0.5 s doubling to 8 s)."""
         now = time.monotonic()
         for child in self.children.values():
-            if child.popen is not None and child.popen.poll() is not None:
+            if child.popen is not None and child.popen.poll() is None:
+                self._check_hung(child, now)
+            elif child.popen is not None:
                 child.exit_code = child.popen.returncode
                 child.popen = None
                 if self.restart:
@@ -165,6 +183,24 @@ class Launcher:
             elif child.state == "restarting" and now >= child.next_start:
                 child.restarts += 1
                 self._spawn(child)
+
+    def _check_hung(self, child: Child, now: float) -> None:
+        """SIGKILL a running child whose watchdog pings stopped; the next poll restarts it."""
+        if child.notify is None or self._stopping or child.state == "hung":
+            return
+        reason = child.notify.poll(now)
+        if reason is None:
+            return
+        assert child.popen is not None
+        child.hangs += 1
+        child.hung_reason, child.hung_at = reason, now
+        self._set(child, "hung")
+        with contextlib.suppress(ProcessLookupError):
+            child.popen.kill()
+        if child.log_path is not None:
+            with child.log_path.open("a") as log:
+                print(f"launcher: {child.proc.name} (pid {child.popen.pid}) hung: {reason}; "
+                      "killed (SIGKILL)", file=log)
 
     def kill(self, name: str, sig: int = signal.SIGKILL) -> None:
         """Signal one child (fault injection in tests)."""
@@ -179,6 +215,10 @@ class Launcher:
     def stop(self, timeout_s: float = 5.0) -> bool:
         """SIGTERM in reverse start order, then SIGKILL stragglers. True if all exited cleanly."""
         self.restart, self._stopping = False, True
+        now = time.monotonic()
+        for c in self.children.values():  # a stop is not a hang
+            if c.notify is not None:
+                c.notify.watch.stopping(now)
         clean = True
         order = [c for c in reversed(list(self.children.values())) if c.popen is not None]
         for child in order:
@@ -198,6 +238,10 @@ class Launcher:
             with contextlib.suppress(zenoh.ZError):
                 self._session.close()
             self._session = None
+        for c in self.children.values():
+            if c.notify is not None:
+                c.notify.close()
+                c.notify = None
         return clean
 
     def _reap(self, child: Child, deadline: float) -> bool:

@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import faulthandler
 import logging
+import os
 import signal
 import sys
 import threading
@@ -26,6 +27,7 @@ from .config import (
     load_section,
     load_zenoh,
 )
+from .watchdog import CHECK_PERIOD_S, Liveness, Notifier
 
 T = TypeVar("T", bound=msgspec.Struct)
 C = TypeVar("C")
@@ -98,7 +100,22 @@ class Publisher:
 
 
 class Node:
-    """What every service process has. Callbacks run on Zenoh threads: keep them short."""
+    """What every service process has. Callbacks run on Zenoh threads: keep them short.
+
+    Hung-process watchdog: from `run()` on, a watchdog thread checks 4 × a second that every
+    rate loop of `every()` completed a tick within max(stale.watchdog_s, 3 × its period) and
+    that no subscription or query callback has been running longer than stale.watchdog_s.
+    Only then does it send `WATCHDOG=1` to $NOTIFY_SOCKET (sd_notify; `READY=1` once at the
+    start, `STOPPING=1` at shutdown; no $NOTIFY_SOCKET: nothing is sent). When something is
+    late it logs what and the stack of every thread, and sends `WATCHDOG=trigger` with the
+    reason in `STATUS=`: systemd, the launcher and `autochair-watchdog` then kill and restart
+    the process at once instead of waiting for the missing pings to time out.
+
+    Test hook (fault injection, not for production use): SIGUSR2 makes the node hang as a
+    real deadlock would. Its rate loops and its subscription and query callbacks block (until
+    shutdown) while the process, its Zenoh session and its liveliness token stay up, so its
+    outputs go stale. `Node.hang()` does the same from code.
+    """
 
     def __init__(self, name: str, settings: ZenohSettings | None = None,
                  stale: StaleConfig | None = None, chair: ChairGeometry | None = None) -> None:
@@ -108,6 +125,8 @@ class Node:
         self.log = logging.getLogger(name)
         self.stop_event = threading.Event()
         self.health = HealthState(name)
+        self.liveness = Liveness(self.stale.watchdog_s)
+        self._hung = threading.Event()  # the SIGUSR2 test hook
         self._threads: list[threading.Thread] = []
         self._closers: list[Callable[[], Any]] = []
         settings = settings or ZenohSettings()
@@ -136,8 +155,19 @@ class Node:
         """Subscribe with decoding; a malformed payload is counted and reported, never raised."""
         decoder = msgspec.msgpack.Decoder(topic.type)
         counter = f"decode_errors:{topic.key}"
+        what = key or topic.key
 
         def on_sample(sample: zenoh.Sample) -> None:
+            token = self.liveness.enter(what, time.monotonic())
+            try:
+                if self._hung.is_set():
+                    self.stop_event.wait()  # the SIGUSR2 test hook: a deadlocked callback
+                    return
+                handle(sample)
+            finally:
+                self.liveness.leave(token)
+
+        def handle(sample: zenoh.Sample) -> None:
             try:
                 msg = decoder.decode(sample.payload.to_bytes())
             except (msgspec.DecodeError, msgspec.ValidationError) as e:
@@ -161,12 +191,18 @@ class Node:
         """Serve queries on a `kind="query"` row; the handler must reply and return quickly."""
 
         def guarded(query: zenoh.Query) -> None:
+            token = self.liveness.enter(f"query {topic.key}", time.monotonic())
             try:
+                if self._hung.is_set():
+                    self.stop_event.wait()  # the SIGUSR2 test hook
+                    return
                 handler(query)
             except Exception as e:
                 self.health.count("query_errors")
                 self.health.fault(f"{type(e).__name__}: {e}")
                 self.log.exception("query on %s failed", topic.key)
+            finally:
+                self.liveness.leave(token)
 
         q = self.session.declare_queryable(topic.key, guarded)
         self._closers.append(q.undeclare)
@@ -191,12 +227,18 @@ class Node:
     def every(self, period_s: float, fn: Callable[[], None], name: str) -> None:
         """Call `fn` every `period_s` on its own thread, drift-free on the monotonic clock.
 
-        Missed ticks are skipped (not bunched) and counted as `overruns:<name>`.
+        Missed ticks are skipped (not bunched) and counted as `overruns:<name>`. Each completed
+        tick is reported to the watchdog: a loop stuck for max(stale.watchdog_s, 3 × period_s)
+        gets the process restarted (see the class docstring).
         """
+        self.liveness.add_loop(name, period_s, time.monotonic())
 
         def loop() -> None:
             next_t = time.monotonic()
             while not self.stop_event.is_set():
+                if self._hung.is_set():
+                    self.stop_event.wait()  # the SIGUSR2 test hook: a deadlocked loop
+                    break
                 try:
                     fn()
                 except Exception as e:
@@ -205,6 +247,7 @@ class Node:
                     self.log.exception("periodic %s failed", name)
                 next_t += period_s
                 now = time.monotonic()
+                self.liveness.tick(name, now)
                 if now > next_t:
                     skipped = int((now - next_t) / period_s) + 1
                     self.health.count(f"overruns:{name}", skipped)
@@ -218,12 +261,60 @@ class Node:
         self._threads.append(t)
         t.start()
 
+    # --- watchdog ------------------------------------------------------------------------------
+    def hang(self) -> None:
+        """Test hook (SIGUSR2): block every rate loop and callback until shutdown, as a
+        deadlock would, leaving the process, session and liveliness token up.
+        Signal-safe: only sets an event and writes one line to stderr."""
+        self._hung.set()
+        with contextlib.suppress(OSError):
+            os.write(2, f"{self.name}: test hook: hanging (loops and callbacks block)\n".encode())
+
+    def _watchdog(self) -> None:
+        """Ping the supervisor while every loop and callback is on time (see the class doc)."""
+        notifier = Notifier.from_env()
+        send = notifier.send if notifier is not None else (lambda _msg: False)
+        send("READY=1")
+        reported = False
+        next_ping = time.monotonic() + CHECK_PERIOD_S
+        while True:
+            # Wake for the next ping, or when the first loop or callback would become late.
+            wake = next_ping if reported else min(next_ping, self.liveness.next_due() + 0.002)
+            if self.stop_event.wait(max(0.0, wake - time.monotonic())):
+                break
+            now = time.monotonic()
+            ping_due = now >= next_ping
+            if ping_due:
+                next_ping = now + CHECK_PERIOD_S
+            late = self.liveness.late(now)
+            if not late:
+                if reported:
+                    self.event("info", "watchdog: loops and callbacks on time again")
+                    reported = False
+                if ping_due:
+                    send("WATCHDOG=1")
+                continue
+            if reported:
+                continue
+            reported = True
+            why = "; ".join(str(x) for x in late)
+            self.health.count("watchdog_late")
+            self.event("error", f"watchdog: hung: {why}")
+            with contextlib.suppress(Exception):  # where it is stuck, for the log
+                sys.stderr.flush()
+                faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+            send(f"WATCHDOG=trigger\nSTATUS=hung: {why}")
+        send("STOPPING=1")
+        if notifier is not None:
+            notifier.close()
+
     # --- life ----------------------------------------------------------------------------------
     def run(self) -> None:
         """Block until SIGTERM/SIGINT (or `stop_event`), then shut down cleanly."""
         if self.health.state == "starting":
             self.health.state = "ok"
         self.publish_health()
+        self.thread(self._watchdog, "watchdog")
         wait_for_stop(self.stop_event)
         # A shutdown that hangs leaves its stacks in the log before the supervisor kills it.
         faulthandler.dump_traceback_later(3.0, exit=False)
@@ -256,12 +347,15 @@ def wait_for_stop(stop: threading.Event) -> None:
         pass
 
 
-def _install_signal_handlers(stop: threading.Event) -> None:
+def _install_signal_handlers(stop: threading.Event,
+                             hang: Callable[[], None] | None = None) -> None:
     def handler(signum: int, _frame: object) -> None:
         stop.set()
 
     signal.signal(signal.SIGTERM, handler)
     signal.signal(signal.SIGINT, handler)
+    if hang is not None:  # the SIGUSR2 test hook (Node.hang)
+        signal.signal(signal.SIGUSR2, lambda _s, _f: hang())
 
 
 def setup_logging(level: str = "INFO") -> None:
@@ -309,7 +403,7 @@ def service_main(
     except ConfigError as e:
         print(f"autochair-{name}: error: {e}", file=sys.stderr)
         return 2
-    _install_signal_handlers(node.stop_event)
+    _install_signal_handlers(node.stop_event, node.hang)
     try:
         start(node, config)
     except ConfigError as e:
