@@ -26,7 +26,7 @@ from autochair_msgs import (
     keys,
 )
 
-from .core import Caps, Command, VelocityPidCore, Verdict
+from .core import Caps, Command, VelocityPidCore
 
 
 class PidConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
