@@ -20,12 +20,15 @@ from autochair.lidar.core import (
     ScanDecoder,
     Unwrapper,
 )
+from autochair.lidar.node import LidarConfig, mount_transform
 from autochair.lidar.sim import UrgDevice, UrgParams, ray_scan
 from autochair.lidar.world import World, WorldError, load_world, parse_world, raycast
 from autochair.protocol import scip
+from autochair.runtime.config import ChairGeometry
+from autochair.safety.core import mount_mismatch
 from autochair_msgs import LaserScan
 
-MOUNT = (0.8636, 0.2032, 0.0)
+MOUNT = ChairGeometry().laser_mount  # (0.8636, 0.2032, 0.0), the [chair] default
 
 
 class FakeLink:
@@ -250,3 +253,22 @@ def test_device_never_crashes_on_random_requests(line: bytes) -> None:
     dev.handle(b"SCIP2.0", 0)
     reply = dev.handle(line.replace(b"\n", b""), 0.0)
     assert reply.endswith(b"\n\n")
+
+
+def test_tf_static_is_the_chair_mount() -> None:
+    """The ingest's chair→laser transform is the [chair] geometry, and the safety monitor's
+    check accepts exactly that (and not a transform 2 mm or 0.2° off)."""
+    chair = ChairGeometry(laser_x_m=0.7, laser_y_m=-0.1, laser_z_m=0.5, laser_yaw_rad=0.3)
+    tf = mount_transform(LidarConfig(), chair, 123)
+    assert (tf.parent_frame_id, tf.child_frame_id, tf.stamp_ns) == ("chair", "laser", 123)
+    t, q = tf.translation, tf.rotation
+    assert (t.x, t.y, t.z) == (0.7, -0.1, 0.5)
+    assert 2 * math.atan2(q.z, q.w) == pytest.approx(0.3)
+    want = ((0.7, -0.1, 0.5), 0.3)
+    assert mount_mismatch("chair", (t.x, t.y, t.z), (q.x, q.y, q.z, q.w), *want) == ""
+    assert mount_mismatch("chair", (t.x + 0.002, t.y, t.z), (q.x, q.y, q.z, q.w), *want)
+    off = mount_transform(LidarConfig(), ChairGeometry(laser_x_m=0.7, laser_y_m=-0.1,
+                                                       laser_z_m=0.5, laser_yaw_rad=0.3035), 0)
+    r = off.rotation
+    assert "rotation differs" in mount_mismatch("chair", (t.x, t.y, t.z),
+                                                (r.x, r.y, r.z, r.w), *want)

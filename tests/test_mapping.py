@@ -17,9 +17,10 @@ from autochair.mapping.core import (
     compose,
     scan_points,
 )
+from autochair.runtime.config import ChairGeometry
 from autochair_msgs import Odometry
 
-MOUNT = (0.8636, 0.2032, 0.0)
+MOUNT = ChairGeometry().laser_mount  # (0.8636, 0.2032, 0.0), the [chair] default
 POSES = [(0.0, 0.0, 0.0), (2.5, 0.3, 0.4), (5.0, -0.2, 0.0), (7.5, 0.0, -0.5),
          (10.0, 0.2, 0.0), (12.5, 0.0, 0.6), (15.0, -0.3, 0.0), (18.0, 0.0, 0.0),
          (20.5, 0.4, math.pi), (8.0, 0.0, math.pi)]

@@ -19,7 +19,7 @@ import tty
 import msgspec
 
 from autochair.protocol import scip
-from autochair.runtime.config import ConfigError
+from autochair.runtime.config import ChairGeometry, ConfigError
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import FrameTransform, Quaternion, Vector3, keys
 
@@ -35,11 +35,7 @@ class LidarConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     cluster: int = 1  # steps per reported range (the device reports their minimum)
     interval: int = 0  # scans skipped between reported scans
     frame_id: str = "laser"
-    parent_frame_id: str = "chair"
-    mount_x_m: float = 0.8636  # laser position in the chair frame (thesis mount)
-    mount_y_m: float = 0.2032
-    mount_z_m: float = 0.3937
-    mount_yaw_rad: float = 0.0
+    parent_frame_id: str = "chair"  # the laser's mount in it is the [chair] section
     reply_timeout_s: float = 1.0  # per request during the handshake
     stall_timeout_s: float = 1.0  # no valid scan this long while streaming → reconnect
     max_consecutive_errors: int = 20  # bad scans in a row → reconnect
@@ -137,11 +133,12 @@ def check_config(cfg: LidarConfig) -> None:
         raise ConfigError("lidar timeouts and backoff_max_s must be > 0")
 
 
-def mount_transform(cfg: LidarConfig, stamp_ns: int) -> FrameTransform:
-    h = cfg.mount_yaw_rad / 2
+def mount_transform(cfg: LidarConfig, chair: ChairGeometry, stamp_ns: int) -> FrameTransform:
+    """The chair→laser transform from the [chair] geometry (the one definition of the mount)."""
+    h = chair.laser_yaw_rad / 2
     return FrameTransform(
         stamp_ns=stamp_ns, parent_frame_id=cfg.parent_frame_id, child_frame_id=cfg.frame_id,
-        translation=Vector3(cfg.mount_x_m, cfg.mount_y_m, cfg.mount_z_m),
+        translation=Vector3(chair.laser_x_m, chair.laser_y_m, chair.laser_z_m),
         rotation=Quaternion(0.0, 0.0, math.sin(h), math.cos(h)))
 
 
@@ -152,7 +149,8 @@ def start(node: Node, cfg: LidarConfig) -> None:
     health = node.health
     health.thresholds.update(stall_timeout_s=cfg.stall_timeout_s,
                              backoff_max_s=cfg.backoff_max_s)
-    node.every(cfg.tf_period_s, lambda: tf.put(mount_transform(cfg, time.time_ns())), "tf")
+    node.every(cfg.tf_period_s, lambda: tf.put(mount_transform(cfg, node.chair, time.time_ns())),
+               "tf")
     stop = node.stop_event
 
     def count(name: str, n: int) -> None:

@@ -1,8 +1,15 @@
 """autochair-lidar-sim: a simulated Hokuyo URG-04LX on a pty and on TCP, ray-casting a 2D world
 from the simulated chair's true pose (keys.SIM_TRUTH; (0, 0, 0) until the first sample).
 
-Fault hook: SIGUSR1 unplugs the device for `unplug_s` seconds (the pty and its link vanish, the
-TCP listener closes), then it comes back rebooted (SCIP 1.1 mode, clock from 0).
+The laser sits at the [chair] mount (`node.chair`), like the ingest's tf_static says.
+
+Fault hooks (for tests and benches):
+- SIGUSR1 unplugs the device for `unplug_s` seconds (the pty and its link vanish, the TCP
+  listener closes), then it comes back rebooted (SCIP 1.1 mode, clock from 0).
+- SIGRTMIN (`kill -s RTMIN <pid>`; `BLIND_SIGNAL`) toggles blinding: every beam reports error
+  code 1 ("no return within DMAX", what a dazzled, fogged or covered window gives), while the
+  link and the protocol stay healthy. `blinded = true` starts it blinded. The health counter
+  `blinded_scans` counts such scans. (SIGUSR2 is the runtime's hang hook for every node.)
 """
 
 from __future__ import annotations
@@ -25,9 +32,10 @@ from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import GroundTruth, keys
 
-from .sim import ScanFn, UrgDevice, UrgParams, ray_scan
+from .sim import ERR_NO_RETURN, ScanFn, UrgDevice, UrgParams, ray_scan
 from .world import DEFAULT_WORLD, WorldError, load_world
 
+BLIND_SIGNAL = signal.SIGRTMIN  # test hook: toggles blinding
 MAX_OUT = 1 << 18  # bytes queued for a reader that does not read; more is dropped (counted)
 
 
@@ -37,9 +45,7 @@ class LidarSimConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     world: str = ""  # world file ("" = the shipped hallway)
     scan_rate_hz: float = 10.0  # URG-04LX: 10 (600 rpm); 40 emulates a UTM-30LX's rate
     noise_std_m: float = 0.01  # Gaussian range noise
-    mount_x_m: float = 0.8636  # laser position in the chair frame
-    mount_y_m: float = 0.2032
-    mount_yaw_rad: float = 0.0
+    blinded: bool = False  # test hook: every beam an error code (BLIND_SIGNAL toggles it)
     clock_start_ms: int = 0  # device clock at boot (set near 2^24 to exercise wraparound)
     unplug_s: float = 3.0  # how long SIGUSR1 unplugs the device
     seed: int = 0
@@ -163,16 +169,30 @@ def start(node: Node, cfg: LidarSimConfig) -> None:
         raise ConfigError(str(e)) from None
     params = UrgParams(scan_rate_hz=cfg.scan_rate_hz)
     pose: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)]
-    mount = (cfg.mount_x_m, cfg.mount_y_m, cfg.mount_yaw_rad)
+    mount = node.chair.laser_mount
     rng = np.random.default_rng(cfg.seed)
     lock = threading.Lock()  # the generator is shared by the pty and TCP threads
+    blind = threading.Event()
+    if cfg.blinded:
+        blind.set()
+    was_blind = [False]
 
     def on_truth(msg: GroundTruth) -> None:
         pose[0] = (msg.x_m, msg.y_m, msg.yaw_rad)
 
     def scan_fn(_now_s: float) -> npt.NDArray[np.int64]:
         with lock:
-            return ray_scan(world, params, pose[0], mount, cfg.noise_std_m, rng)
+            raw = ray_scan(world, params, pose[0], mount, cfg.noise_std_m, rng)
+        blinded = blind.is_set()
+        if blinded != was_blind[0]:  # logged here, not in the signal handler
+            was_blind[0] = blinded
+            node.event("warning" if blinded else "info",
+                       "lidar-sim: blinded (every beam an error code)" if blinded
+                       else "lidar-sim: no longer blinded")
+        if blinded:
+            node.health.count("blinded_scans")
+            return np.full_like(raw, ERR_NO_RETURN)
+        return raw
 
     node.subscribe(keys.SIM_TRUTH, on_truth)
     endpoints: list[Endpoint] = []
@@ -187,8 +207,20 @@ def start(node: Node, cfg: LidarSimConfig) -> None:
         for ep in endpoints:
             ep.unplug.set()
 
+    def on_blind(_signum: int, _frame: object) -> None:
+        if blind.is_set():
+            blind.clear()
+        else:
+            blind.set()
+        node.health.detail = detail()
+
+    def detail() -> str:
+        return (f"world {cfg.world or DEFAULT_WORLD.name}, {cfg.scan_rate_hz} scans/s"
+                + (", BLINDED (test hook)" if blind.is_set() else ""))
+
     signal.signal(signal.SIGUSR1, on_usr1)
-    node.health.detail = f"world {cfg.world or DEFAULT_WORLD.name}, {cfg.scan_rate_hz} scans/s"
+    signal.signal(BLIND_SIGNAL, on_blind)
+    node.health.detail = detail()
 
 
 def main(argv: list[str] | None = None) -> int:

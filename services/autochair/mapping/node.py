@@ -1,9 +1,10 @@
 """autochair-mapping: occupancy grid (keys.MAP_GRID) and point cloud (keys.MAP_CLOUD) from
-scans (keys.SCAN) placed by odometry (keys.ODOM) and the chair→laser mount (keys.TF_STATIC)."""
+scans (keys.SCAN) placed by odometry (keys.ODOM) and the chair→laser mount of the [chair]
+section (`node.chair`). A chair→laser transform on keys.TF_STATIC that disagrees with it is
+counted (`tf_mount_mismatch`) and reported, not followed: the mount is defined once."""
 
 from __future__ import annotations
 
-import math
 import sys
 import threading
 import time
@@ -14,6 +15,7 @@ import numpy as np
 
 from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
+from autochair.safety.core import mount_mismatch
 from autochair_msgs import FrameTransform, LaserScan, Odometry, keys
 
 from .core import GridSpec, OccupancyMapper, OdomBuffer, Pose, VoxelCloud, compose, scan_points
@@ -34,10 +36,6 @@ class MappingConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     publish_period_s: float = 1.0
     frame_id: str = "world"
     laser_frame: str = "laser"
-    mount_x_m: float = 0.8636  # until a chair→laser transform arrives on keys.TF_STATIC
-    mount_y_m: float = 0.2032
-    mount_z_m: float = 0.3937
-    mount_yaw_rad: float = 0.0
 
 
 def start(node: Node, cfg: MappingConfig) -> None:
@@ -49,8 +47,10 @@ def start(node: Node, cfg: MappingConfig) -> None:
                                       cfg.origin_x_m, cfg.origin_y_m), cfg.l_hit, cfg.l_miss)
     cloud = VoxelCloud(cfg.voxel_m, cfg.max_points)
     odom = OdomBuffer()
-    mount: list[tuple[Pose, float]] = [((cfg.mount_x_m, cfg.mount_y_m, cfg.mount_yaw_rad),
-                                        cfg.mount_z_m)]
+    chair = node.chair
+    mount: Pose = chair.laser_mount
+    z = chair.laser_z_m
+    tf_state = {"error": ""}
     pending: deque[LaserScan] = deque(maxlen=8)
     lock = threading.Lock()
     wake = threading.Event()
@@ -62,10 +62,19 @@ def start(node: Node, cfg: MappingConfig) -> None:
             odom.add(msg)
 
     def on_tf(msg: FrameTransform) -> None:
-        if msg.child_frame_id == cfg.laser_frame:
-            q = msg.rotation
-            yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-            mount[0] = ((msg.translation.x, msg.translation.y, yaw), msg.translation.z)
+        if msg.child_frame_id != cfg.laser_frame:
+            return
+        t, q = msg.translation, msg.rotation
+        err = mount_mismatch(msg.parent_frame_id, (t.x, t.y, t.z), (q.x, q.y, q.z, q.w),
+                             (chair.laser_x_m, chair.laser_y_m, chair.laser_z_m),
+                             chair.laser_yaw_rad)
+        if err:
+            health.count("tf_mount_mismatch")
+        if err != tf_state["error"]:
+            tf_state["error"] = err
+            node.event("warning" if err else "info",
+                       f"mapping: laser mount mismatch ({err}); mapping with [chair]" if err
+                       else "mapping: tf_static laser mount agrees with [chair]")
 
     def on_scan(msg: LaserScan) -> None:
         if len(pending) == pending.maxlen:
@@ -86,8 +95,7 @@ def start(node: Node, cfg: MappingConfig) -> None:
                         health.count("scans_no_odom")
                         continue
                     pose = (0.0, 0.0, 0.0)
-                m, z = mount[0]
-                laser = compose(pose, m)
+                laser = compose(pose, mount)
                 r = np.asarray(scan.ranges_m, dtype=np.float64)
                 mapper.integrate(r, scan.angle_min_rad, scan.angle_increment_rad, laser)
                 cloud.add(scan_points(r, scan.angle_min_rad, scan.angle_increment_rad, laser), z)

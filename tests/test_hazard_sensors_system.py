@@ -1,0 +1,172 @@
+"""Sensors fail closed, end to end: a blinded laser stops the chair from driving forward.
+
+The whole simulated drive chain with the simulated URG-04LX, its ingest and the safety monitor
+(the launcher makes the PID require the limit because the stack runs "safety"). The lidar
+simulator's test hook BLIND_SIGNAL (SIGRTMIN) blinds it: every beam reports error code 1 ("no
+return within DMAX") while the link and the protocol stay healthy, which used to read as a
+clear path.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import msgspec
+import pytest
+import zenoh
+
+from autochair.launcher import Launcher, free_port, wait_port
+from autochair.lidar.sim_node import BLIND_SIGNAL
+from autochair_msgs import EStopAssert, GroundTruth, Health, SafetyLimit, VelocityCommand, keys
+from tests.helpers import Recorder, client_session, stop_process, wait_for
+
+pytestmark = pytest.mark.slow
+
+STACK = ["estop", "sim", "gateway", "odometry", "pid", "lidar-sim", "lidar", "safety"]
+ENC = msgspec.msgpack.Encoder()
+
+
+def drive(pub: zenoh.Publisher, truth: Recorder, v: float, seconds: float,
+          until_moved_m: float = float("inf")) -> tuple[float, float]:
+    """Command `v` forward at 20 Hz as ONE new stream (begun now) for up to `seconds` or until
+    the chair has moved `until_moved_m`; returns (x at the start, largest x seen)."""
+    start_ns = time.time_ns()
+    x0 = truth.latest().x_m
+    x_max = x0
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=0.0,
+                                           source="test", stream_start_ns=start_ns)))
+        latest = truth.latest()
+        x_max = max(x_max, latest.x_m)
+        if x_max - x0 > until_moved_m:
+            break
+        time.sleep(0.05)  # the 20 Hz rate of the command stream itself, not a sync
+    for _ in range(3):  # and stop it
+        pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.0, omega_radps=0.0,
+                                           source="test", stream_start_ns=start_ns)))
+    return x0, max(x_max, truth.latest().x_m)
+
+
+def test_blinded_laser_does_not_drive_forward(stack_factory: Callable[..., Launcher],
+                                              hub: str) -> None:
+    launcher = stack_factory(STACK)
+    pid = launcher.pid("lidar-sim")
+    assert pid is not None
+    session = client_session(hub)
+    try:
+        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+        limits = Recorder(session, keys.SAFETY_LIMIT.key, SafetyLimit)
+        health = Recorder(session, keys.HEALTH.key, Health)
+        pub = session.declare_publisher(keys.CMD_VEL.key)
+
+        def safety_detail(text: str) -> Health | None:
+            return next((h for h in reversed(health.messages())
+                         if h.service == "safety" and text in h.detail), None)
+
+        # The hallway start is clear: forward allowed from the scans.
+        wait_for(lambda: truth.latest() and limits.latest()
+                 and limits.latest().v_max_fwd_mps > 0.5, 30, "scan-based limits, path clear")
+        h = wait_for(lambda: safety_detail("rear unseen"), 5, "safety health on the rear")
+        print(f"safety health: {h.detail}")
+        assert "rear unseen: autonomy may not reverse" in h.detail
+        assert "|ω| ≤ 0.35 rad/s for the unseen footprint (R 0.85 m" in h.detail
+        assert limits.latest().v_max_rev_autonomy_mps == 0.0
+
+        os.kill(pid, BLIND_SIGNAL)  # blind the laser
+        blind = wait_for(lambda: next((m for m in reversed(limits.messages())
+                                       if "blind ahead" in m.reason), None), 5,
+                         "a 'blind ahead' limit")
+        print(f"blinded: {blind}")
+        assert blind.v_max_fwd_mps == 0.0 and blind.v_max_rev_autonomy_mps == 0.0
+        assert "blind ahead: 0 % valid beams" in blind.reason
+        h = wait_for(lambda: safety_detail("blind ahead"), 5, "safety health: blind")
+        assert h.state == "degraded" and h.counters.get("blind:fwd", 0) > 0
+        x0, x_max = drive(pub, truth, 0.5, 3.0)
+        print(f"blinded: commanded 0.5 m/s for 3 s, moved {x_max - x0:+.3f} m")
+        assert x_max - x0 <= 0.02, f"the chair drove {x_max - x0:.3f} m with a blind laser"
+        assert all(m.v_max_fwd_mps == 0.0 for t, m in limits.items[-20:])
+
+        # Positive control, same test: sight back, a NEW stream drives the chair forward.
+        os.kill(pid, BLIND_SIGNAL)
+        wait_for(lambda: (m := limits.latest()) and m.v_max_fwd_mps > 0.5
+                 and "blind" not in m.reason, 5, "the limit clear again")
+        x1, x_max = drive(pub, truth, 0.5, 8.0, until_moved_m=0.25)
+        print(f"un-blinded: moved {x_max - x1:+.3f} m")
+        assert x_max - x1 > 0.2, f"with sight back the chair moved only {x_max - x1:.3f} m"
+    finally:
+        session.close()
+
+
+
+Spawn = Callable[..., subprocess.Popen[bytes]]
+
+
+@pytest.fixture
+def spawn(tmp_path: Path) -> Iterator[tuple[str, Spawn]]:
+    """A private hub on a free loopback port, and services started on it (all stopped after)."""
+    port = free_port()
+    hub = f"tcp/127.0.0.1:{port}"
+    procs: list[subprocess.Popen[bytes]] = []
+
+    def start(module: str, *args: str) -> subprocess.Popen[bytes]:
+        log = open(tmp_path / f"{module.rsplit('.', 1)[-1]}-{len(procs)}.log", "wb")  # noqa: SIM115
+        p = subprocess.Popen([sys.executable, "-m", module, *args], stdout=log, stderr=log)
+        procs.append(p)
+        return p
+
+    try:
+        start("autochair.router", "--listen", hub)
+        assert wait_port("127.0.0.1", port, 10), "hub did not come up"
+        yield hub, lambda module, *a: start(module, "--connect", hub, *a)
+    finally:
+        for p in reversed(procs):
+            stop_process(p)
+
+
+def test_laser_mount_mismatch_stops_until_they_agree(spawn: tuple[str, Spawn],
+                                                     tmp_path: Path) -> None:
+    """The ingest announces the laser 9 cm further forward than the monitor's [chair] says:
+    every limit is a stop, and health says why; with the same mount again, limits recover."""
+    hub, start = spawn
+    link = str(tmp_path / "lidar")
+    session = client_session(hub)
+    try:
+        limits = Recorder(session, keys.SAFETY_LIMIT.key, SafetyLimit)
+        health = Recorder(session, keys.HEALTH.key, Health)
+        clears = Recorder(session, keys.ESTOP_CLEAR.key, EStopAssert)
+        asserts = Recorder(session, keys.ESTOP_ASSERT.key, EStopAssert)
+        start("autochair.lidar.sim_node", "--set", f"pty_link={link}")
+        start("autochair.safety.node")
+        wrong = start("autochair.lidar.node", "--set", f"url={link}",
+                      "--set", "chair.laser_x_m=0.95")
+        stop = wait_for(lambda: next((m for m in reversed(limits.messages())
+                                      if m.reason.startswith("laser mount mismatch")), None),
+                        20, "a mount-mismatch stop")
+        print(stop)
+        assert (stop.v_max_fwd_mps, stop.v_max_rev_mps, stop.omega_max_radps) == (0, 0, 0)
+        assert "tf x 0.9500 m vs [chair] laser_x_m 0.8636 m" in stop.reason
+        h = wait_for(lambda: next((m for m in reversed(health.messages())
+                                   if m.service == "safety" and "mismatch" in m.detail), None),
+                     5, "safety health naming the mismatch")
+        assert h.state == "degraded" and h.counters.get("mount_mismatch", 0) >= 1
+        n = len(limits.messages())
+        wait_for(lambda: len(limits.messages()) > n + 10, 5, "ten more limits")
+        assert all(m.v_max_fwd_mps == 0.0 for m in limits.messages()[n:])  # held, every scan
+        # Positive control: the ingest with the [chair] mount; the monitor drives again.
+        stop_process(wrong)
+        start("autochair.lidar.node", "--set", f"url={link}")
+        wait_for(lambda: (m := limits.latest()) and m.v_max_fwd_mps > 0.5
+                 and "mismatch" not in m.reason, 20, "limits from the scan again")
+        print(limits.latest())
+        # A monitor that starts clears a cause it may have left (on the clear key, never on
+        # the assert key, where active=False would latch as a button press).
+        assert any(m.source == "safety" and not m.active for m in clears.messages())
+        assert asserts.messages() == []
+    finally:
+        session.close()
