@@ -365,7 +365,9 @@ def test_sigkill_of_the_wrapper_kills_the_service_too(tmp_path: Path) -> None:
     p = subprocess.Popen([sys.executable, "-m", "autochair.watchdog_wrapper", "--",
                           sys.executable, str(script)])
     try:
-        child = int(wait_for(lambda: pidfile.exists() and pidfile.read_text(), 10, "child pid"))
+        text: str = wait_for(lambda: pidfile.read_text() if pidfile.exists() else "", 10,
+                             "child pid")
+        child = int(text)
         p.kill()
         p.wait(timeout=10)
 
