@@ -387,7 +387,7 @@ def test_goals_beyond_the_maximum_distance_are_refused() -> None:
 
 def test_no_reverse_when_blind_reversing_is_not_allowed() -> None:
     core = fresh_core()
-    core.reverse_allowed = False
+    core.on_limit(0.0, 1.0)  # the monitor: nothing senses behind
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(-1, 0, 0)]), 0.0).ok
 
     def min_v(c: ControlCore) -> float:
@@ -401,3 +401,19 @@ def test_no_reverse_when_blind_reversing_is_not_allowed() -> None:
     positive = fresh_core()  # positive control: the same goal is reversed to when allowed
     assert positive.set_goal(GoalRequest(waypoints=[Pose2D(-1, 0, 0)]), 0.0).ok
     assert min_v(positive) < -0.05
+
+
+def test_turns_are_planned_within_the_monitors_turn_rate_bound() -> None:
+    def peak_omega(cap: float | None) -> float:
+        core = fresh_core()
+        if cap is not None:
+            core.on_limit(0.0, cap)
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(0, 0, math.pi / 2)]), 0.0).ok
+        peak = 0.0
+        for k in range(200):
+            core.on_odom(OdomSample(0, 0, 0, 0, 0, k * 0.02))
+            peak = max(peak, abs((core.step(k * 0.02) or (0.0, 0.0))[1]))
+        return peak
+
+    assert peak_omega(None) > 0.5  # positive control: the comfort limit (0.9 × 0.6)
+    assert peak_omega(0.35) == pytest.approx(0.35, abs=1e-9)

@@ -216,6 +216,13 @@ class ControlCore:
         if owner != "autonomy" and self.state == ACTIVE:
             self._stopped(ABORTED, f"drive handed to {owner}", now)
 
+    def on_limit(self, v_rev_autonomy: float, omega_max: float) -> None:
+        """The safety monitor's bounds: no reverse approach when autonomy may not reverse
+        (nothing senses behind), and turns planned within its |ω| bound (the unseen swing of
+        the footprint, obstacles): the limiter then keeps the path and slows v with ω."""
+        self.reverse_allowed = v_rev_autonomy > 0.0
+        self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
+
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
         o = self.odom
         error = validate(req, self.cfg, *((o.x, o.y) if o is not None else (0.0, 0.0)))

@@ -11,7 +11,7 @@ factor v was limited by, so the curvature (the path) is kept while the chair spe
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,7 @@ class ComfortLimiter:
     """Both axes, curvature-preserving."""
 
     def __init__(self, lim: ComfortLimits | None = None, lookahead_s: float = 0.2) -> None:
-        self.lim = lim or ComfortLimits()
+        self.lim = self.base = lim or ComfortLimits()
         self.lookahead_s = lookahead_s
         self.v = SCurveAxis(self.lim.v_max_mps, self.lim.a_max_mps2, self.lim.jerk_max_mps3)
         self.w = SCurveAxis(self.lim.omega_max_radps, self.lim.omega_acc_max_radps2,
@@ -79,6 +79,15 @@ class ComfortLimiter:
     def reset(self, v: float = 0.0, omega: float = 0.0) -> None:
         self.v.reset(v)
         self.w.reset(omega)
+
+    def cap_omega(self, omega_max: float) -> None:
+        """Bound |ω| below the comfort limit (e.g. by the safety monitor's turn-rate bound), so
+        the curvature-preserving scaling slows v too instead of a clamp downstream bending
+        the path; a larger value restores the comfort limit."""
+        w = min(self.base.omega_max_radps, max(omega_max, 0.0))
+        if w != self.lim.omega_max_radps:
+            self.lim = replace(self.lim, omega_max_radps=w)
+            self.w.vmax = w
 
     @property
     def at_rest(self) -> bool:

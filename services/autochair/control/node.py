@@ -126,8 +126,8 @@ def start(node: Node, cfg: ControlConfig) -> None:
             core.on_owner(msg.owner, time.monotonic())
 
     def on_limit(msg: SafetyLimit) -> None:
-        with lock:  # no blind reversing for autonomy unless the monitor allows it
-            core.reverse_allowed = msg.v_max_rev_autonomy_mps > 0.0
+        with lock:  # plan within the monitor's bounds instead of being clamped by the PID
+            core.on_limit(msg.v_max_rev_autonomy_mps, msg.omega_max_radps)
 
     node.subscribe(keys.ODOM, on_odom)
     node.subscribe(keys.ESTOP_STATE, on_estop)
