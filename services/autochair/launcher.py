@@ -63,6 +63,8 @@ class Child:
     popen: subprocess.Popen[bytes] | None = None
     state: str = "stopped"  # starting | up | hung | exited | restarting | stopped
     restarts: int = 0
+    backoff: int = 0  # restarts in a row without a long run: the next delay doubles with it
+    spawned_at: float = 0.0
     exit_code: int | None = None
     next_start: float = 0.0
     log_path: Path | None = None
@@ -155,7 +157,7 @@ class Launcher:
                                        start_new_session=True, preexec_fn=_die_with_parent)
         log.close()
         child.notify.expect(child.popen.pid)
-        child.exit_code = None
+        child.exit_code, child.spawned_at = None, time.monotonic()
         self._set(child, "starting")
 
     def _set(self, child: Child, state: str) -> None:
@@ -175,7 +177,9 @@ class Launcher:
                 child.exit_code = child.popen.returncode
                 child.popen = None
                 if self.restart:
-                    delay = min(0.5 * 2 ** min(child.restarts, 4), 8.0)
+                    # A child that ran a while before failing starts the backoff afresh.
+                    child.backoff = child.backoff + 1 if now - child.spawned_at < 30 else 1
+                    delay = min(0.5 * 2 ** min(child.backoff - 1, 4), 8.0)
                     child.next_start = now + delay
                     self._set(child, "restarting")
                 else:
