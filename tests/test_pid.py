@@ -204,6 +204,7 @@ STOPS: dict[str, Callable[[VelocityPidCore, float], object]] = {
     "owner change and back": lambda c, t: (c.set_owner("teleop", ns(t)),
                                            c.set_owner("autonomy", ns(t))),
     "gateway lost": lambda c, t: c.stop("gateway lost", ns(t)),
+    "safety monitor gone": lambda c, t: c.limit_gone(ns(t)),
     "safety stop": lambda c, t: (c.set_limit(0.0, 0.0, 0.0, t),
                                  c.update(0.4, 0.0, 0.005, t, ns(t)),
                                  c.set_limit(1.0, 0.5, 1.0, t + 0.01, 0.5)),
@@ -214,7 +215,7 @@ STOPS: dict[str, Callable[[VelocityPidCore, float], object]] = {
 
 @pytest.mark.parametrize("kind", list(STOPS))
 def test_after_a_stop_only_a_stream_begun_later_drives(kind: str) -> None:
-    core = driving_core(require_limit=kind == "safety stop")
+    core = driving_core(require_limit=kind in ("safety stop", "safety monitor gone"))
     assert continue_old_stream(driving_core(), 1.0) == [True] * 100  # positive control
     STOPS[kind](core, 1.0)
     assert core.obeying is False and core.stop_reason != "started"

@@ -192,6 +192,12 @@ class VelocityPidCore:
         self._estop_t = -math.inf
         return self.stop("e-stop service gone", now_ns)
 
+    def limit_gone(self, now_ns: int) -> bool:
+        """The safety monitor's token vanished: its limit is gone now, not when it goes
+        stale; a stop when the limit is required."""
+        self._limit_t = -math.inf
+        return self.stop("safety monitor gone", now_ns) if self.require_limit else False
+
     # --- state ------------------------------------------------------------------------------
     @property
     def obeying(self) -> bool:

@@ -117,8 +117,12 @@ def start(node: Node, cfg: PidConfig) -> None:
                 return
             with lock:
                 now_ns = time.time_ns()
-                ended = core.estop_gone(now_ns) if service == "estop" else \
-                    core.stop(f"{service} lost", now_ns)
+                if service == "estop":
+                    ended = core.estop_gone(now_ns)
+                elif service == "safety":
+                    ended = core.limit_gone(now_ns)
+                else:
+                    ended = core.stop(f"{service} lost", now_ns)
             stopped(ended)
 
         return on_sample
@@ -155,7 +159,7 @@ def start(node: Node, cfg: PidConfig) -> None:
     node.subscribe(keys.ESTOP_STATE, on_estop)
     node.subscribe(keys.ODOM, on_odom)
     # A killed service's token vanishes within milliseconds, sooner than any heartbeat.
-    for service in ("estop", "gateway"):
+    for service in ("estop", "gateway", "safety"):
         sub = node.session.liveliness().declare_subscriber(
             f"{keys.PREFIX}/alive/{service}", on_token(service))
         node.on_close(sub.undeclare)

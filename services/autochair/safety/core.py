@@ -541,6 +541,10 @@ class MonitorState:
     def on_scan(self, now: float, rejected: str) -> None:
         self.scan_t, self.rejected = now, rejected
 
+    def source_lost(self) -> None:
+        """The lidar ingest's token vanished (it died): stale now, not after `stale_s`."""
+        self.scan_t = -math.inf
+
     def on_blind(self, directions: tuple[str, ...]) -> bool:
         """Record which directions the latest scan left blind; True when that changed."""
         changed, self.blind = directions != self.blind, directions

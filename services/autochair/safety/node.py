@@ -222,8 +222,17 @@ def start(node: Node, cfg: SafetyConfig) -> None:
         elif changed:
             node.event("info", "safety: scans fresh, limits from the scan")
 
+    def on_lidar_token(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.DELETE:  # the ingest died: stop now, not in 0.5 s
+            with lock:
+                state.source_lost()
+            watchdog()
+
     # At start: clear any cause a previous instance of this monitor left behind.
     estop(EStopAction.CLEAR)
+    token_sub = node.session.liveliness().declare_subscriber(f"{keys.PREFIX}/alive/lidar",
+                                                            on_lidar_token)
+    node.on_close(token_sub.undeclare)
     node.subscribe(keys.ODOM, on_odom)
     node.subscribe(keys.TF_STATIC, on_tf)
     node.subscribe(keys.SCAN, on_scan)
