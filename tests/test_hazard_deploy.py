@@ -51,7 +51,7 @@ def test_the_pid_requires_limit_and_estop_by_default() -> None:
 
 
 @pytest.mark.slow
-def test_drive_refuses_speeds_beyond_the_pids_caps(
+def test_drive_and_teleop_refuse_speeds_beyond_the_pids_caps(
         stack_factory: Callable[..., Launcher], hub: str) -> None:
     stack_factory(["estop", "pid"])
     base = [sys.executable, "-m", "autochair.cli", "drive", "--connect", hub]
@@ -65,3 +65,10 @@ def test_drive_refuses_speeds_beyond_the_pids_caps(
     assert over.returncode != 0 and "beyond the velocity PID's caps" in over.stderr
     within = drive("0.3", "0")  # positive control
     assert within.returncode == 0, within.stderr
+    teleop = subprocess.run([sys.executable, "-m", "autochair.cli", "teleop", "--connect", hub,
+                             "--max-v", "2.0"], capture_output=True, text=True, timeout=30,
+                            stdin=subprocess.DEVNULL)
+    assert teleop.returncode != 0 and "exceed the velocity PID's caps" in teleop.stderr
+    within = subprocess.run([sys.executable, "-m", "autochair.cli", "teleop", "--connect", hub],
+                            capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL)
+    assert "needs a terminal" in within.stderr  # positive control: past the caps check

@@ -191,8 +191,15 @@ def run(args: argparse.Namespace) -> int:
 
     from autochair.cli import CliError
     from autochair.remote import open_session
+    from autochair.runtime.client import pid_caps
 
     session = open_session(args)
+    caps = None if args.hand_back else pid_caps(session)
+    if caps is not None and (args.max_v > caps[0] or args.max_omega > caps[2]):
+        session.close()
+        raise CliError(f"--max-v {args.max_v:g} / --max-omega {args.max_omega:g} exceed the "
+                       f"velocity PID's caps ({caps[0]:g} m/s, {caps[2]:g} rad/s; [pid] in the "
+                       "chair's config)")
     core = Teleop(TeleopLimits(args.max_v, args.max_omega, args.deadman))
     link = TeleopLink(session, core, by=f"{getpass.getuser()}@{socket.gethostname()}")
     try:
