@@ -207,6 +207,11 @@ class Probe:
         m = self.out.latest()
         return m is not None and m.reason == "command" and m.enable
 
+    def turning(self) -> bool:
+        """Driving, and the chair has spun up (a standstill then means something)."""
+        t = self.truth.latest()
+        return self.driving() and t is not None and abs(t.omega_radps) > 0.2
+
     def first_neutral(self, t_ns: int, timeout: float) -> float | None:
         """ms from t_ns to the first neutral output: a gateway frame, else the sim's voltages."""
 
@@ -278,7 +283,7 @@ def decode_errors(health: dict[str, Health]) -> dict[str, dict[str, int]]:
 
 def kill_one(stack: Stack, probe: Probe, name: str) -> dict[str, Any]:
     """SIGKILL one service while driving: neutral, standstill, restart, driving again."""
-    if not poll(probe.driving, 30, 0.05):
+    if not poll(probe.turning, 30, 0.05):
         return {"service": name, "error": "not driving before the kill"}
     pid = stack.pid(name)
     spin = probe.truth.latest().omega_radps
@@ -292,8 +297,8 @@ def kill_one(stack: Stack, probe: Probe, name: str) -> dict[str, Any]:
            "neutral_ms": None if neutral is None else round(neutral, 1),
            "standstill_ms": None if still is None else round(still, 1),
            "restart_s": None if not back else round((back - t) / 1e9, 3)}
-    if neutral is not None or still is not None:  # it stopped: does it start by itself?
-        since = t + int(min(x for x in (neutral, still) if x is not None) * 1e6)
+    if neutral is not None:  # it stopped: does it start by itself?
+        since = t + int(neutral * 1e6)
         poll(lambda: stack.pid(name) is not None and probe.alive.get(name, 0) > t, 20, 0.05)
         row.update(probe.resumes(since))
     else:
@@ -321,7 +326,7 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
         res["sigkill"] = kills
 
         # --- serial unplug and replug (sim fault hook) --------------------------------------
-        poll(probe.driving, 30, 0.05)
+        poll(probe.turning, 30, 0.05)
         t = time.time_ns()
         ok = sim_fault(probe.session, SimFault(kind="unplug", duration_s=2.0))
         neutral = probe.first_neutral(t, 3.0)
@@ -333,7 +338,7 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
         print(res["serial_unplug"], flush=True)
 
         # --- garbage into serial ---------------------------------------------------------------
-        poll(probe.driving, 30, 0.05)
+        poll(probe.turning, 30, 0.05)
         before = dict(probe.health.get("gateway", Health(stamp_ns=0, service="", state="",
                                                          uptime_s=0)).counters)
         t = time.time_ns()
@@ -351,7 +356,7 @@ def run(work: Path, names: list[str], kill: list[str]) -> dict[str, Any]:
         print(res["serial_garbage"], flush=True)
 
         # --- lidar unplug and replug (lidar sim: SIGUSR1 = unplugged for unplug_s = 3 s) -----
-        poll(probe.driving, 30, 0.05)
+        poll(probe.turning, 30, 0.05)
         t = time.time_ns()
         os.kill(stack.pid("lidar-sim"), signal.SIGUSR1)
         stop_lim = poll(lambda: next((m for m in probe.limit.since(t)

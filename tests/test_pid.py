@@ -210,6 +210,7 @@ STOPS: dict[str, Callable[[VelocityPidCore, float], object]] = {
                                  c.set_limit(1.0, 0.5, 1.0, t + 0.01, 0.5)),
     "odometry gap": lambda c, t: c.update(0.0, 0.0, 0.005, t + 0.5, ns(t + 0.5)),
     "non-finite measurement": lambda c, t: c.update(float("nan"), 0.0, 0.005, t, ns(t)),
+    "chair MCU restarted": lambda c, t: c.update(0.0, 0.0, 0.005, t, ns(t), mcu_restarts=1),
 }
 
 
@@ -220,10 +221,10 @@ def test_after_a_stop_only_a_stream_begun_later_drives(kind: str) -> None:
     STOPS[kind](core, 1.0)
     assert core.obeying is False and core.stop_reason != "started"
     assert not any(continue_old_stream(core, 1.6))  # the old stream goes on: refused
-    t = 2.2
+    t = 2.15  # (the old stream's odometry ran to 2.095: no gap)
     core.set_estop(False, t, ns(t))
     core.set_limit(1.0, 0.5, 1.0, t, 0.5)
-    assert drive(core, 0.5, 0.0, t, began=2.1) is Verdict.OK  # a new act after the stop
+    assert drive(core, 0.5, 0.0, t, began=2.12) is Verdict.OK  # a new act after the stop
     assert core.update(0.0, 0.0, 0.005, t, ns(t)).active
 
 

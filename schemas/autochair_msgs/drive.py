@@ -71,6 +71,7 @@ class Odometry(msgspec.Struct, kw_only=True, frozen=True):
     distance_m: float = 0.0  # path length travelled since start
     sample_dt_s: float = 0.0  # time since the previous encoder sample, on the MCU clock
     source_seq: int = -1  # encoder frame this estimate is from
+    mcu_restarts: int = 0  # chair MCU restarts seen (its neutral boot: a stop for the PID)
     frame_id: str = "world"
     child_frame_id: str = "chair"
 

@@ -117,7 +117,9 @@ class VelocityPidCore:
     limit_stale_s: float = 0.5
     require_estop: bool = True  # no e-stop heartbeat → stop (as the gateway does)
     estop_stale_s: float = 0.5
-    odom_gap_s: float = 0.3  # no measurement for this long while driving → stop
+    # No measurement for this long → stop: the gateway held neutral after its own joystick
+    # timeout (the PID publishes on measurements), so the chair was stopped.
+    odom_gap_s: float = 0.1
     caps: Caps = field(default_factory=Caps)
     start_ns: int = 0  # when this core started: a restarted PID obeys nothing begun before
     owner: str = "autonomy"  # whose commands count: "autonomy" (CMD_VEL) or "teleop"
@@ -134,6 +136,7 @@ class VelocityPidCore:
     _estop_latched: bool = False
     _estop_t: float = -math.inf
     _last_update_t: float | None = None
+    _mcu_restarts: int | None = None
 
     def __post_init__(self) -> None:
         lo = (self.min_v - NEUTRAL_V) / VOLTS_PER_EFFORT
@@ -244,11 +247,16 @@ class VelocityPidCore:
         return lv, lw
 
     def update(self, v_meas: float, omega_meas: float, dt: float, now_s: float,
-               now_ns: int) -> PidOutput:
+               now_ns: int, mcu_restarts: int = 0) -> PidOutput:
+        """One loop step on a measurement. `mcu_restarts` counts the chair MCU's restarts
+        (odometry sees them): a restart booted it at neutral, a stop however short."""
         gap = self._last_update_t is not None and now_s - self._last_update_t > self.odom_gap_s
         self._last_update_t = now_s
         if gap:
             self.stop("odometry gap", now_ns)
+        if self._mcu_restarts is not None and mcu_restarts != self._mcu_restarts:
+            self.stop("chair MCU restarted", now_ns)
+        self._mcu_restarts = mcu_restarts
         if self.require_estop and now_s - self._estop_t > self.estop_stale_s:
             self.stop("e-stop silent", now_ns)
         elif self._estop_latched:
