@@ -158,6 +158,8 @@ def test_teleop_reverses_within_the_attended_bound_autonomy_not_at_all() -> None
     core.set_limit(1.0, 0.4, 1.0, 0.0)  # no rear sensor: autonomy may not reverse
     assert drive(core, -0.3, 0.0, 0.0) is Verdict.OK
     assert core.desired(0.0, 0) is None and "safety stop" in core.inhibit(0.0)
+    core.set_limit(0.0, 0.4, 0.0, 0.0)
+    assert core.inhibit(0.0) == "the safety monitor says stop"
     core.set_owner("teleop", ns(0.01))
     drive(core, -0.6, 0.0, 0.02, source="teleop", began=0.015)
     assert core.desired(0.02, ns(0.02)) == (-0.4, 0.0)
@@ -210,7 +212,9 @@ STOPS: dict[str, Callable[[VelocityPidCore, float], object]] = {
                                  c.set_limit(1.0, 0.5, 1.0, t + 0.01, 0.5)),
     "odometry gap": lambda c, t: c.update(0.0, 0.0, 0.005, t + 0.5, ns(t + 0.5)),
     "non-finite measurement": lambda c, t: c.update(float("nan"), 0.0, 0.005, t, ns(t)),
-    "chair MCU restarted": lambda c, t: c.update(0.0, 0.0, 0.005, t, ns(t), mcu_restarts=1),
+    "chair MCU restarted": lambda c, t: c.update(0.0, 0.0, 0.005, t, ns(t), link=(1, 0)),
+    "serial link renewed": lambda c, t: c.update(0.0, 0.0, 0.005, t, ns(t), link=(0, 1)),
+    "odometry lost": lambda c, t: c.stop("odometry lost", ns(t)),
 }
 
 

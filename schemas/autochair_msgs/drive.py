@@ -19,6 +19,7 @@ class EncoderSample(msgspec.Struct, kw_only=True, frozen=True):
     right_counts: int
     status: int  # bit field, see docs/arduino-protocol.md
     dropped: int = 0  # frames missing before this one (sequence gap)
+    link_epoch: int = 0  # the gateway's serial (re)connections so far: a new link, a new epoch
 
 
 class JoystickCommand(msgspec.Struct, kw_only=True, frozen=True):
@@ -71,7 +72,10 @@ class Odometry(msgspec.Struct, kw_only=True, frozen=True):
     distance_m: float = 0.0  # path length travelled since start
     sample_dt_s: float = 0.0  # time since the previous encoder sample, on the MCU clock
     source_seq: int = -1  # encoder frame this estimate is from
-    mcu_restarts: int = 0  # chair MCU restarts seen (its neutral boot: a stop for the PID)
+    # The link's history as the PID must know it: a new serial link (gateway reconnect or
+    # restart) or a chair MCU restart (its neutral boot) means the chain stopped: a stop.
+    mcu_restarts: int = 0  # chair MCU restarts seen
+    link_epoch: int = 0  # EncoderSample.link_epoch of this sample
     frame_id: str = "world"
     child_frame_id: str = "chair"
 

@@ -46,6 +46,7 @@ class Gateway:
         self.last_out: Output | None = None
         self.last_write = 0.0
         self.last_rx = 0.0
+        self.link_epoch = 0  # serial connections so far (EncoderSample.link_epoch)
         self.enc_pub = node.publisher(keys.ENCODERS)
         self.out_pub = node.publisher(keys.JOYSTICK_OUT)
         h = node.health
@@ -144,6 +145,7 @@ class Gateway:
             with contextlib.suppress(serial.SerialException, OSError):
                 port.write(b"\x00")  # end any partial frame the firmware holds
             self._write(self.core.output(time.monotonic()))
+        self.link_epoch += 1
         self.node.health.count("connects")
         self.node.health.state, self.node.health.detail = "ok", f"connected to {self.cfg.port}"
         self.node.event("info", f"serial port {self.cfg.port} open")
@@ -175,7 +177,8 @@ class Gateway:
             self.last_rx = now
             self.enc_pub.put(EncoderSample(
                 stamp_ns=stamp, seq=frame.seq, mcu_time_us=frame.t_us, left_counts=frame.left,
-                right_counts=frame.right, status=frame.status, dropped=gap))
+                right_counts=frame.right, status=frame.status, dropped=gap,
+                link_epoch=self.link_epoch))
         h = self.node.health
         h.count("frames_in", len(frames))
         if stats.bad_frames != bad_before:

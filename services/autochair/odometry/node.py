@@ -45,7 +45,7 @@ def start(node: Node, cfg: OdometryConfig) -> None:
         odom_pub.put(Odometry(stamp_ns=stamp, x_m=st.x, y_m=st.y, yaw_rad=st.yaw, v_mps=st.v,
                               omega_radps=st.omega, distance_m=st.distance,
                               sample_dt_s=st.dt, source_seq=s.seq,
-                              mcu_restarts=core.restarts))
+                              mcu_restarts=core.restarts, link_epoch=s.link_epoch))
         if cfg.publish_tf:
             tf_pub.put(FrameTransform(
                 stamp_ns=stamp, parent_frame_id="world", child_frame_id="chair",

@@ -117,9 +117,9 @@ class VelocityPidCore:
     limit_stale_s: float = 0.5
     require_estop: bool = True  # no e-stop heartbeat → stop (as the gateway does)
     estop_stale_s: float = 0.5
-    # No measurement for this long → stop: the gateway held neutral after its own joystick
-    # timeout (the PID publishes on measurements), so the chair was stopped.
-    odom_gap_s: float = 0.1
+    # No measurement for this long → stop (a dead or restarted odometry, a stalled link; the
+    # token and the link epoch catch the quick ones).
+    odom_gap_s: float = 0.3
     caps: Caps = field(default_factory=Caps)
     start_ns: int = 0  # when this core started: a restarted PID obeys nothing begun before
     owner: str = "autonomy"  # whose commands count: "autonomy" (CMD_VEL) or "teleop"
@@ -136,7 +136,7 @@ class VelocityPidCore:
     _estop_latched: bool = False
     _estop_t: float = -math.inf
     _last_update_t: float | None = None
-    _mcu_restarts: int | None = None
+    _link: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         lo = (self.min_v - NEUTRAL_V) / VOLTS_PER_EFFORT
@@ -215,6 +215,9 @@ class VelocityPidCore:
             return "e-stop silent"
         if self.require_limit and now_s - self._limit_t > self.limit_stale_s:
             return "no fresh safety limit"
+        if self._limit is not None and now_s - self._limit_t <= self.limit_stale_s \
+                and self._limit[0] == 0.0 and self._limit[2] == 0.0:
+            return "the safety monitor says stop"
         if self.obeying:
             return ""
         return f"stopped ({self.stop_reason}): waiting for a command begun after the stop"
@@ -247,16 +250,17 @@ class VelocityPidCore:
         return lv, lw
 
     def update(self, v_meas: float, omega_meas: float, dt: float, now_s: float,
-               now_ns: int, mcu_restarts: int = 0) -> PidOutput:
-        """One loop step on a measurement. `mcu_restarts` counts the chair MCU's restarts
-        (odometry sees them): a restart booted it at neutral, a stop however short."""
+               now_ns: int, link: tuple[int, int] = (0, 0)) -> PidOutput:
+        """One loop step on a measurement. `link` is (MCU restarts, serial link epoch) as the
+        odometry saw them: a new link or a restarted MCU (booted at neutral) is a stop,
+        however short the gap."""
         gap = self._last_update_t is not None and now_s - self._last_update_t > self.odom_gap_s
         self._last_update_t = now_s
         if gap:
             self.stop("odometry gap", now_ns)
-        if self._mcu_restarts is not None and mcu_restarts != self._mcu_restarts:
-            self.stop("chair MCU restarted", now_ns)
-        self._mcu_restarts = mcu_restarts
+        if self._link is not None and link != self._link:
+            self.stop("serial link or chair MCU restarted", now_ns)
+        self._link = link
         if self.require_estop and now_s - self._estop_t > self.estop_stale_s:
             self.stop("e-stop silent", now_ns)
         elif self._estop_latched:

@@ -59,7 +59,7 @@ def start(node: Node, cfg: PidConfig) -> None:
         stale_s=stale.desired_velocity_s, skew_s=stale.clock_skew_s,
         require_limit=cfg.require_safety_limit, limit_stale_s=stale.safety_limit_s,
         require_estop=cfg.require_estop, estop_stale_s=stale.estop_s,
-        odom_gap_s=stale.joystick_s,
+        odom_gap_s=stale.odometry_s,
         caps=Caps(cfg.v_max_fwd_mps, cfg.v_max_rev_mps, cfg.omega_max_radps),
         start_ns=time.time_ns())
     core.v_pid.d_filter_n = core.omega_pid.d_filter_n = cfg.d_filter_n
@@ -132,7 +132,7 @@ def start(node: Node, cfg: PidConfig) -> None:
         with lock:
             was = core.obeying
             out = core.update(odom.v_mps, odom.omega_radps, odom.sample_dt_s, now, now_ns,
-                              odom.mcu_restarts)
+                              (odom.mcu_restarts, odom.link_epoch))
             desired = core.desired(now, now_ns) or (0.0, 0.0)
             inhibit = core.inhibit(now)
             ended = was and not core.obeying
@@ -160,7 +160,7 @@ def start(node: Node, cfg: PidConfig) -> None:
     node.subscribe(keys.ESTOP_STATE, on_estop)
     node.subscribe(keys.ODOM, on_odom)
     # A killed service's token vanishes within milliseconds, sooner than any heartbeat.
-    for service in ("estop", "gateway", "safety"):
+    for service in ("estop", "gateway", "odometry", "safety"):
         sub = node.session.liveliness().declare_subscriber(
             f"{keys.PREFIX}/alive/{service}", on_token(service))
         node.on_close(sub.undeclare)
