@@ -123,6 +123,9 @@ def start(node: Node, cfg: PidConfig) -> None:
                     ended = core.limit_gone(now_ns)
                 else:
                     ended = core.stop(f"{service} lost", now_ns)
+            if service == "odometry":  # no measurement will come to publish on: neutral now
+                joy_pub.put(JoystickCommand(stamp_ns=time.time_ns(), longitudinal_v=2.5,
+                                            angular_v=2.5, enable=False))
             stopped(ended)
 
         return on_sample
