@@ -1,15 +1,19 @@
-"""Fuzz the Arduino frame decoder and the SCIP scan parser: mutated valid inputs + random bytes.
+"""Fuzz the Arduino frame decoder and the SCIP scan parser (mutated valid inputs + random bytes)
+and the safety monitor's scan assessment (mutated scan fields and beams).
 
 `python -m bench.fuzz [--n N] [--seed S]` feeds N inputs (default 1 000 000) into each parser,
 counts every outcome by reason, and fails (exit 1) on any crash: an exception other than the
-documented ones (FrameDecoder: none at all; SCIP: ScipError and its subclasses). Results go to
-bench/results/fuzz.json.
+documented ones (FrameDecoder: none at all; SCIP: ScipError and its subclasses). The monitor
+costs ~7 ms a scan, so it gets N/100 inputs; for it a "crash" is also a limit that is not
+finite, negative or above the caps, a rejected scan that is not a stop in every direction, or a
+scan without one valid beam that leaves any direction open. Results: bench/results/fuzz.json.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import random
 import sys
 import time
@@ -21,6 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from autochair.protocol import arduino, scip
+from autochair.runtime.config import ChairGeometry
+from autochair.safety.core import SafetyCore, SafetyParams, Scan
+
+MOUNT = ChairGeometry().laser_mount
 
 RESULTS = Path(__file__).parent / "results" / "fuzz.json"
 
@@ -173,8 +181,94 @@ def fuzz_scip(rng: random.Random, n: int, batch: int) -> dict[str, object]:
             "outcomes": dict(sorted(outcomes.items()))}
 
 
+def scan_corpus(rng: random.Random) -> list[Scan]:
+    """Simulated URG-04LX scans of the hallway, as the ingest delivers them."""
+    from autochair.lidar.sim import UrgParams, ray_scan
+    from autochair.lidar.world import DEFAULT_WORLD, load_world
+
+    world, urg = load_world(DEFAULT_WORLD), UrgParams()
+    inc = 2 * math.pi / urg.ares
+    nrng = np.random.default_rng(rng.randrange(1 << 30))
+    out = []
+    for _ in range(20):
+        pose = (rng.uniform(0, 18), rng.uniform(-0.4, 0.4), rng.uniform(-math.pi, math.pi))
+        raw = ray_scan(world, urg, pose, MOUNT, 0.01, nrng)
+        r = np.where((raw < urg.dmin_mm) | (raw > urg.dmax_mm), np.nan, raw * 1e-3)
+        out.append(Scan(r, (urg.amin - urg.afrt) * inc, inc, urg.dmin_mm * 1e-3,
+                        urg.dmax_mm * 1e-3))
+    return out
+
+
+WEIRD = (0.0, -0.0, -1.0, 1e-12, 1e12, math.nan, math.inf, -math.inf)
+
+
+def mutate_scan(rng: random.Random, scan: Scan) -> Scan:
+    """One scan with a few fields or beams broken."""
+    fields = {"ranges": scan.ranges.copy(), "angle_min": scan.angle_min,
+              "angle_inc": scan.angle_inc, "range_min": scan.range_min,
+              "range_max": scan.range_max, "frame_id": scan.frame_id}
+    for _ in range(rng.choice((1, 1, 2, 3))):
+        op = rng.randrange(8)
+        r = fields["ranges"]
+        assert isinstance(r, np.ndarray)
+        if op < 3 and r.size:  # a run of beams: blind, absurd or close
+            i = rng.randrange(r.size)
+            r[i:i + rng.randrange(1, r.size + 1)] = rng.choice((*WEIRD, 0.05, 0.3, 100.0))
+        elif op == 3:
+            fields["ranges"] = r[:rng.randrange(r.size + 1)]
+        elif op == 4:
+            fields["ranges"] = np.concatenate((r, r[:rng.randrange(r.size + 1)]))
+        elif op == 5:
+            name = rng.choice(("angle_min", "angle_inc", "range_min", "range_max"))
+            fields[name] = rng.choice((*WEIRD, rng.uniform(-10, 10)))
+        elif op == 6:
+            fields["angle_inc"] = -float(fields["angle_inc"])  # type: ignore[arg-type]
+        else:
+            fields["frame_id"] = rng.choice(("map", "", "laser "))
+    return Scan(**fields)  # type: ignore[arg-type]
+
+
+def fuzz_safety(rng: random.Random, n: int, batch: int) -> dict[str, object]:
+    n = max(1, n // 100)
+    core = SafetyCore(SafetyParams(mount=MOUNT))
+    caps = (core.p.v_max_fwd_mps, core.p.v_max_rev_mps, core.p.omega_max_radps)
+    corpus = scan_corpus(rng)
+    outcomes: Counter[str] = Counter()
+    crashes: list[str] = []
+    t0 = time.perf_counter()
+    for k in range(n):
+        base = rng.choice(corpus)
+        scan = base if rng.random() < 0.1 else mutate_scan(rng, base)  # 10 % valid controls
+        v, w = rng.uniform(-0.5, 1.2), rng.uniform(-1.0, 1.0)
+        try:
+            lim = core.assess(scan, v, w)
+        except Exception:
+            crashes.append(f"input {k}: {traceback.format_exc(limit=2)}")
+            continue
+        bounds = (lim.v_fwd, lim.v_rev, lim.omega)
+        if not all(math.isfinite(b) and 0.0 <= b <= c + 1e-9
+                   for b, c in zip(bounds, caps, strict=True)):
+            crashes.append(f"input {k}: bounds {bounds}")
+        if lim.rejected and any(bounds):
+            crashes.append(f"input {k}: rejected ({lim.rejected}) but not a stop: {bounds}")
+        if not lim.rejected and not scan.valid().any() and any(bounds):
+            crashes.append(f"input {k}: no valid beam but not a stop: {bounds}")
+        if lim.rejected:
+            outcomes[f"rejected:{lim.rejected}"] += 1
+        elif lim.blind:
+            outcomes["blind:" + "+".join(sorted(b.split(":")[0].removeprefix("blind ")
+                                                for b in lim.blind))] += 1
+        else:
+            outcomes["assessed"] += 1
+    dt = time.perf_counter() - t0
+    return {"inputs": n, "seconds": round(dt, 2), "inputs_per_s": round(n / dt),
+            "crashes": len(crashes), "crash_examples": crashes[:5],
+            "outcomes": dict(sorted(outcomes.items()))}
+
+
 TARGETS: dict[str, Callable[[random.Random, int, int], dict[str, object]]] = {
-    "arduino_frame_decoder": fuzz_arduino, "scip_reader_parse_scan": fuzz_scip}
+    "arduino_frame_decoder": fuzz_arduino, "scip_reader_parse_scan": fuzz_scip,
+    "safety_monitor_assess": fuzz_safety}
 
 
 def main(argv: list[str] | None = None) -> int:
