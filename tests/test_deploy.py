@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -34,20 +35,64 @@ def test_every_deployed_process_is_in_every_file() -> None:
     conf = (DEPLOY / "supervisord.conf").read_text()
     target = (DEPLOY / "systemd" / "autochair.target").read_text()
     for p in procs:
-        assert services[p.name]["command"][0] == p.script  # type: ignore[index]
+        assert p.script in services[p.name]["command"]  # type: ignore[operator]
         assert f"[program:{p.name}]" in conf
         unit = (DEPLOY / "systemd" / f"autochair-{p.name}.service").read_text()
         assert f"ExecStart={deploy.Paths().bin_dir}/{p.script}" in unit
         assert f"autochair-{p.name}.service" in target
+        svc = services[p.name]
+        assert svc["network_mode"] == "host" and svc["restart"] == "unless-stopped"
+        assert svc["healthcheck"]["test"] == [  # type: ignore[index]
+            "CMD", "autochair", "health", "--service", p.name]
+        env = svc["environment"]
+        assert env["AUTOCHAIR_CONNECT"] == "tcp/127.0.0.1:${AUTOCHAIR_HUB_PORT:-7447}"  # type: ignore[index]
         if p.name != "router":
-            env = services[p.name]["environment"]
-            assert env["AUTOCHAIR_CONNECT"] == "tcp/router:7447"  # type: ignore[index]
-            assert services[p.name]["depends_on"]["router"] == {  # type: ignore[index]
-                "condition": "service_healthy"}
+            assert svc["depends_on"]["router"] == {  # type: ignore[index]
+                "condition": "service_started"}  # peers retry the hub: no wait needed
+        if p.hardware:  # on the chair: the device by its stable path; in `sim`: the sim's pty
+            assert svc["profiles"] == ["chair"]
+            assert services[f"sim-{p.name}"]["profiles"] == ["sim"]
         for h in p.hardware:
+            var, by_id = deploy.COMPOSE_DEVICES[h]
             dev = deploy.CHAIR_VALUES[deploy.HARDWARE_PLACEHOLDER[h]]
-            assert f"{dev}:{dev}" in services[p.name]["devices"]  # type: ignore[operator]
+            assert by_id.startswith("/dev/serial/by-id/")
+            assert f"${{{var}:-{by_id}}}:{dev}" in svc["devices"]  # type: ignore[operator]
     assert "{" not in conf.replace("{}", "")  # every placeholder filled
+
+
+def test_compose_profiles_volumes_and_the_tls_listener() -> None:
+    doc = compose_doc()
+    services = doc["services"]
+    sims = {p.name for p in PROCESSES if p.sim_only}
+    assert {n for n, s in services.items() if s.get("profiles") == ["sim"]} == sims | {
+        f"sim-{p.name}" for p in PROCESSES if p.hardware}
+    assert all("profiles" not in s for n, s in services.items()
+               if n in {p.name for p in PROCESSES if not (p.sim_only or p.hardware)})
+    router = services["router"]["command"]
+    assert "tcp/127.0.0.1:${AUTOCHAIR_HUB_PORT:-7447},tls/${AUTOCHAIR_TLS_LISTEN:-0.0.0.0:7448}" \
+        in router  # type: ignore[operator]
+    assert "${AUTOCHAIR_CERTS:-./certs}:/etc/autochair/certs:ro" in services["router"][
+        "volumes"]  # type: ignore[operator]
+    # The latch and the recordings live on named volumes, where their placeholders point.
+    assert "autochair-state:/var/lib/autochair/state" in services["estop"]["volumes"]  # type: ignore[operator]
+    assert "autochair-recordings:/var/lib/autochair/recordings" in services["logger"][
+        "volumes"]  # type: ignore[operator]
+    assert "state_file=/var/lib/autochair/state/estop.json" in services["estop"]["command"]  # type: ignore[operator]
+    for name in ("sim", "sim-gateway", "lidar-sim", "sim-lidar"):
+        assert "autochair-sim-pts:/dev/pts" in services[name]["volumes"]  # type: ignore[operator]
+    assert doc["volumes"]["autochair-sim-pts"]["driver_opts"]["type"] == "devpts"  # type: ignore[index]
+    # Every watched service runs under the hung-process watchdog, as under supervisord.
+    assert services["pid"]["command"][:4] == [  # type: ignore[index]
+        "autochair-watchdog", "--timeout", str(deploy.WATCHDOG_TIMEOUT_S), "--"]
+    assert services["router"]["command"][0] == "autochair-router"  # type: ignore[index]
+
+
+def test_dockerfile_takes_its_base_and_installs_offline_as_a_user() -> None:
+    text = (DEPLOY / "Dockerfile").read_text()
+    assert f"ARG BASE={deploy.PUBLIC_BASE}\n" in text and "FROM ${BASE}" in text
+    assert text.count("pip install") == text.count("pip install -q --no-index") == 2
+    assert "USER autochair" in text
+    assert f"--uid {deploy.IMAGE_UID}" in text
 
 
 def test_a_new_process_row_shows_up_and_drift_is_caught(tmp_path: Path) -> None:
@@ -77,6 +122,14 @@ def test_compose_file_validates_with_docker_compose() -> None:
     out = subprocess.run([exe, "-f", str(DEPLOY / "docker-compose.yml"), "config"],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
-    for p in deploy.deployed():
+    for p in PROCESSES:
         assert f"  {p.name}:" in out.stdout
-    assert "/dev/ttyACM0:/dev/ttyACM0" in out.stdout
+    assert "/dev/serial/by-id/usb-Hokuyo_Data_Flex_for_USB_URG-Series_USB_Driver-if00:" \
+        "/dev/ttyACM1" in out.stdout
+    env = {"PATH": os.environ.get("PATH", ""), "AUTOCHAIR_ARDUINO": "/dev/serial/by-id/usb-x",
+           "AUTOCHAIR_HUB_PORT": "17447"}
+    out = subprocess.run([exe, "-f", str(DEPLOY / "docker-compose.yml"), "config"],
+                         capture_output=True, text=True, timeout=60, env=env)
+    assert out.returncode == 0, out.stderr
+    assert "/dev/serial/by-id/usb-x:/dev/ttyACM0" in out.stdout
+    assert "tcp/127.0.0.1:17447,tls/0.0.0.0:7448" in out.stdout

@@ -8,7 +8,7 @@ import importlib
 import sys
 
 COMMANDS = ("up", "drive", "status", "estop", "deploy", "certs", "monitor", "teleop", "foxglove",
-            "record", "replay", "info", "report", "goal", "cancel")
+            "record", "replay", "info", "report", "goal", "cancel", "health")
 
 
 def main(argv: list[str] | None = None) -> int:
