@@ -1,7 +1,11 @@
-"""Teleop: the deadman publishes one zero then nothing; speed limits; explicit takeover."""
+"""Teleop: the deadman publishes one zero then nothing; speed limits; explicit takeover.
+
+(More of the core, with synthetic pad, keyboard and panel streams: tests/test_teleop_core.py.)
+"""
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
 import time
@@ -14,15 +18,21 @@ from autochair.teleop import Teleop, TeleopLimits
 from autochair_msgs import CommandOwner, VelocityCommand, keys
 from tests.test_deploy_tls import open_json, wait_for
 
+# Without the ramp, so the commands below are exactly the limits.
+NO_RAMP = {"accel_mps2": math.inf, "decel_mps2": math.inf, "omega_accel_radps2": math.inf,
+           "omega_decel_radps2": math.inf}
+
 
 def test_core_deadman_one_zero_then_silence() -> None:
-    core = Teleop(TeleopLimits(max_v_mps=1.0, max_omega_radps=1.0, deadman_s=0.3))
+    core = Teleop(TeleopLimits(max_v_mps=1.0, max_omega_radps=1.0, deadman_s=0.3, **NO_RAMP))
     core.scale = 1.0
-    core.request(1.0, 0.0, now=0.0)
+    core.tick(-0.05, link_ok=True)  # the loop ticks from its start, idle: nothing
+    core.request(1.0, 0.0, now=0.0)  # a key press ...
+    core.request(1.0, 0.0, now=0.1)  # ... and its auto-repeat: then silence (released)
     out = [core.tick(t / 100, link_ok=True) for t in range(0, 100, 5)]  # 0 .. 0.95 s
-    assert out[:7] == [(1.0, 0.0)] * 7  # through 0.30 s
-    assert out[7] == (0.0, 0.0)  # 0.35 s: released -> one zero
-    assert out[8:] == [None] * (len(out) - 8)
+    assert out[:8] == [(1.0, 0.0)] * 8  # through 0.35 s
+    assert out[8] == (0.0, 0.0)  # 0.40 s: 0.3 s after the last repeat -> one zero
+    assert out[9:] == [None] * (len(out) - 9)
     assert core.deadman_stops == 1
 
 
@@ -41,7 +51,7 @@ def test_each_fresh_deadman_press_begins_a_new_stream() -> None:
 
 
 def test_core_link_loss_stops_and_limits_hold() -> None:
-    core = Teleop(TeleopLimits(max_v_mps=0.6, max_omega_radps=0.8, deadman_s=0.3))
+    core = Teleop(TeleopLimits(max_v_mps=0.6, max_omega_radps=0.8, deadman_s=0.3, **NO_RAMP))
     core.scale = 1.0
     core.request(5.0, -5.0, now=0.0)  # out-of-range input is clamped to the limits
     assert core.tick(0.0, True) == (0.6, -0.8)
@@ -71,7 +81,7 @@ def test_teleop_over_zenoh_takes_over_and_deadman_stops() -> None:
     token = chair.liveliness().declare_token(f"{keys.PREFIX}/alive/pid")
     events: queue.Queue[str] = queue.Queue()
     stop = threading.Event()
-    link = TeleopLink(laptop, Teleop(TeleopLimits(deadman_s=0.3)))
+    link = TeleopLink(laptop, Teleop(TeleopLimits(deadman_s=0.3, **NO_RAMP)))
     t = threading.Thread(target=loop, args=(link, events, stop, 50.0), daemon=True)
     try:
         assert wait_for(lambda: link.link_ok)
