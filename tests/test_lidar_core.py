@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from autochair.geometry import mount_mismatch
 from autochair.lidar.core import (
     WRAP,
     Backoff,
@@ -25,7 +26,6 @@ from autochair.lidar.sim import UrgDevice, UrgParams, ray_scan
 from autochair.lidar.world import World, WorldError, load_world, parse_world, raycast
 from autochair.protocol import scip
 from autochair.runtime.config import ChairGeometry
-from autochair.safety.core import mount_mismatch
 from autochair_msgs import LaserScan
 
 MOUNT = ChairGeometry().laser_mount  # (0.8636, 0.2032, 0.0), the [chair] default

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from autochair.geometry import mount_mismatch
 from autochair.safety.core import (
     EStopAction,
     Fault,
@@ -16,7 +17,6 @@ from autochair.safety.core import (
     Scan,
     bearing_bins,
     check_scan,
-    mount_mismatch,
     scan_points,
     stop_speed,
     unseen_swing,

@@ -1,4 +1,7 @@
-"""Small planar geometry shared by the cores (pure)."""
+"""Geometry shared by every service (pure): angles, yaw ↔ quaternion, frame checks.
+
+One place for these, so no two services convert differently (REP-103: x forward, y left,
+z up, yaw counter-clockwise about z)."""
 
 from __future__ import annotations
 
@@ -9,3 +12,43 @@ def wrap_angle(a: float) -> float:
     """Wrap an angle to (−π, π] (REP-103 heading range)."""
     r = math.remainder(a, math.tau)
     return r + math.tau if r <= -math.pi else r
+
+
+def yaw_quaternion(yaw: float) -> tuple[float, float, float, float]:
+    """The unit quaternion (x, y, z, w) of a rotation by `yaw` about z."""
+    return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+
+
+def quaternion_yaw(x: float, y: float, z: float, w: float) -> float:
+    """The yaw (about z, in (−π, π]) of a quaternion (x, y, z, w); exact for planar ones."""
+    return wrap_angle(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+
+def mount_mismatch(parent: str, translation: tuple[float, float, float],
+                   rotation_xyzw: tuple[float, float, float, float],
+                   laser_xyz: tuple[float, float, float], laser_yaw: float,
+                   parent_frame: str = "chair", tol_m: float = 1e-3,
+                   tol_rad: float = math.radians(0.1)) -> str:
+    """"" if a received chair→laser transform agrees with the configured mount within 1 mm
+    and 0.1°, else why not (one line)."""
+    if parent != parent_frame:
+        return f"tf parent frame {parent!r}, want {parent_frame!r}"
+    vals = (*translation, *rotation_xyzw)
+    if not all(math.isfinite(v) for v in vals):
+        return "tf has non-finite values"
+    for axis, got, want in zip("xyz", translation, laser_xyz, strict=True):
+        if abs(got - want) > tol_m:
+            return (f"tf {axis} {got:.4f} m vs [chair] laser_{axis}_m {want:.4f} m "
+                    f"({1000 * (got - want):+.1f} mm)")
+    qx, qy, qz, qw = rotation_xyzw
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    if abs(norm - 1.0) > 1e-3:
+        return f"tf rotation is not a unit quaternion (norm {norm:.4f})"
+    h = laser_yaw / 2
+    dot = abs(qz * math.sin(h) + qw * math.cos(h)) / norm  # with (0, 0, sin h, cos h)
+    angle = 2 * math.acos(min(1.0, dot))
+    if angle > tol_rad:
+        yaw = quaternion_yaw(qx, qy, qz, qw)
+        return (f"tf rotation differs by {math.degrees(angle):.2f}° (yaw {yaw:.4f} rad vs "
+                f"[chair] laser_yaw_rad {laser_yaw:.4f})")
+    return ""

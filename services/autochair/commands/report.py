@@ -139,11 +139,14 @@ def scan_points(odom: list[Any], scans: list[Any], statics: list[Any]
     """World-frame laser hits: each scan placed at the odometry pose nearest in time."""
     import bisect
 
+    from autochair.geometry import quaternion_yaw
+
     lx = ly = lyaw = 0.0
     for tf in statics:
         if tf.child_frame_id == "laser":
             lx, ly = tf.translation.x, tf.translation.y
-            lyaw = 2 * math.atan2(tf.rotation.z, tf.rotation.w)
+            q = tf.rotation
+            lyaw = quaternion_yaw(q.x, q.y, q.z, q.w)
     stamps = [o.stamp_ns for o in odom]
     xs: list[float] = []
     ys: list[float] = []

@@ -6,7 +6,6 @@ decoding, clock sync and backoff are in `core` (pure).
 
 from __future__ import annotations
 
-import math
 import os
 import random
 import select
@@ -18,6 +17,7 @@ import tty
 
 import msgspec
 
+from autochair.geometry import yaw_quaternion
 from autochair.protocol import scip
 from autochair.runtime.config import ChairGeometry, ConfigError
 from autochair.runtime.node import Node, service_main
@@ -135,11 +135,10 @@ def check_config(cfg: LidarConfig) -> None:
 
 def mount_transform(cfg: LidarConfig, chair: ChairGeometry, stamp_ns: int) -> FrameTransform:
     """The chair→laser transform from the [chair] geometry (the one definition of the mount)."""
-    h = chair.laser_yaw_rad / 2
     return FrameTransform(
         stamp_ns=stamp_ns, parent_frame_id=cfg.parent_frame_id, child_frame_id=cfg.frame_id,
         translation=Vector3(chair.laser_x_m, chair.laser_y_m, chair.laser_z_m),
-        rotation=Quaternion(0.0, 0.0, math.sin(h), math.cos(h)))
+        rotation=Quaternion(*yaw_quaternion(chair.laser_yaw_rad)))
 
 
 def start(node: Node, cfg: LidarConfig) -> None:

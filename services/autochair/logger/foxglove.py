@@ -26,6 +26,7 @@ from typing import Any
 
 import msgspec
 
+from autochair import geometry
 from autochair_msgs import (
     FrameTransform,
     Health,
@@ -55,7 +56,7 @@ def time_of(ns: int) -> dict[str, int]:
 
 
 def yaw_quaternion(yaw: float) -> dict[str, float]:
-    return {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
+    return dict(zip("xyzw", geometry.yaw_quaternion(yaw), strict=True))
 
 
 def _finite(v: float) -> float:

@@ -13,9 +13,9 @@ from collections import deque
 import msgspec
 import numpy as np
 
+from autochair.geometry import mount_mismatch
 from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
-from autochair.safety.core import mount_mismatch
 from autochair_msgs import FrameTransform, LaserScan, Odometry, keys
 
 from .core import GridSpec, OccupancyMapper, OdomBuffer, Pose, VoxelCloud, compose, scan_points

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 
 import msgspec
 
+from autochair.geometry import yaw_quaternion
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import EncoderSample, FrameTransform, Odometry, Quaternion, Vector3, keys
 
@@ -50,7 +50,7 @@ def start(node: Node, cfg: OdometryConfig) -> None:
             tf_pub.put(FrameTransform(
                 stamp_ns=stamp, parent_frame_id="world", child_frame_id="chair",
                 translation=Vector3(st.x, st.y, 0.0),
-                rotation=Quaternion(0.0, 0.0, math.sin(st.yaw / 2), math.cos(st.yaw / 2))))
+                rotation=Quaternion(*yaw_quaternion(st.yaw))))
         node.health.count("samples")
 
     node.subscribe(keys.ENCODERS, on_sample)

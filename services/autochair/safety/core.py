@@ -470,37 +470,6 @@ class SafetyCore:
                      rear_seen=rear_seen)
 
 
-# --- mount check -------------------------------------------------------------------------------
-def mount_mismatch(parent: str, translation: tuple[float, float, float],
-                   rotation_xyzw: tuple[float, float, float, float],
-                   laser_xyz: tuple[float, float, float], laser_yaw: float,
-                   parent_frame: str = "chair", tol_m: float = 1e-3,
-                   tol_rad: float = math.radians(0.1)) -> str:
-    """"" if a received chair→laser transform agrees with the configured mount within 1 mm
-    and 0.1°, else why not (one line)."""
-    if parent != parent_frame:
-        return f"tf parent frame {parent!r}, want {parent_frame!r}"
-    vals = (*translation, *rotation_xyzw)
-    if not all(math.isfinite(v) for v in vals):
-        return "tf has non-finite values"
-    for axis, got, want in zip("xyz", translation, laser_xyz, strict=True):
-        if abs(got - want) > tol_m:
-            return (f"tf {axis} {got:.4f} m vs [chair] laser_{axis}_m {want:.4f} m "
-                    f"({1000 * (got - want):+.1f} mm)")
-    qx, qy, qz, qw = rotation_xyzw
-    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-    if abs(norm - 1.0) > 1e-3:
-        return f"tf rotation is not a unit quaternion (norm {norm:.4f})"
-    h = laser_yaw / 2
-    dot = abs(qz * math.sin(h) + qw * math.cos(h)) / norm  # with (0, 0, sin h, cos h)
-    angle = 2 * math.acos(min(1.0, dot))
-    if angle > tol_rad:
-        yaw = math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))
-        return (f"tf rotation differs by {math.degrees(angle):.2f}° (yaw {yaw:.4f} rad vs "
-                f"[chair] laser_yaw_rad {laser_yaw:.4f})")
-    return ""
-
-
 # --- the node's state --------------------------------------------------------------------------
 class Fault(enum.Enum):
     """Why the monitor publishes a stop regardless of the scan's contents."""

@@ -24,6 +24,7 @@ import msgspec
 import numpy as np
 import zenoh
 
+from autochair.geometry import mount_mismatch
 from autochair.runtime import ConfigError, Node, service_main
 from autochair.runtime.node import Publisher
 from autochair_msgs import EStopAssert, FrameTransform, LaserScan, Odometry, SafetyLimit, keys
@@ -36,7 +37,6 @@ from .core import (
     SafetyCore,
     SafetyParams,
     Scan,
-    mount_mismatch,
     stop_limit,
 )
 
