@@ -34,7 +34,7 @@ import zenoh
 from autochair import deploy
 from autochair.logger.reader import Recording
 from autochair.processes import by_name
-from autochair.runtime.client import open_client
+from autochair.runtime.client import RequestError, open_client, request
 from autochair_msgs import (
     GroundTruth,
     Health,
@@ -44,7 +44,7 @@ from autochair_msgs import (
     VelocityCommand,
     keys,
 )
-from autochair_msgs.sim import SimFault
+from autochair_msgs.sim import SimFault, SimFaultReply
 
 BIN = Path(sys.executable).parent
 RESULTS = Path(__file__).parent / "results" / "faults.json"
@@ -252,10 +252,10 @@ class Probe:
 
 
 def sim_fault(session: zenoh.Session, fault: SimFault) -> bool:
-    for reply in session.get(keys.SIM_FAULT.key, payload=ENC.encode(fault), timeout=5.0):
-        if reply.ok is not None:
-            return True
-    return False
+    try:
+        return request(session, keys.SIM_FAULT, fault, SimFaultReply, timeout_s=5.0).ok
+    except RequestError:
+        return False
 
 
 def junk_every_key(session: zenoh.Session) -> list[str]:

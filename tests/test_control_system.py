@@ -7,25 +7,17 @@ import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
-import msgspec
 import pytest
 
 from autochair.launcher import Launcher
-from autochair_msgs import GoalReply, GoalRequest, GoalStatus, GroundTruth, Pose2D, keys
+from autochair.runtime.client import request
+from autochair_msgs import Empty, GoalReply, GoalRequest, GoalStatus, GroundTruth, Pose2D, keys
 from tests.helpers import Recorder, client_session, wait_for
 
 pytestmark = pytest.mark.slow
 
 STACK = ["estop", "sim", "gateway", "odometry", "pid", "control"]
-
-
-def ask(session: Any, key: str, payload: bytes) -> bytes:
-    for reply in session.get(key, payload=payload, timeout=3.0):
-        assert reply.ok is not None, reply.err
-        return bytes(reply.ok.payload.to_bytes())
-    pytest.fail(f"no reply on {key}")
 
 
 def test_goal_set_to_arrival_in_the_simulator(
@@ -37,21 +29,20 @@ def test_goal_set_to_arrival_in_the_simulator(
         truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
         wait_for(lambda: status.latest() and truth.latest(), 15, "goal status and sim truth")
         # a bad goal is refused with a reason
-        bad = msgspec.msgpack.decode(ask(session, keys.GOAL_SET.key, msgspec.msgpack.encode(
-            GoalRequest(waypoints=[Pose2D(math.nan, 0, 0)]))), type=GoalReply)
+        bad = request(session, keys.GOAL_SET, GoalRequest(waypoints=[Pose2D(math.nan, 0, 0)]),
+                      GoalReply)
         assert not bad.ok and "not finite" in bad.error
         goal = GoalRequest(waypoints=[Pose2D(1.5, 0.5, math.radians(30))])
 
         def set_goal() -> GoalReply | None:  # odometry may not be flowing yet
-            r = msgspec.msgpack.decode(ask(session, keys.GOAL_SET.key,
-                                           msgspec.msgpack.encode(goal)), type=GoalReply)
+            r = request(session, keys.GOAL_SET, goal, GoalReply)
             return r if r.ok else None
 
         reply = wait_for(set_goal, 15, "goal accepted")
         done = wait_for(lambda: next((s for s in status.messages() if s.goal_id == reply.goal_id
                                       and s.state != "active"), None), 60, "goal end")
         assert done.state == "arrived", done
-        got = msgspec.msgpack.decode(ask(session, keys.GOAL_GET.key, b""), type=GoalStatus)
+        got = request(session, keys.GOAL_GET, Empty(), GoalStatus)
         assert got.goal_id == reply.goal_id and got.state == "arrived"
         t = truth.latest()
         assert math.hypot(t.x_m - 1.5, t.y_m - 0.5) < 0.10, t  # truth vs odometry: slip-free sim

@@ -19,6 +19,7 @@ import zenoh
 from autochair.estop.core import EStopCore
 from autochair.estop.node import EStopConfig, start
 from autochair.runtime import Node
+from autochair.runtime.client import request
 from autochair.runtime.config import ZenohSettings
 from autochair_msgs import EStopAssert, EStopRelease, EStopReply, EStopState, LogEvent, keys
 from tests.helpers import wait_for
@@ -161,10 +162,8 @@ class EStopNode:
         return next((c.active for c in st.causes if c.source == source), None) if st else None
 
     def release(self) -> EStopReply:
-        (reply,) = list(self.node.session.get(
-            keys.ESTOP_RELEASE.key, payload=ENC.encode(EStopRelease(by="test")), timeout=3.0))
-        assert reply.ok is not None
-        return msgspec.msgpack.decode(reply.ok.payload.to_bytes(), type=EStopReply)
+        return request(self.node.session, keys.ESTOP_RELEASE, EStopRelease(by="test"),
+                       EStopReply)
 
     def close(self) -> None:
         self.node.close()

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
 
 import msgspec
 import numpy as np
 import pytest
-import zenoh
 
 from autochair.launcher import Launcher
+from autochair.runtime.client import request
 from autochair_msgs import (
     EStopAssert,
     EStopRelease,
@@ -30,13 +29,6 @@ pytestmark = pytest.mark.slow
 
 STACK = ["estop", "sim", "gateway", "odometry", "pid", "control"]
 A_MAX = 1.0  # the comfort limit (ControlConfig.a_max_mps2)
-
-
-def query(session: zenoh.Session, key: str, msg: msgspec.Struct, reply: type[Any]) -> Any:
-    for r in session.get(key, payload=msgspec.msgpack.encode(msg), timeout=3.0):
-        if r.ok is not None:
-            return msgspec.msgpack.decode(r.ok.payload.to_bytes(), type=reply)
-    pytest.fail(f"no reply on {key}")
 
 
 def peak_accel(truth: list[GroundTruth]) -> float:
@@ -58,7 +50,7 @@ def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
         status = Recorder(session, keys.GOAL_STATUS.key, GoalStatus)
         pid_ready(session)
         goal = GoalRequest(waypoints=[Pose2D(8.0, 0.0, 0.0)])
-        assert query(session, keys.GOAL_SET.key, goal, GoalReply).ok
+        assert request(session, keys.GOAL_SET, goal, GoalReply).ok
         wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair cruising to the goal")
         # A momentary press (a button): latched, nothing left to clear.
         session.put(keys.ESTOP_ASSERT.key, msgspec.msgpack.encode(EStopAssert(
@@ -67,7 +59,7 @@ def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
                  5, "the goal aborted by the e-stop")
         assert "e-stop" in status.latest().reason
         wait_for(lambda: abs(truth.latest().v_mps) < 0.005, 10, "the chair at rest")
-        released = query(session, keys.ESTOP_RELEASE.key, EStopRelease(by="test"), EStopReply)
+        released = request(session, keys.ESTOP_RELEASE, EStopRelease(by="test"), EStopReply)
         assert released.ok, released.error
         release_ns = time.time_ns()
         x0, t_rel = truth.latest().x_m, time.monotonic()
@@ -77,7 +69,7 @@ def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
         assert abs(truth.latest().x_m - x0) < 0.01, "the chair moved after the release"
         # A new goal (a deliberate act after the stop) starts smoothly from rest.
         start_ns = time.time_ns()
-        assert query(session, keys.GOAL_SET.key, GoalRequest(
+        assert request(session, keys.GOAL_SET, GoalRequest(
             waypoints=[Pose2D(x0 + 3.0, 0.0, 0.0)]), GoalReply).ok
         wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair driving the new goal")
         frames = [m for m in out.messages() if m.stamp_ns > start_ns and m.enable]

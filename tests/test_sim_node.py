@@ -9,13 +9,13 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import msgspec
 import pytest
 import serial
 import zenoh
 
 from autochair.launcher import free_port
 from autochair.protocol import arduino as proto
+from autochair.runtime.client import request
 from autochair_msgs import GroundTruth, keys
 from autochair_msgs.sim import SimFault, SimFaultReply
 from tests.helpers import Recorder, session_when_up, stop_process, wait_for
@@ -78,12 +78,9 @@ def test_sim_node_telemetry_truth_and_unplug(
         last = truth.latest()
         assert last is not None and last.x_m > 0.05 and last.longitudinal_v == 3.2
     # Fault: unplug for 1 s -> the link disappears, then comes back and still talks.
-    reply = session.get(keys.SIM_FAULT.key,
-                        payload=msgspec.msgpack.encode(SimFault(kind="unplug",
-                                                                duration_s=1.0)))
-    answers = [msgspec.msgpack.decode(r.ok.payload.to_bytes(), type=SimFaultReply)
-               for r in reply if r.ok is not None]
-    assert answers and answers[0].ok
+    answer = request(session, keys.SIM_FAULT, SimFault(kind="unplug", duration_s=1.0),
+                     SimFaultReply)
+    assert answer.ok
     wait_for(lambda: not link.exists(), 5, "link removed")
     wait_for(link.exists, 10, "link recreated")
     with serial.Serial(str(link), timeout=0.05) as port:

@@ -1,6 +1,6 @@
 """autochair message types (msgspec Structs) and the table of Zenoh keys (`keys`)."""
 
-from .common import FrameTransform, Health, LogEvent, Quaternion, Vector3
+from .common import Empty, FrameTransform, Health, LogEvent, Quaternion, Vector3
 from .drive import (
     CommandOwner,
     EncoderSample,
@@ -24,6 +24,7 @@ from .safety import (
 
 __all__ = [
     "CommandOwner",
+    "Empty",
     "EStopAssert",
     "EStopCause",
     "EStopRelease",

@@ -5,6 +5,10 @@ from __future__ import annotations
 import msgspec
 
 
+class Empty(msgspec.Struct, frozen=True):
+    """A request that carries nothing (e.g. "what is the goal's status?")."""
+
+
 class Vector3(msgspec.Struct, frozen=True):
     """A vector in metres."""
 

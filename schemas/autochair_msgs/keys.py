@@ -12,7 +12,7 @@ from typing import Generic, Literal, TypeVar
 
 import msgspec
 
-from .common import FrameTransform, Health, LogEvent
+from .common import Empty, FrameTransform, Health, LogEvent
 from .drive import (
     CommandOwner,
     EncoderSample,
@@ -85,7 +85,7 @@ GOAL_CANCEL = Topic("autochair/goal/cancel", GoalRequest, None, False,
                     "Cancel the active goal (query; reply GoalReply)", kind="query",
                     reply=GoalReply)
 GOAL_STATUS = Topic("autochair/goal/status", GoalStatus, 5, True, "Goal progress (control law)")
-GOAL_GET = Topic("autochair/goal/get", GoalStatus, None, False,
+GOAL_GET = Topic("autochair/goal/get", Empty, None, False,
                  "Current goal status (query, empty request; reply GoalStatus)", kind="query",
                  reply=GoalStatus)
 

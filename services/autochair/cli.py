@@ -24,6 +24,13 @@ def main(argv: list[str] | None = None) -> int:
     except CliError as e:
         print(f"autochair {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except Exception as e:
+        from autochair.runtime.client import RequestError  # (zenoh: not at --help time)
+
+        if not isinstance(e, RequestError):
+            raise
+        print(f"autochair {args.command}: error: {e}", file=sys.stderr)
+        return 2
 
 
 class CliError(Exception):

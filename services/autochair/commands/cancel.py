@@ -17,17 +17,13 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import msgspec
-
-    from autochair.commands.goal import query
     from autochair.remote import open_session
+    from autochair.runtime.client import request
     from autochair_msgs import GoalReply, GoalRequest, keys
 
     session = open_session(args)
     try:
-        reply = msgspec.msgpack.decode(
-            query(session, keys.GOAL_CANCEL.key,
-                  msgspec.msgpack.encode(GoalRequest(waypoints=[]))), type=GoalReply)
+        reply = request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
     finally:
         session.close()
     if not reply.ok:

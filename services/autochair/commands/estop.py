@@ -113,20 +113,13 @@ def _clear(session: zenoh.Session, states: list[EStopState], source: str) -> int
 
 
 def run_release(args: argparse.Namespace) -> int:
-    import msgspec
-
     from autochair.remote import open_session
+    from autochair.runtime.client import request
     from autochair_msgs import EStopRelease, EStopReply, keys
 
     session = open_session(args)
     try:
-        replies = list(session.get(keys.ESTOP_RELEASE.key,
-                                   payload=msgspec.msgpack.encode(EStopRelease(by=_who())),
-                                   timeout=3.0))
-        ok = [r.ok for r in replies if r.ok is not None]
-        if not ok:
-            raise CliError("no e-stop service answered (is it running? `autochair status`)")
-        reply = msgspec.msgpack.decode(ok[0].payload.to_bytes(), type=EStopReply)
+        reply = request(session, keys.ESTOP_RELEASE, EStopRelease(by=_who()), EStopReply)
         if not reply.ok:
             raise CliError(f"release {reply.error}")
         print("e-stop released")

@@ -58,21 +58,10 @@ def read_waypoints(path: str) -> list[tuple[float, float, float]]:
     return rows
 
 
-def query(session: Any, key: str, payload: bytes, timeout_s: float = 2.0) -> bytes:
-    """The first reply's payload; CliError when no control service answers."""
-    for reply in session.get(key, payload=payload, timeout=timeout_s):
-        if reply.ok is not None:
-            return bytes(reply.ok.payload.to_bytes())
-        raise CliError(f"{key}: error reply: {reply.err.payload.to_string()}")
-    raise CliError(f"no control service answered on {key} (is `autochair-control` running? "
-                   "see `autochair status`)")
-
-
 def run(args: argparse.Namespace) -> int:
-    import msgspec
 
     from autochair.remote import open_session
-    from autochair.runtime.client import subscribe
+    from autochair.runtime.client import request, subscribe
     from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
 
     if args.waypoints and args.pose:
@@ -97,8 +86,7 @@ def run(args: argparse.Namespace) -> int:
                 cond.notify()
 
         sub = subscribe(session, keys.GOAL_STATUS, on_status)
-        reply = msgspec.msgpack.decode(
-            query(session, keys.GOAL_SET.key, msgspec.msgpack.encode(req)), type=GoalReply)
+        reply = request(session, keys.GOAL_SET, req, GoalReply)
         if not reply.ok:
             raise CliError(f"goal rejected: {reply.error}")
         print(f"goal {reply.goal_id} set: {len(rows)} waypoint(s), last "
@@ -109,8 +97,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             return _follow(reply.goal_id, status, cond)
         except KeyboardInterrupt:
-            query(session, keys.GOAL_CANCEL.key,
-                  msgspec.msgpack.encode(GoalRequest(waypoints=[])))
+            request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
             print("\ncancelled", flush=True)
             return 130
         finally:

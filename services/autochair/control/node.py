@@ -10,12 +10,10 @@ import sys
 import threading
 import time
 
-import msgspec
-import zenoh
-
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import (
     CommandOwner,
+    Empty,
     EStopState,
     GoalReply,
     GoalRequest,
@@ -27,9 +25,6 @@ from autochair_msgs import (
 )
 
 from .core import ControlConfig, ControlCore, OdomSample
-
-_REQUEST = msgspec.msgpack.Decoder(GoalRequest)
-_ENC = msgspec.msgpack.Encoder()
 
 
 def start(node: Node, cfg: ControlConfig) -> None:
@@ -79,21 +74,7 @@ def start(node: Node, cfg: ControlConfig) -> None:
     def publish_status() -> None:
         status_pub.put(status_msg())
 
-    def reply(query: zenoh.Query, msg: msgspec.Struct) -> None:
-        try:
-            query.reply(query.key_expr, _ENC.encode(msg))
-        except zenoh.ZError as e:
-            node.health.count("reply_errors")
-            node.log.warning("reply failed: %s", e)
-
-    def on_set(query: zenoh.Query) -> None:
-        payload = query.payload.to_bytes() if query.payload is not None else b""
-        try:
-            req = _REQUEST.decode(payload)
-        except (msgspec.DecodeError, msgspec.ValidationError) as e:
-            node.health.count("rejected_goals")
-            reply(query, GoalReply(ok=False, error=f"bad goal request: {e}"))
-            return
+    def on_set(req: GoalRequest) -> GoalReply:
         with lock:
             result = core.set_goal(req, time.monotonic())
             if result.ok:
@@ -105,17 +86,17 @@ def start(node: Node, cfg: ControlConfig) -> None:
         else:
             node.health.count("rejected_goals")
             node.event("warning", f"goal rejected: {result.error}")
-        reply(query, result)
+        return result
 
-    def on_cancel(query: zenoh.Query) -> None:
+    def on_cancel(_: GoalRequest) -> GoalReply:
         with lock:
             result = core.cancel(time.monotonic())
         if result.goal_id:
             node.event("info", f"goal {result.goal_id} cancelled")
-        reply(query, result)
+        return result
 
-    def on_get(query: zenoh.Query) -> None:
-        reply(query, status_msg())
+    def on_get(_: Empty) -> GoalStatus:
+        return status_msg()
 
     def on_estop(msg: EStopState) -> None:
         with lock:
@@ -133,9 +114,9 @@ def start(node: Node, cfg: ControlConfig) -> None:
     node.subscribe(keys.ESTOP_STATE, on_estop)
     node.subscribe(keys.CMD_OWNER, on_owner)
     node.subscribe(keys.SAFETY_LIMIT, on_limit)
-    for topic, handler in ((keys.GOAL_SET, on_set), (keys.GOAL_CANCEL, on_cancel),
-                           (keys.GOAL_GET, on_get)):
-        node.queryable(topic, handler)
+    node.serve(keys.GOAL_SET, on_set)
+    node.serve(keys.GOAL_CANCEL, on_cancel)
+    node.serve(keys.GOAL_GET, on_get)
     node.every(1.0 / cfg.rate_hz, tick, "control")
     node.every(1.0 / cfg.status_rate_hz, publish_status, "status")
 

@@ -15,7 +15,6 @@ import time
 from pathlib import Path
 
 import msgspec
-import zenoh
 
 from autochair.runtime import Node, service_main
 from autochair_msgs import EStopAssert, EStopRelease, EStopReply, keys
@@ -109,17 +108,7 @@ def start(node: Node, cfg: EStopConfig) -> None:
             node.health.count("clears")
             publish()
 
-    req_dec = msgspec.msgpack.Decoder(EStopRelease)
-    enc = msgspec.msgpack.Encoder()
-
-    def on_release(query: zenoh.Query) -> None:
-        try:
-            payload = query.payload
-            req = req_dec.decode(payload.to_bytes() if payload is not None else b"")
-        except (msgspec.DecodeError, msgspec.ValidationError) as e:
-            query.reply(query.key_expr, enc.encode(EStopReply(ok=False, latched=core.latched,
-                                                              error=f"bad request: {e}")))
-            return
+    def on_release(req: EStopRelease) -> EStopReply:
         with lock:
             error = core.release()
             if not error:
@@ -127,15 +116,14 @@ def start(node: Node, cfg: EStopConfig) -> None:
             latched = core.latched
         node.event("warning" if error else "info",
                    f"e-stop release by {req.by}: {error or 'released'}")
-        query.reply(query.key_expr, enc.encode(EStopReply(ok=not error, latched=latched,
-                                                          error=error)))
         publish()
+        return EStopReply(ok=not error, latched=latched, error=error)
 
     with lock:
         save()  # at once: a state directory that cannot be written is reported before a latch
     node.subscribe(keys.ESTOP_ASSERT, on_assert)
     node.subscribe(keys.ESTOP_CLEAR, on_clear)
-    node.queryable(keys.ESTOP_RELEASE, on_release)
+    node.serve(keys.ESTOP_RELEASE, on_release)
     node.every(1.0 / cfg.rate_hz, publish, "state")
 
 

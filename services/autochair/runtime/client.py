@@ -28,6 +28,28 @@ def open_client(connect: str | None = None, config: str | None = None,
 
 
 T = TypeVar("T", bound=msgspec.Struct)
+R = TypeVar("R", bound=msgspec.Struct)
+
+
+class RequestError(Exception):
+    """A request got no reply, or an error reply; the message is one line for a person."""
+
+
+def request(session: zenoh.Session, topic: Any, req: msgspec.Struct, reply: type[R],
+            timeout_s: float = 3.0) -> R:
+    """Ask a `kind="query"` row of the key table (a `Node.serve` answers): `req` must be the
+    row's request type and `reply` its reply type. RequestError when no service answers in
+    `timeout_s`, or it answers with an error."""
+    if topic.kind != "query" or topic.reply is not reply or not isinstance(req, topic.type):
+        raise TypeError(f"{topic.key} takes {topic.type.__name__} → "
+                        f"{getattr(topic.reply, '__name__', None)}")
+    for r in session.get(topic.key, payload=msgspec.msgpack.encode(req), timeout=timeout_s):
+        if r.ok is not None:
+            return msgspec.msgpack.decode(r.ok.payload.to_bytes(), type=reply)
+        why = r.err.payload.to_string() if r.err is not None else "error reply"
+        raise RequestError(f"{topic.key}: {why}")
+    raise RequestError(f"no reply on {topic.key} within {timeout_s:g} s: is the service that "
+                       "answers it running? (`autochair status`)")
 
 
 def subscribe(session: zenoh.Session, topic: Any, on_msg: Callable[[T], None],

@@ -187,8 +187,37 @@ class Node:
         sub = self.session.declare_subscriber(key or topic.key, on_sample)
         self._closers.append(sub.undeclare)
 
+    def serve(self, topic: keys.Topic[T], handler: Callable[[T], msgspec.Struct]) -> None:
+        """Answer queries on a `kind="query"` row of the key table: the request decoded as the
+        row's type, the handler's reply (the row's reply type) encoded. A malformed request is
+        counted and answered with an error reply naming it; so is a handler that fails."""
+        assert topic.kind == "query" and topic.reply is not None, topic.key
+        decoder = msgspec.msgpack.Decoder(topic.type)
+        reply_type = topic.reply
+
+        def on_query(query: zenoh.Query) -> None:
+            payload = query.payload.to_bytes() if query.payload is not None else b""
+            try:
+                request = decoder.decode(payload)
+            except (msgspec.DecodeError, msgspec.ValidationError) as e:
+                self.health.count(f"bad_requests:{topic.key}")
+                query.reply_err(f"bad request on {topic.key}: {e}".encode())
+                return
+            try:
+                reply = handler(request)
+                if not isinstance(reply, reply_type):
+                    raise TypeError(f"{topic.key} handler returned {type(reply).__name__}, "
+                                    f"not {reply_type.__name__}")
+            except Exception as e:
+                query.reply_err(f"{topic.key}: {type(e).__name__}: {e}".encode())
+                raise  # counted and logged by `queryable`
+            query.reply(query.key_expr, _ENCODER.encode(reply))
+
+        self.queryable(topic, on_query)
+
     def queryable(self, topic: keys.Topic[Any], handler: Callable[[zenoh.Query], None]) -> None:
-        """Serve queries on a `kind="query"` row; the handler must reply and return quickly."""
+        """Serve raw queries on a `kind="query"` row (prefer `serve`); the handler must reply
+        and return quickly."""
 
         def guarded(query: zenoh.Query) -> None:
             token = self.liveness.enter(f"query {topic.key}", time.monotonic())

@@ -17,7 +17,6 @@ import tty
 from collections import deque
 
 import msgspec
-import zenoh
 
 from autochair.runtime import ConfigError, Node, service_main
 from autochair.sim.firmware import Firmware
@@ -116,19 +115,12 @@ class Simulator:
         self._reported: dict[str, int] = {}
 
     # --- faults (Zenoh thread enqueues, loop thread applies) --------------------------------
-    def on_fault(self, query: zenoh.Query) -> None:
-        try:
-            payload = query.payload.to_bytes() if query.payload is not None else b""
-            fault = msgspec.msgpack.decode(payload, type=SimFault)
-            if fault.kind not in ("unplug", "replug", "garbage"):
-                raise ValueError(f"unknown fault kind {fault.kind!r}")
-        except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as e:
+    def on_fault(self, fault: SimFault) -> SimFaultReply:
+        if fault.kind not in ("unplug", "replug", "garbage"):
             self.node.health.count("bad_fault_requests")
-            reply = SimFaultReply(ok=False, detail=str(e))
-        else:
-            self._faults.append(fault)
-            reply = SimFaultReply(ok=True, detail=f"{fault.kind} queued")
-        query.reply(query.key_expr, msgspec.msgpack.encode(reply))
+            return SimFaultReply(ok=False, detail=f"unknown fault kind {fault.kind!r}")
+        self._faults.append(fault)
+        return SimFaultReply(ok=True, detail=f"{fault.kind} queued")
 
     def _apply_faults(self) -> None:
         while self._faults:
@@ -210,7 +202,7 @@ def start(node: Node, cfg: SimConfig) -> None:
                                    "time_scale": cfg.time_scale,
                                    "firmware_watchdog_s": sim.fw.watchdog_s})
     node.health.detail = f"pty {sim.port.slave_name} via {cfg.pty_link}"
-    node.queryable(keys.SIM_FAULT, sim.on_fault)
+    node.serve(keys.SIM_FAULT, sim.on_fault)
     node.every(sim.dt / cfg.time_scale, sim.tick, "sim")
 
 
