@@ -47,13 +47,14 @@ def free_port() -> int:
 
 def wait_port(host: str, port: int, timeout_s: float) -> bool:
     deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+    while True:  # at least once, even with timeout 0
         with socket.socket() as s:
             s.settimeout(0.2)
             if s.connect_ex((host, port)) == 0:
                 return True
+        if time.monotonic() >= deadline:
+            return False
         time.sleep(0.05)
-    return False
 
 
 @dataclass
@@ -101,18 +102,36 @@ class Launcher:
         return self.values["hub"]
 
     def start(self, ready_timeout_s: float = 20.0) -> None:
-        """Start everything (the hub first); returns once all are up or raises TimeoutError."""
-        if "router" in self.children:
-            self._spawn(self.children["router"])
-            host, port = self.hub.split("/", 1)[1].rsplit(":", 1)
-            if not wait_port(host, int(port), ready_timeout_s):
-                raise TimeoutError(f"the Zenoh hub did not start listening on {self.hub}")
-            self._set(self.children["router"], "up")
-        self._watch_liveliness()
-        for child in self.children.values():
-            if child.proc.name != "router":
+        """Start everything in the process list's order, each once the processes it comes
+        `after` are up; returns once all are up or raises TimeoutError."""
+        deadline = time.monotonic() + ready_timeout_s
+        pending = list(self.children.values())
+        while pending:
+            for child in [c for c in pending if all(
+                    self.children[d].state == "up" for d in c.proc.after if d in self.children)]:
                 self._spawn(child)
-        self.wait_up(ready_timeout_s)
+                pending.remove(child)
+            self._hub_ready()
+            if time.monotonic() > deadline:
+                waiting = {c.proc.name: [d for d in c.proc.after if d in self.children
+                                         and self.children[d].state != "up"] for c in pending}
+                raise TimeoutError(f"not started after {ready_timeout_s:.0f} s, waiting for "
+                                   f"{waiting} (logs in {self.run_dir})")
+            if pending:
+                time.sleep(0.05)
+        self.wait_up(max(deadline - time.monotonic(), 0.1))
+
+    def _hub_ready(self) -> None:
+        """A process that is the hub is up once it listens; tokens are watched from then on
+        (or at once when the hub is not ours)."""
+        host, port = self.hub.split("/", 1)[1].rsplit(":", 1)
+        for child in self.children.values():
+            if child.proc.ready == "hub_port" and child.state == "starting" \
+                    and wait_port(host, int(port), 0.0):
+                self._set(child, "up")
+        hubs = [c for c in self.children.values() if c.proc.ready == "hub_port"]
+        if self._session is None and all(c.state == "up" for c in hubs):
+            self._watch_liveliness()
 
     def wait_up(self, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s
@@ -187,6 +206,8 @@ class Launcher:
             elif child.state == "restarting" and now >= child.next_start:
                 child.restarts += 1
                 self._spawn(child)
+        if self._session is not None:
+            self._hub_ready()  # a restarted hub is up again once it listens
 
     def _check_hung(self, child: Child, now: float) -> None:
         """SIGKILL a running child whose watchdog pings stopped; the next poll restarts it."""

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 
 @dataclass(frozen=True)
@@ -29,11 +30,14 @@ class Process:
     hardware: tuple[str, ...] = ()  # devices it owns on a real chair
     doc: str = ""
     after: tuple[str, ...] = field(default=("router",))  # start after these are up
+    # How the launcher knows it is up: its liveliness token, or (the hub itself, which every
+    # token travels through) its listening port.
+    ready: Literal["token", "hub_port"] = "token"
 
 
 PROCESSES: tuple[Process, ...] = (
     Process("router", "autochair.router", "autochair-router",
-            ("--listen", "{hub}"), after=(), doc="Zenoh hub for discovery"),
+            ("--listen", "{hub}"), after=(), ready="hub_port", doc="Zenoh hub for discovery"),
     Process("estop", "autochair.estop.node", "autochair-estop",
             ("--set", "state_file={state_dir}/estop.json"),
             doc="E-stop latch; the gateway holds neutral while latched or silent"),
