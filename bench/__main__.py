@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 import sys
 
-BENCHES = ("chain", "lidar_decode", "logger", "control_eval")
+BENCHES = ("chain", "lidar_decode", "logger", "control_eval", "cpu")
 
 
 def main(argv: list[str]) -> int:

@@ -67,7 +67,8 @@ CMD_OWNER = Topic("autochair/cmd/owner", CommandOwner, 1, True,
                   "(PID obeys TELEOP only). Teleop takes over and hands back explicitly and "
                   "repeats its claim ~1 Hz; a lost link leaves \"teleop\" (stale → stop)")
 ODOM = Topic("autochair/odom", Odometry, 200, True, "Encoder odometry (odometry)")
-TF = Topic("autochair/tf", FrameTransform, 200, True, "Dynamic transform world → chair (odometry)")
+TF = Topic("autochair/tf", FrameTransform, 50, True,
+           "Dynamic transform world → chair (odometry; the pose of ODOM, decimated)")
 TF_STATIC = Topic("autochair/tf_static", FrameTransform, 1, True,
                   "Static transforms, e.g. chair → laser, repeated for late joiners")
 PID_STATUS = Topic("autochair/pid/status", PidStatus, 200, True,

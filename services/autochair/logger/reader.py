@@ -10,9 +10,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
+from typing import BinaryIO, NamedTuple
 
+import numpy as np
+import numpy.typing as npt
 from mcap.reader import NonSeekingReader, SeekingReader
+from mcap.records import ChunkIndex
 from mcap.writer import Writer
 
 
@@ -106,6 +109,13 @@ class Recording:
             yield from sorted(self._raw(), key=lambda m: m.log_ns)
 
     def summary(self) -> Summary:
+        """Channels, counts, first and last log times. A complete (indexed) file: from its
+        summary section and the message indexes of each channel's first and last chunks, no
+        message read; otherwise (or without message indexes) every message is read."""
+        if self.indexed:
+            fast = indexed_summary(self.path)
+            if fast is not None:
+                return fast
         out = Summary(self.path, self.indexed)
         for m in self._raw():
             c = out.channels.get(m.topic)
@@ -116,6 +126,50 @@ class Recording:
             c.first_ns = min(c.first_ns, m.log_ns)
             c.last_ns = max(c.last_ns, m.log_ns)
         out.error = self.error
+        return out
+
+
+def _index_times(f: BinaryIO, offset: int) -> npt.NDArray[np.uint64]:
+    """Log times of one MessageIndex record (opcode, u64 length, u16 channel, u32 byte length,
+    then (u64 log time, u64 offset) pairs)."""
+    f.seek(offset + 1 + 8 + 2)
+    size = int.from_bytes(f.read(4), "little")
+    return np.frombuffer(f.read(size), dtype="<u8")[0::2]
+
+
+def indexed_summary(path: Path) -> Summary | None:
+    """`Recording.summary` of a complete file from its indexes, or None when it lacks them."""
+    with open(path, "rb") as f:
+        summary = SeekingReader(f).get_summary()
+        if summary is None or summary.statistics is None:
+            return None
+        out = Summary(path, True)
+        chunks: dict[int, list[ChunkIndex]] = {}
+        for ci in summary.chunk_indexes:
+            for cid in ci.message_index_offsets:
+                chunks.setdefault(cid, []).append(ci)
+        for cid, n in summary.statistics.channel_message_counts.items():
+            ch = summary.channels.get(cid)
+            if not n or ch is None:
+                continue
+            have = chunks.get(cid)
+            if not have:
+                return None  # no message indexes: the caller reads the messages
+            # The first (last) time is in the chunk that starts (ends) first (last), or in
+            # one that overlaps it in time.
+            head = min(have, key=lambda c: c.message_start_time)
+            first = int(_index_times(f, head.message_index_offsets[cid]).min())
+            first = min([first] + [int(_index_times(f, c.message_index_offsets[cid]).min())
+                                   for c in have
+                                   if c is not head and c.message_start_time <= first])
+            tail = max(have, key=lambda c: c.message_end_time)
+            last = int(_index_times(f, tail.message_index_offsets[cid]).max())
+            last = max([last] + [int(_index_times(f, c.message_index_offsets[cid]).max())
+                                 for c in have if c is not tail and c.message_end_time >= last])
+            schema = summary.schemas.get(ch.schema_id)
+            out.channels[ch.topic] = ChannelInfo(
+                ch.topic, schema.name if schema else "",
+                ch.metadata.get("autochair.derived") == "true", n, first, last)
         return out
 
 

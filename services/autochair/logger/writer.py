@@ -44,6 +44,9 @@ class LoggerConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     chunk_size_kib: int = 1024  # ...or when it holds this much uncompressed data
     queue_size: int = 100_000  # samples waiting for the writer thread before drops
     compression: str = "zstd"  # zstd | lz4 | none
+    # Derived foxglove /tf (dynamic) and /pose at most this often (their sources, keys.TF and
+    # keys.ODOM, are recorded at the full rate); 0 = one per source message.
+    derived_max_hz: float = 20.0
 
 
 def _compression(name: str) -> CompressionType:
@@ -184,7 +187,7 @@ class Recorder:
                                          "unknown_keys": 0, "flushes": 0, "rotations": 0}
         self.last_error = ""
         self._codecs: dict[str, tuple[Codec, dict[str, str], str]] = {}
-        self._deriver = foxglove.Deriver()
+        self._deriver = foxglove.Deriver(cfg.derived_max_hz)
         self._fox_schemas = {n: _JSON.encode(s) for n, s in foxglove.SCHEMAS.items()}
         self._last_flush = start_mono_s
         self._since_size_check = 0

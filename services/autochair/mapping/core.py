@@ -55,6 +55,7 @@ class OccupancyMapper:
         self.l_hit, self.l_miss, self.l_min, self.l_max = l_hit, l_miss, l_min, l_max
         self.max_range_m = max_range_m
         self.logodds = np.zeros((self.h, self.w), dtype=np.float32)
+        self._mask = np.zeros(self.h * self.w, dtype=np.bool_)  # scratch for integrate
         self.scans = 0
 
     def cells(self, pts: F64) -> npt.NDArray[np.int64]:
@@ -78,13 +79,17 @@ class OccupancyMapper:
         free_mask = t[None, :] < (r[:, None] - self.res)
         fx = (pose[0] + cos * t[None, :])[free_mask]
         fy = (pose[1] + sin * t[None, :])[free_mask]
-        free = np.unique(self.cells(np.stack([fx, fy], axis=1)))
+        free = self.cells(np.stack([fx, fy], axis=1))
         hits = np.unique(self.cells(np.stack([pose[0] + r * cos[:, 0],
                                               pose[1] + r * sin[:, 0]], axis=1)))
         free, hits = free[free >= 0], hits[hits >= 0]
-        free = np.setdiff1d(free, hits, assume_unique=True)
+        # Each cell once: a mask over the grid instead of sorting the (many) free samples.
+        mask = self._mask
+        mask[:] = False
+        mask[free] = True
+        mask[hits] = False
         flat = self.logodds.reshape(-1)
-        flat[free] += self.l_miss
+        flat[mask] += self.l_miss
         flat[hits] += self.l_hit
         np.clip(flat, self.l_min, self.l_max, out=flat)
         self.scans += 1

@@ -1,4 +1,5 @@
-"""Odometry node: EncoderSample → Odometry + world→chair transform, at the encoder rate."""
+"""Odometry node: EncoderSample → Odometry at the encoder rate, and the world→chair transform
+(keys.TF) at `tf_rate_hz` (the same pose as keys.ODOM, for viewers; 0 = every sample)."""
 
 from __future__ import annotations
 
@@ -20,16 +21,21 @@ class OdometryConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     counts_per_rev: int = 10000
     velocity_window_s: float = 0.02
     publish_tf: bool = True
+    tf_rate_hz: float = 50.0  # keys.TF at most this often (by sample stamp); 0 = every sample
 
 
 def start(node: Node, cfg: OdometryConfig) -> None:
     if cfg.wheel_radius_m <= 0 or cfg.base_m <= 0 or cfg.counts_per_rev <= 0:
         raise ConfigError("[odometry] wheel_radius_m, base_m and counts_per_rev must be > 0")
+    if cfg.tf_rate_hz < 0:
+        raise ConfigError("[odometry] tf_rate_hz must be ≥ 0")
     core = OdometryCore(wheel_radius_m=cfg.wheel_radius_m, base_m=cfg.base_m,
                         counts_per_rev=cfg.counts_per_rev,
                         velocity_window_s=cfg.velocity_window_s)
     odom_pub = node.publisher(keys.ODOM)
     tf_pub = node.publisher(keys.TF)
+    tf_period_ns = int(1e9 / cfg.tf_rate_hz) if cfg.tf_rate_hz > 0 else 0
+    tf_due = [0]  # stamp from which the next transform is published
 
     def on_sample(s: EncoderSample) -> None:
         restarts, implausible = core.restarts, core.implausible
@@ -46,7 +52,10 @@ def start(node: Node, cfg: OdometryConfig) -> None:
                               omega_radps=st.omega, distance_m=st.distance,
                               sample_dt_s=st.dt, source_seq=s.seq,
                               mcu_restarts=core.restarts, link_epoch=s.link_epoch))
-        if cfg.publish_tf:
+        if cfg.publish_tf and (stamp >= tf_due[0] or stamp < tf_due[0] - tf_period_ns):
+            # drift-free: one per period; a late sample or a clock step re-bases
+            late = stamp - tf_due[0] >= tf_period_ns or stamp < tf_due[0] - tf_period_ns
+            tf_due[0] = (stamp if late else tf_due[0]) + tf_period_ns
             tf_pub.put(FrameTransform(
                 stamp_ns=stamp, parent_frame_id="world", child_frame_id="chair",
                 translation=Vector3(st.x, st.y, 0.0),
