@@ -24,12 +24,12 @@ from .safety import (
 
 __all__ = [
     "CommandOwner",
-    "Empty",
     "EStopAssert",
     "EStopCause",
     "EStopRelease",
     "EStopReply",
     "EStopState",
+    "Empty",
     "EncoderSample",
     "FrameTransform",
     "GoalReply",
