@@ -1,8 +1,10 @@
 """Hazard: `autochair replay` moving a live chair. A recording holds drive commands, e-stop
 "released" states, limits, odometry and scans; republished onto a bus where the drive chain
-runs, they would act on the chair. Replay refuses while a drive-chain service (gateway, pid) is
-alive, before the first message and at any moment during the replay, unless `--namespace NS`
-puts every key under NS/ where no service listens."""
+runs, they would act on the chair. Replay publishes into its own namespace by default
+(replay/autochair/..., tests/test_namespaces.py); asked onto a chair's keys (here `--namespace
+''`, a chair without a namespace) it refuses while a drive-chain service (gateway, pid) is alive
+there, before the first message and at any moment during the replay; under another namespace
+NS (every key as NS/...) where no service listens it publishes."""
 
 from __future__ import annotations
 
@@ -138,8 +140,8 @@ def test_replay_refused_next_to_a_live_drive_chain_unless_namespaced(
         # The subscriber sees the live bus (so silence below means nothing was published).
         wait_for(lambda: any(k == keys.JOYSTICK_OUT.key for _, k, _ in live.snapshot()), 10,
                  "live gateway output")
-        refused = subprocess.run(replay_cmd(hub, path), capture_output=True, text=True,
-                                 timeout=30, stdin=subprocess.DEVNULL)
+        refused = subprocess.run(replay_cmd(hub, path, "--namespace", ""), capture_output=True,
+                                 text=True, timeout=30, stdin=subprocess.DEVNULL)
         assert refused.returncode == 2, refused.stderr
         lines = refused.stderr.strip().splitlines()
         assert len(lines) == 1, refused.stderr
@@ -168,7 +170,7 @@ def test_replay_stops_when_a_drive_chain_service_appears(
     recorded = {payload for _, payload in sent}
     stack_factory([])  # the hub alone: no drive chain
     session = client_session(hub)
-    proc = subprocess.Popen(replay_cmd(hub, path), stdin=subprocess.DEVNULL,
+    proc = subprocess.Popen(replay_cmd(hub, path, "--namespace", ""), stdin=subprocess.DEVNULL,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     token: zenoh.LivelinessToken | None = None
     try:

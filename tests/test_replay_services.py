@@ -61,7 +61,8 @@ def test_odometry_rerun_on_replayed_encoders_matches_the_recording(
         again = Recorder(session, keys.ODOM.key, Odometry)
         proc = subprocess.run(
             [sys.executable, "-m", "autochair.cli", "replay", str(rec_path), "--rate", "2",
-             "--keys", keys.ENCODERS.key, "--connect", hub2, "--quiet"],
+             "--keys", keys.ENCODERS.key, "--connect", hub2, "--quiet",
+             "--namespace", ""],  # onto the keys of the re-run stack (no namespace)
             capture_output=True, text=True, timeout=60)
         assert proc.returncode == 0, proc.stderr
         wait_for(lambda: len(again.messages()) >= n_enc, 10, "re-run odometry outputs")

@@ -141,15 +141,23 @@ def supervised_command(proc: Process, values: Mapping[str, str], bin_dir: str = 
 
 
 # --- Zenoh profiles -------------------------------------------------------------------------------
+def _in_any_chair(*key_exprs: str) -> list[str]:
+    """Each key expression as it crosses the hub: without a namespace, and under any chair's
+    (`*/...`). Zenoh applies a session's namespace before its ACL checks, so the hub sees
+    NAME/autochair/cmd/vel from a laptop in chair NAME's namespace (`--chair NAME`)."""
+    return [*key_exprs, *(f"*/{k}" for k in key_exprs)]
+
+
 def _acl(tls_roles: Mapping[str, str]) -> dict[str, object]:
-    everything = [f"{keys.PREFIX}/**"]
-    drive_puts = [keys.CMD_VEL.key, keys.TELEOP.key, keys.CMD_OWNER.key]
-    drive_queries = [keys.GOAL_SET.key, keys.GOAL_CANCEL.key, keys.ESTOP_RELEASE.key]
+    everything = _in_any_chair(f"{keys.PREFIX}/**")
+    drive_puts = _in_any_chair(keys.CMD_VEL.key, keys.TELEOP.key, keys.CMD_OWNER.key)
+    drive_queries = _in_any_chair(keys.GOAL_SET.key, keys.GOAL_CANCEL.key,
+                                  keys.ESTOP_RELEASE.key)
     # Stopping the chair is never refused: every laptop may latch the e-stop and read goals.
     # Never keys.ESTOP_CLEAR: clearing a cause (e.g. the safety monitor's imminent collision)
     # is for the services on the chair only; default deny keeps it from every laptop.
-    stop_puts = [keys.ESTOP_ASSERT.key]
-    watch_queries = [keys.GOAL_GET.key]
+    stop_puts = _in_any_chair(keys.ESTOP_ASSERT.key)
+    watch_queries = _in_any_chair(keys.GOAL_GET.key)
     rules: list[dict[str, object]] = [
         {"id": "services-all", "permission": "allow", "flows": ["ingress", "egress"],
          "messages": ["put", "delete", "declare_subscriber", "query", "declare_queryable",
@@ -178,7 +186,7 @@ def _acl(tls_roles: Mapping[str, str]) -> dict[str, object]:
     ]
     import zenoh  # fail generation if any laptop rule would let a clear in
 
-    clear = zenoh.KeyExpr(keys.ESTOP_CLEAR.key)
+    clears = [zenoh.KeyExpr(k) for k in _in_any_chair(keys.ESTOP_CLEAR.key)]
     for rule in rules:
         exprs, flows, messages = rule["key_exprs"], rule["flows"], rule["messages"]
         if not (isinstance(exprs, list) and isinstance(flows, list)
@@ -186,7 +194,7 @@ def _acl(tls_roles: Mapping[str, str]) -> dict[str, object]:
             raise TypeError(f"ACL rule {rule['id']}: lists expected")
         if str(rule["id"]).startswith("laptop") and "ingress" in flows and (
                 {"put", "delete"} & set(messages)) and any(
-                clear.intersects(zenoh.KeyExpr(k)) for k in exprs):
+                clear.intersects(zenoh.KeyExpr(k)) for k in exprs for clear in clears):
             raise AssertionError(f"ACL rule {rule['id']} lets a laptop clear an e-stop cause")
     return {
         "enabled": True,

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import json
 import os
 import signal
 import socket
@@ -27,6 +28,7 @@ from pathlib import Path
 import zenoh
 
 from autochair.processes import Process, stack_values
+from autochair.runtime.config import chair_in
 from autochair.runtime.watchdog import NotifyChannel
 
 PR_SET_PDEATHSIG = 1
@@ -149,6 +151,9 @@ class Launcher:
         cfg.insert_json5("mode", '"client"')
         cfg.insert_json5("connect/endpoints", f'["{self.hub}"]')
         cfg.insert_json5("scouting/multicast/enabled", "false")
+        chair = chair_in({**os.environ, **self.env})  # the children's namespace, if any
+        if chair:
+            cfg.insert_json5("namespace", json.dumps(chair))
         self._session = zenoh.open(cfg)
 
         def on_token(sample: zenoh.Sample) -> None:
@@ -206,8 +211,8 @@ class Launcher:
             elif child.state == "restarting" and now >= child.next_start:
                 child.restarts += 1
                 self._spawn(child)
-        if self._session is not None:
-            self._hub_ready()  # a restarted hub is up again once it listens
+        if not self._stopping:
+            self._hub_ready()  # the hub is up once it listens (again, after a restart)
 
     def _check_hung(self, child: Child, now: float) -> None:
         """SIGKILL a running child whose watchdog pings stopped; the next poll restarts it."""

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import os
 from typing import Any
+
+from autochair.remote import add_chair_arg
 
 
 def register(sub: Any) -> None:
@@ -17,11 +20,18 @@ def register(sub: Any) -> None:
                    help="other [logger] settings, e.g. max_size_mib=512; repeatable")
     p.add_argument("--config", help="TOML config file")
     p.add_argument("--connect", help="Zenoh endpoint(s) of the hub")
+    add_chair_arg(p, "the chair to record")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from autochair.logger.node import main
+    from autochair.remote import chair_arg
+    from autochair.runtime.config import ENV_CHAIR
+
+    chair = chair_arg(args)
+    if chair is not None:  # the logger, as every service, joins $AUTOCHAIR_CHAIR's namespace
+        os.environ[ENV_CHAIR] = chair
 
     argv = ["--set", f"path={args.path}"]
     for item in args.set:

@@ -1,9 +1,12 @@
 """`autochair replay FILE [--rate R] [--loop] [--namespace NS]`: republish a recording onto its
 Zenoh keys with the original timing (scaled by R), as the msgpack bytes the services consume.
 
-A replay never moves a chair: while a drive-chain service (gateway, pid) is alive on the bus it
-is refused, before the first message and at any moment during the replay, unless --namespace NS
-republishes every key as NS/<key>, where no service listens."""
+A replay publishes into its own namespace, "replay" by default (every key as
+replay/autochair/..., the keys a stack started with `--chair replay` uses), never into a live
+chair's unless asked: `--namespace NAME` (or `--chair NAME`) replays into chair NAME's keys, and
+`--namespace ''` onto the keys of a chair without a namespace. A replay never moves a chair:
+while a drive-chain service (gateway, pid) is alive in the namespace it publishes into, it is
+refused, before the first message and at any moment during the replay."""
 
 from __future__ import annotations
 
@@ -20,6 +23,8 @@ from autochair.remote import add_link_args
 if TYPE_CHECKING:
     import zenoh
 
+DEFAULT_NAMESPACE = "replay"  # a replay's own namespace: no chair's keys
+
 
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
@@ -32,10 +37,13 @@ def register(sub: Any) -> None:
                    help="replay only keys matching these Zenoh key expressions, e.g. "
                    "autochair/chair/encoders to re-run odometry and what follows on recorded "
                    "input (the re-run services then publish their own outputs)")
-    p.add_argument("--namespace", metavar="NS", default="",
-                   help="republish every key as NS/<key> (e.g. replay/autochair/odom): allowed "
-                   "next to a live chair, since no service listens there")
-    add_link_args(p)
+    p.add_argument("--namespace", metavar="NS", default=None,
+                   help=f"publish into chair NS's namespace, every key as NS/<key> (default "
+                   f"{DEFAULT_NAMESPACE!r}, where no chair runs: e.g. "
+                   f"{DEFAULT_NAMESPACE}/autochair/odom; '' = the keys of a chair without a "
+                   "namespace); refused while a drive-chain service is alive there")
+    add_link_args(p, what="replay into chair NAME", default="--namespace; never "
+                  "$AUTOCHAIR_CHAIR")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=run)
 
@@ -92,7 +100,7 @@ class DriveChainWatch:
         if alive:
             return replay.refusal(alive)
         return (f"cannot tell whether a drive-chain service is alive ({self.unsure}), and a "
-                "recording could act on a live chair; replay under a namespace instead "
+                "recording could act on a live chair; replay under another namespace instead "
                 "(--namespace NAME publishes NAME/autochair/...)")
 
     def close(self) -> None:
@@ -100,6 +108,22 @@ class DriveChainWatch:
 
         with contextlib.suppress(zenoh.ZError):
             self._sub.undeclare()
+
+
+def target_namespace(args: argparse.Namespace) -> str:
+    """The namespace this replay publishes into: --namespace, else --chair, else "replay"
+    (never $AUTOCHAIR_CHAIR: a replay reaches a chair's keys only when asked on its line)."""
+    from autochair.runtime.config import ConfigError, check_chair
+
+    chosen = {n for n in (args.namespace, args.chair) if n is not None}
+    if len(chosen) > 1:
+        raise CliError(f"--namespace {args.namespace!r} and --chair {args.chair!r} disagree: "
+                       "give one")
+    namespace = chosen.pop() if chosen else DEFAULT_NAMESPACE
+    try:
+        return namespace and check_chair(namespace, "--namespace")
+    except ConfigError as e:
+        raise CliError(str(e)) from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -111,11 +135,7 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
-    if args.namespace:
-        try:
-            replay.check_namespace(args.namespace)
-        except ValueError as e:
-            raise CliError(str(e)) from None
+    namespace = target_namespace(args)
     try:
         wanted = [zenoh.KeyExpr(k.strip()) for k in args.keys.split(",")] if args.keys else []
     except zenoh.ZError as e:
@@ -125,16 +145,19 @@ def run(args: argparse.Namespace) -> int:
     except FileNotFoundError as e:
         raise CliError(str(e)) from None
     total_s = rec.summary().duration_s / args.rate if not args.quiet else 0.0
-    session = open_session(args)
+    # The session is in `namespace` (Zenoh's own): every key it publishes and every liveliness
+    # token it watches is NAMESPACE/autochair/..., so the watch guards exactly where it
+    # publishes.
+    session = open_session(args, chair=namespace)
     pubs: dict[str, zenoh.Publisher] = {}
     allowed: dict[str, bool] = {}  # key → matches --keys
-    watch = None if args.namespace else DriveChainWatch(session)
-    never = threading.Event()
-    stop = watch.appeared if watch is not None else never
+    watch = DriveChainWatch(session)
+    stop = watch.appeared
 
     def refuse() -> CliError:
-        assert watch is not None
-        return CliError(watch.refusal())
+        where = (f" (this replay publishes into namespace {namespace!r}: that chair's)"
+                 if namespace else "")
+        return CliError(watch.refusal() + where)
 
     try:
         if stop.is_set():
@@ -162,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
                 if pub is None:
                     # BLOCK: a replay must not silently drop what it was asked to publish.
                     pub = pubs[item.key] = session.declare_publisher(
-                        replay.target_key(item.key, args.namespace), express=True,
+                        item.key, express=True,
                         congestion_control=zenoh.CongestionControl.BLOCK)
                 pub.put(item.payload)
                 n += 1
@@ -173,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
                           end="", file=sys.stderr, flush=True)
             if not args.quiet:
                 print(f"\rreplayed {n} messages in {time.monotonic() - start:.1f} s"
-                      + (f" under {args.namespace}/" if args.namespace else "")
+                      + (f" under {namespace}/" if namespace else "")
                       + (f"; skipped {sum(skipped.values())} of unknown keys {sorted(skipped)}"
                          if skipped else ""), file=sys.stderr)
             if rec.error:
@@ -181,8 +204,7 @@ def run(args: argparse.Namespace) -> int:
             if not args.loop:
                 return 0
     finally:
-        if watch is not None:
-            watch.close()
+        watch.close()
         for p in pubs.values():
             p.undeclare()
         session.close()

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from autochair.cli import CliError
+from autochair.remote import add_chair_arg
 
 DEFAULT_RECORD_DIR = "recordings"
 
@@ -23,16 +24,22 @@ def register(sub: Any) -> None:
     p.add_argument("--sim", action="store_true", help="run the simulated chair and lidar")
     p.add_argument("--port", help="serial device of the chair's Arduino (without --sim)")
     p.add_argument("--lidar", help="lidar device or tcp://host:port (without --sim)")
-    p.add_argument("--record", metavar="PATH", default=DEFAULT_RECORD_DIR,
-                   help=f"record the run to PATH (file or dir; default {DEFAULT_RECORD_DIR}/)")
+    p.add_argument("--record", metavar="PATH",
+                   help=f"record the run to PATH (file or dir; default {DEFAULT_RECORD_DIR}/, "
+                   f"with --chair NAME {DEFAULT_RECORD_DIR}/NAME/)")
     p.add_argument("--no-record", action="store_true", help="do not run the logger")
     p.add_argument("--hub", default="tcp/127.0.0.1:7447", help="Zenoh endpoint of the hub")
+    add_chair_arg(p, "run the stack as chair NAME (every process gets $AUTOCHAIR_CHAIR)")
+    p.add_argument("--join", action="store_true",
+                   help="use the hub already running at --hub (e.g. another chair's) instead "
+                   "of starting one: with --chair, two chairs share one network")
     p.add_argument("--config", help="TOML config file for every service")
     p.add_argument("--only", help="comma-separated subset of processes to run")
     p.add_argument("--run-dir", help="directory for pty links and logs (default: a temp dir)")
     p.add_argument("--no-restart", action="store_true", help="do not restart exited processes")
-    p.add_argument("--state-dir", default=default_state_dir(),
-                   help="state kept across runs, e.g. the e-stop latch (default %(default)s)")
+    p.add_argument("--state-dir",
+                   help=f"state kept across runs, e.g. the e-stop latch (default "
+                   f"{default_state_dir()}, with --chair NAME its NAME/)")
     p.set_defaults(func=run)
 
 
@@ -40,6 +47,20 @@ def default_state_dir() -> str:
     """A fixed place (XDG state dir), not the per-run temp dir: the latch survives restarts."""
     base = os.environ.get("XDG_STATE_HOME") or os.path.expanduser("~/.local/state")
     return os.path.join(base, "autochair")
+
+
+def chair_env(args: argparse.Namespace) -> tuple[str, dict[str, str]]:
+    """The stack's chair ("" for none: --chair, else $AUTOCHAIR_CHAIR, else [zenoh] namespace
+    of the config) and the environment that gives it, and the config, to every process."""
+    from autochair.runtime.config import ENV_CHAIR, ENV_CONFIG, ConfigError, chair_in, check_chair
+
+    env = {ENV_CONFIG: str(Path(args.config).resolve())} if args.config else {}
+    try:
+        if args.chair:
+            env[ENV_CHAIR] = check_chair(args.chair)
+        return chair_in({**os.environ, **env}), env
+    except ConfigError as e:
+        raise CliError(str(e)) from None
 
 
 def _is_url(port: str) -> bool:
@@ -56,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"serial port {args.port} not found (is the Arduino plugged in?)")
     if args.config and not os.path.exists(args.config):
         raise CliError(f"config file not found: {args.config}")
+    chair, env = chair_env(args)
     procs = processes.selected(sim=args.sim)
     if args.no_record:
         procs = [p for p in procs if p.name != "logger"]
@@ -76,21 +98,26 @@ def run(args: argparse.Namespace) -> int:
     host, _, port = hub.partition("/")[2].rpartition(":")
     if not (host and port.isdigit()):
         raise CliError(f"--hub must look like tcp/127.0.0.1:7447, not {hub!r}")
-    if wait_port(host, int(port), 0.2):
+    if args.join:
+        procs = [p for p in procs if p.ready != "hub_port"]
+        if not wait_port(host, int(port), 0.5):
+            raise CliError(f"--join: no hub listens on {hub} (start one with `autochair up`)")
+    elif wait_port(host, int(port), 0.2):
         raise CliError(f"something already listens on {hub}: is another `autochair up` running? "
-                       "(`autochair status`, or pick another --hub)")
+                       "(`autochair status`; another chair on it: --join --chair NAME; or "
+                       "pick another --hub)")
 
     run_dir = Path(args.run_dir or tempfile.mkdtemp(prefix="autochair-"))
     devices = {"serial_port": args.port, "lidar_url": args.lidar}
-    state_dir = Path(args.state_dir).resolve()
+    state_dir = Path(args.state_dir or os.path.join(default_state_dir(), chair)).resolve()
     try:
         state_dir.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise CliError(f"cannot create the state directory {state_dir}: {e}") from None
-    values = processes.local_values(run_dir, hub, record_path=str(Path(args.record).resolve()),
+    record = args.record or os.path.join(DEFAULT_RECORD_DIR, chair)
+    values = processes.local_values(run_dir, hub, record_path=str(Path(record).resolve()),
                                     state_dir=str(state_dir),
                                     **{k: v for k, v in devices.items() if v})
-    env = {"AUTOCHAIR_CONFIG": str(Path(args.config).resolve())} if args.config else {}
 
     def show(child: Child) -> None:
         extra = ""
@@ -115,8 +142,10 @@ def run(args: argparse.Namespace) -> int:
     except TimeoutError as e:
         launcher.stop()
         raise CliError(str(e)) from None
-    print(f"autochair: all up. Hub {hub}. Try `autochair drive 0.5 0 --for 3` or "
-          "`autochair status`. Ctrl-C stops.", flush=True)
+    on = f" --chair {chair}" if chair else ""
+    print(f"autochair: all up{f' as chair {chair}' if chair else ''}. Hub {hub}. Try "
+          f"`autochair drive 0.5 0 --for 3{on}` or `autochair status`. Ctrl-C stops.",
+          flush=True)
     while not stop.wait(0.1):
         launcher.poll()
     print("autochair: stopping ...", flush=True)

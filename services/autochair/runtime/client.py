@@ -8,13 +8,17 @@ from typing import Any, TypeVar
 import msgspec
 import zenoh
 
+from autochair_msgs import keys
+
 from .config import ConfigError, load_zenoh
 
 
 def open_client(connect: str | None = None, config: str | None = None,
-                timeout_ms: int = 3000) -> zenoh.Session:
-    """A client session to the hub; ConfigError (one line) when the hub cannot be reached."""
-    settings = load_zenoh(config, connect)
+                timeout_ms: int = 3000, chair: str | None = None) -> zenoh.Session:
+    """A client session to the hub, in chair `chair`'s namespace (None: $AUTOCHAIR_CHAIR, else
+    the config's [zenoh] namespace; "": none); ConfigError (one line) when the name is not a
+    chair name or the hub cannot be reached."""
+    settings = load_zenoh(config, connect, chair)
     settings.mode, settings.listen = "client", []
     cfg = settings.to_zenoh()
     cfg.insert_json5("connect/timeout_ms", str(timeout_ms))
@@ -69,12 +73,58 @@ def subscribe(session: zenoh.Session, topic: Any, on_msg: Callable[[T], None],
 
 
 def alive_services(session: zenoh.Session, timeout_s: float = 1.0) -> set[str]:
-    """Names of the services whose liveliness token is up."""
+    """Names of the services whose liveliness token is up (in the session's chair)."""
     names: set[str] = set()
-    for reply in session.liveliness().get("autochair/alive/*", timeout=timeout_s):
+    for reply in session.liveliness().get(keys.ALIVE, timeout=timeout_s):
         if reply.ok is not None:
             names.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
     return names
+
+
+def _in_every_chair(key: str) -> tuple[str, str]:
+    """The key expressions of a row in every chair a session can see: its own namespace (or
+    none) and one namespace down. Two expressions, not `**/...`: the hub's ACL allows laptops
+    exactly `autochair/...` and `*/autochair/...`, and a query must be included in a rule."""
+    return key, f"*/{key}"
+
+
+def chair_of(key: str, row: str) -> str:
+    """The chair part of a concrete `key` of table row `row` (a key expression of fixed depth)
+    seen through `_in_every_chair`: "" for `autochair/...` (the session's own namespace, or
+    none), "NAME" for `NAME/autochair/...` (even a chair named "autochair")."""
+    chunks = key.split("/")
+    return chunks[0] if len(chunks) > row.count("/") + 1 else ""
+
+
+def alive_chairs(session: zenoh.Session, timeout_s: float = 1.0) -> dict[str, set[str]]:
+    """Every chair this session can see, with its live services (liveliness tokens). Seen from
+    a session without a namespace, a chair without one is "" and chair NAME (its services'
+    namespace) is "NAME"; a session in chair NAME's namespace sees only that chair, as ""."""
+    chairs: dict[str, set[str]] = {}
+    asks = [session.liveliness().get(k, timeout=timeout_s) for k in _in_every_chair(keys.ALIVE)]
+    for replies in asks:  # asked together: one timeout, not two
+        for reply in replies:
+            if reply.ok is not None:
+                key = str(reply.ok.key_expr)
+                chairs.setdefault(chair_of(key, keys.ALIVE), set()).add(
+                    key.rsplit("/", 1)[-1])
+    return chairs
+
+
+def subscribe_chairs(session: zenoh.Session, topic: Any, on_msg: Callable[[str, T], None],
+                     ) -> list[zenoh.Subscriber[None]]:
+    """`subscribe` to a row in every chair the session can see: `on_msg` gets the chair (as in
+    `alive_chairs`) and the decoded message; malformed payloads are skipped."""
+    decoder = msgspec.msgpack.Decoder(topic.type)
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        try:
+            msg = decoder.decode(sample.payload.to_bytes())
+        except (msgspec.DecodeError, msgspec.ValidationError):
+            return
+        on_msg(chair_of(str(sample.key_expr), topic.key), msg)
+
+    return [session.declare_subscriber(k, on_sample) for k in _in_every_chair(topic.key)]
 
 
 def pid_caps(session: zenoh.Session, timeout_s: float = 1.5) -> tuple[float, float, float] | None:
@@ -82,7 +132,7 @@ def pid_caps(session: zenoh.Session, timeout_s: float = 1.5) -> tuple[float, flo
     or None when no PID reports within `timeout_s` (health comes once a second)."""
     import threading
 
-    from autochair_msgs import Health, keys
+    from autochair_msgs import Health
 
     got: list[Health] = []
     done = threading.Event()

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -19,6 +21,7 @@ T = TypeVar("T")
 
 ENV_CONFIG = "AUTOCHAIR_CONFIG"  # path of the TOML file
 ENV_CONNECT = "AUTOCHAIR_CONNECT"  # comma-separated Zenoh endpoints of the hub
+ENV_CHAIR = "AUTOCHAIR_CHAIR"  # the chair's name: the Zenoh namespace of all its keys
 DEFAULT_HUB = "tcp/127.0.0.1:7447"
 
 
@@ -39,6 +42,11 @@ class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     multicast_scouting: bool = False
     lease_ms: int = 1000  # a hung process is declared gone after about this long
     config_file: str = ""  # a full Zenoh JSON5 config (TLS, ACL...) applied before the above
+    # The chair's name: Zenoh's own session namespace, prefixed to every key expression of the
+    # session (puts, subscriptions, queries, queryables, liveliness) and stripped from what it
+    # receives, so services and tools keep writing `autochair/...` while the network carries
+    # `NAME/autochair/...`. Two chairs on one hub never see each other's keys. "" = none.
+    namespace: str = ""
 
     def to_zenoh(self) -> zenoh.Config:
         if self.config_file:
@@ -51,6 +59,9 @@ class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         if self.mode not in ("peer", "client", "router"):
             raise ConfigError(f"zenoh.mode must be peer, client or router, not {self.mode!r}")
         cfg.insert_json5("mode", json.dumps(self.mode))
+        if self.namespace:
+            cfg.insert_json5("namespace", json.dumps(check_chair(self.namespace,
+                                                                 "[zenoh] namespace")))
         cfg.insert_json5("scouting/multicast/enabled", json.dumps(self.multicast_scouting))
         cfg.insert_json5("transport/link/tx/lease", json.dumps(self.lease_ms))
         # Zenoh's defaults (2 batches per priority, drop after waiting 1 ms) lose samples
@@ -179,9 +190,39 @@ def load_section(
         raise ConfigError(f"[{section}] {e}") from None
 
 
-def load_zenoh(path: str | None = None, connect: str | None = None) -> ZenohSettings:
+_CHAIR_NAME = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def check_chair(name: str, what: str = "--chair") -> str:
+    """`name` if it is a chair name (one key chunk: letters, digits, - and _), else a
+    one-line ConfigError naming `what` it came from."""
+    if not _CHAIR_NAME.fullmatch(name):
+        raise ConfigError(f"{what}: a chair name is one word of letters, digits, - and _ "
+                          f"(e.g. chair-2), not {name!r}")
+    return name
+
+
+def load_zenoh(path: str | None = None, connect: str | None = None,
+               chair: str | None = None) -> ZenohSettings:
+    """[zenoh] of the config file; `connect` (else $AUTOCHAIR_CONNECT) replaces its hub and
+    `chair` (else $AUTOCHAIR_CHAIR) its namespace. `chair=""` means explicitly none."""
     settings = load_section(ZenohSettings, "zenoh", path)
     connect = connect or os.environ.get(ENV_CONNECT)
     if connect:
         settings.connect = [e.strip() for e in connect.split(",") if e.strip()]
+    if chair is not None:
+        settings.namespace = chair and check_chair(chair)
+    elif os.environ.get(ENV_CHAIR):
+        settings.namespace = check_chair(os.environ[ENV_CHAIR], f"${ENV_CHAIR}")
+    elif settings.namespace:
+        check_chair(settings.namespace, "[zenoh] namespace")
     return settings
+
+
+def chair_in(env: Mapping[str, str]) -> str:
+    """The chair (namespace) a service started with environment `env` joins: $AUTOCHAIR_CHAIR,
+    else [zenoh] namespace of $AUTOCHAIR_CONFIG; "" for none. ConfigError if invalid."""
+    if env.get(ENV_CHAIR):
+        return check_chair(env[ENV_CHAIR], f"${ENV_CHAIR}")
+    namespace = load_section(ZenohSettings, "zenoh", env.get(ENV_CONFIG) or None).namespace
+    return namespace and check_chair(namespace, "[zenoh] namespace")
