@@ -113,7 +113,7 @@ class Launcher:
                     self.children[d].state == "up" for d in c.proc.after if d in self.children)]:
                 self._spawn(child)
                 pending.remove(child)
-            self._hub_ready()
+            self._hub_ready(watch=True)
             if time.monotonic() > deadline:
                 waiting = {c.proc.name: [d for d in c.proc.after if d in self.children
                                          and self.children[d].state != "up"] for c in pending}
@@ -123,16 +123,16 @@ class Launcher:
                 time.sleep(0.05)
         self.wait_up(max(deadline - time.monotonic(), 0.1))
 
-    def _hub_ready(self) -> None:
-        """A process that is the hub is up once it listens; tokens are watched from then on
-        (or at once when the hub is not ours)."""
+    def _hub_ready(self, watch: bool = False) -> None:
+        """A process that is the hub is up once it listens; with `watch`, tokens are watched
+        from then on (or at once when the hub is not ours)."""
         host, port = self.hub.split("/", 1)[1].rsplit(":", 1)
         for child in self.children.values():
             if child.proc.ready == "hub_port" and child.state == "starting" \
                     and wait_port(host, int(port), 0.0):
                 self._set(child, "up")
         hubs = [c for c in self.children.values() if c.proc.ready == "hub_port"]
-        if self._session is None and all(c.state == "up" for c in hubs):
+        if watch and self._session is None and all(c.state == "up" for c in hubs):
             self._watch_liveliness()
 
     def wait_up(self, timeout_s: float) -> None:
