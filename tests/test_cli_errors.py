@@ -86,3 +86,14 @@ def test_up_refuses_a_busy_hub_port() -> None:
         port = busy.getsockname()[1]
         one_line_error(run("-m", "autochair.cli", "up", "--sim", "--hub",
                            f"tcp/127.0.0.1:{port}"), "already listens")
+
+
+@pytest.mark.parametrize("setting,needle", [
+    ("chair.laser_x_m=nan", "laser_x_m"), ("chair.front_m=0", "front_m"),
+    ("stale.scan_s=inf", "scan_s"), ("stale.watchdog_s=11", "watchdog_s"),
+])
+def test_shared_sections_are_validated_by_constraints_naming_the_field(setting: str,
+                                                                       needle: str) -> None:
+    proc = run("-m", "autochair.gateway.node", "--set", setting, "--set", "port=loop://",
+               "--connect", f"tcp/127.0.0.1:{free_port()}")
+    one_line_error(proc, f"[{setting.split('.')[0]}]", needle)

@@ -12,7 +12,7 @@ import re
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
 
 import msgspec
 import zenoh
@@ -88,27 +88,27 @@ class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         return cfg
 
 
+Seconds = Annotated[float, msgspec.Meta(gt=0, le=10)]  # a watchdog threshold
+Metres = Annotated[float, msgspec.Meta(gt=0, le=5)]  # a body dimension
+Coordinate = Annotated[float, msgspec.Meta(ge=-10, le=10)]  # a mount coordinate (m or rad)
+
+
 class StaleConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """Every stale threshold of the watchdog chain, in one place: the [stale] section.
 
-    Set from the command line of any service with `--set stale.joystick_s=0.2`.
+    Set from the command line of any service with `--set stale.joystick_s=0.2`. Each is a
+    msgspec constraint, so a bad value is an error naming the field (also NaN and ±inf).
     """
 
-    joystick_s: float = 0.1  # gateway: no valid joystick command → neutral
-    estop_s: float = 0.5  # gateway: no e-stop heartbeat → neutral
-    desired_velocity_s: float = 0.3  # velocity PID: no desired velocity → zero effort
-    odometry_s: float = 0.3  # control law: no odometry → abort the goal and stop
-    scan_s: float = 0.5  # safety monitor: no laser scan → stop
-    clock_skew_s: float = 0.1  # commands stamped further in the future than this are rejected
-    watchdog_s: float = 1.5  # a service whose loops stop for this long is killed and restarted
-    safety_limit_s: float = 0.5  # velocity PID: no safety limit (when required) → stop
-    firmware_host_s: float = 0.2  # Arduino: no host frame → neutral (fixed in the firmware)
-
-    def validate(self) -> StaleConfig:
-        for name in self.__struct_fields__:
-            if not 0 < getattr(self, name) <= 10:
-                raise ConfigError(f"[stale] {name} must be within (0, 10] s")
-        return self
+    joystick_s: Seconds = 0.1  # gateway: no valid joystick command → neutral
+    estop_s: Seconds = 0.5  # gateway: no e-stop heartbeat → neutral
+    desired_velocity_s: Seconds = 0.3  # velocity PID: no desired velocity → zero effort
+    odometry_s: Seconds = 0.3  # control law: no odometry → abort the goal and stop
+    scan_s: Seconds = 0.5  # safety monitor: no laser scan → stop
+    clock_skew_s: Seconds = 0.1  # commands stamped further in the future than this are rejected
+    watchdog_s: Seconds = 1.5  # a service whose loops stop for this long is killed and restarted
+    safety_limit_s: Seconds = 0.5  # velocity PID: no safety limit (when required) → stop
+    firmware_host_s: Seconds = 0.2  # Arduino: no host frame → neutral (fixed in the firmware)
 
 
 class ChairGeometry(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -119,23 +119,13 @@ class ChairGeometry(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     Chair frame (REP-103): origin at the drive-axle centre, x forward, y left, z up.
     """
 
-    front_m: float = 0.95  # footprint ahead of the drive axle
-    rear_m: float = 0.25  # footprint behind the axle (1.2 m long in all)
-    half_width_m: float = 0.35  # 0.7 m wide
-    laser_x_m: float = 0.8636  # the laser's pose in the chair frame (thesis mount)
-    laser_y_m: float = 0.2032
-    laser_z_m: float = 0.3937
-    laser_yaw_rad: float = 0.0
-
-    def validate(self) -> ChairGeometry:
-        for name in ("front_m", "rear_m", "half_width_m"):
-            if not 0 < getattr(self, name) <= 5:
-                raise ConfigError(f"[chair] {name} must be within (0, 5] m")
-        for name in ("laser_x_m", "laser_y_m", "laser_z_m", "laser_yaw_rad"):
-            value = getattr(self, name)
-            if not (value == value and abs(value) <= 10):  # finite and sane
-                raise ConfigError(f"[chair] {name} must be a finite number within ±10")
-        return self
+    front_m: Metres = 0.95  # footprint ahead of the drive axle
+    rear_m: Metres = 0.25  # footprint behind the axle (1.2 m long in all)
+    half_width_m: Metres = 0.35  # 0.7 m wide
+    laser_x_m: Coordinate = 0.8636  # the laser's pose in the chair frame (thesis mount)
+    laser_y_m: Coordinate = 0.2032
+    laser_z_m: Coordinate = 0.3937
+    laser_yaw_rad: Coordinate = 0.0
 
     @property
     def laser_mount(self) -> tuple[float, float, float]:

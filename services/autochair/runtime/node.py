@@ -424,9 +424,9 @@ def service_main(
 
     try:
         config = load_section(config_type, name, args.config, own)
-        stale = load_section(StaleConfig, "stale", args.config, overrides("stale.")).validate()
+        stale = load_section(StaleConfig, "stale", args.config, overrides("stale."))
         chair = load_section(ChairGeometry, "chair", args.config,
-                             overrides("chair.")).validate()
+                             overrides("chair."))
         settings = load_zenoh(args.config, args.connect)
         node = Node(name, settings, stale, chair)
     except ConfigError as e:
