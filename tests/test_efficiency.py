@@ -10,7 +10,7 @@ import msgspec
 import numpy as np
 
 from autochair.logger import foxglove
-from autochair.logger.reader import ChannelInfo, Recording, Summary, indexed_summary
+from autochair.logger.reader import Recording, indexed_summary
 from autochair.logger.writer import LoggerConfig, Recorder
 from autochair.mapping.core import GridSpec, OccupancyMapper
 from autochair_msgs import FrameTransform, Odometry, Quaternion, Vector3, keys
@@ -56,15 +56,7 @@ def test_indexed_summary_equals_a_full_read(tmp_path: Path) -> None:
     r = Recording(rec.path)
     fast = indexed_summary(r.path)
     assert fast is not None
-    slow = Recording(rec.path)
-    scanned = Summary(slow.path, True)
-    for m in slow._raw():
-        c = scanned.channels.get(m.topic)
-        if c is None:
-            c = scanned.channels[m.topic] = ChannelInfo(m.topic, m.schema, m.derived,
-                                                        first_ns=m.log_ns)
-        c.count += 1
-        c.first_ns, c.last_ns = min(c.first_ns, m.log_ns), max(c.last_ns, m.log_ns)
+    scanned = Recording(rec.path).scanned_summary()
     assert fast.channels == scanned.channels
     assert r.summary().channels == scanned.channels
     assert fast.channels["/tf"].count < fast.channels[keys.TF.key].count  # decimated

@@ -116,6 +116,10 @@ class Recording:
             fast = indexed_summary(self.path)
             if fast is not None:
                 return fast
+        return self.scanned_summary()
+
+    def scanned_summary(self) -> Summary:
+        """The summary from reading every message (any file, torn ones included)."""
         out = Summary(self.path, self.indexed)
         for m in self._raw():
             c = out.channels.get(m.topic)

@@ -13,7 +13,6 @@ from collections import deque
 import msgspec
 import numpy as np
 
-from autochair.geometry import mount_mismatch
 from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import FrameTransform, LaserScan, Odometry, keys
@@ -64,10 +63,7 @@ def start(node: Node, cfg: MappingConfig) -> None:
     def on_tf(msg: FrameTransform) -> None:
         if msg.child_frame_id != cfg.laser_frame:
             return
-        t, q = msg.translation, msg.rotation
-        err = mount_mismatch(msg.parent_frame_id, (t.x, t.y, t.z), (q.x, q.y, q.z, q.w),
-                             (chair.laser_x_m, chair.laser_y_m, chair.laser_z_m),
-                             chair.laser_yaw_rad)
+        err = chair.laser_tf_error(msg)
         if err:
             health.count("tf_mount_mismatch")
         if err != tf_state["error"]:

@@ -56,10 +56,10 @@ def request(session: zenoh.Session, topic: Any, req: msgspec.Struct, reply: type
                        "answers it running? (`autochair status`)")
 
 
-def subscribe(session: zenoh.Session, topic: Any, on_msg: Callable[[T], None],
-              key: str | None = None) -> zenoh.Subscriber[None]:
-    """Typed subscription for people's tools: decodes a key-table row's messages and skips
-    malformed payloads (the CLI must not die on someone else's bad sample)."""
+def _decoding(topic: Any, handle: Callable[[zenoh.Sample, T], None]
+              ) -> Callable[[zenoh.Sample], None]:
+    """A sample callback that decodes a key-table row's message and skips malformed payloads
+    (a person's tool must not die on someone else's bad sample)."""
     decoder = msgspec.msgpack.Decoder(topic.type)
 
     def on_sample(sample: zenoh.Sample) -> None:
@@ -67,9 +67,19 @@ def subscribe(session: zenoh.Session, topic: Any, on_msg: Callable[[T], None],
             msg = decoder.decode(sample.payload.to_bytes())
         except (msgspec.DecodeError, msgspec.ValidationError):
             return
+        handle(sample, msg)
+
+    return on_sample
+
+
+def subscribe(session: zenoh.Session, topic: Any, on_msg: Callable[[T], None],
+              key: str | None = None) -> zenoh.Subscriber[None]:
+    """Typed subscription for people's tools; malformed payloads are skipped."""
+
+    def forward(_: zenoh.Sample, msg: T) -> None:
         on_msg(msg)
 
-    return session.declare_subscriber(key or topic.key, on_sample)
+    return session.declare_subscriber(key or topic.key, _decoding(topic, forward))
 
 
 def alive_services(session: zenoh.Session, timeout_s: float = 1.0) -> set[str]:
@@ -115,15 +125,10 @@ def subscribe_chairs(session: zenoh.Session, topic: Any, on_msg: Callable[[str, 
                      ) -> list[zenoh.Subscriber[None]]:
     """`subscribe` to a row in every chair the session can see: `on_msg` gets the chair (as in
     `alive_chairs`) and the decoded message; malformed payloads are skipped."""
-    decoder = msgspec.msgpack.Decoder(topic.type)
-
-    def on_sample(sample: zenoh.Sample) -> None:
-        try:
-            msg = decoder.decode(sample.payload.to_bytes())
-        except (msgspec.DecodeError, msgspec.ValidationError):
-            return
+    def forward(sample: zenoh.Sample, msg: T) -> None:
         on_msg(chair_of(str(sample.key_expr), topic.key), msg)
 
+    on_sample = _decoding(topic, forward)
     return [session.declare_subscriber(k, on_sample) for k in _in_every_chair(topic.key)]
 
 

@@ -17,6 +17,9 @@ from typing import Annotated, Any, TypeVar
 import msgspec
 import zenoh
 
+from autochair.geometry import mount_mismatch
+from autochair_msgs import FrameTransform
+
 T = TypeVar("T")
 
 ENV_CONFIG = "AUTOCHAIR_CONFIG"  # path of the TOML file
@@ -131,6 +134,13 @@ class ChairGeometry(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     def laser_mount(self) -> tuple[float, float, float]:
         """(x, y, yaw) of the laser in the chair frame."""
         return (self.laser_x_m, self.laser_y_m, self.laser_yaw_rad)
+
+    def laser_tf_error(self, tf: FrameTransform) -> str:
+        """"" if a received chair→laser transform agrees with this mount, else why not."""
+        t, q = tf.translation, tf.rotation
+        return mount_mismatch(tf.parent_frame_id, (t.x, t.y, t.z), (q.x, q.y, q.z, q.w),
+                              (self.laser_x_m, self.laser_y_m, self.laser_z_m),
+                              self.laser_yaw_rad)
 
 
 def _parse_value(text: str) -> Any:

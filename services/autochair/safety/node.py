@@ -24,7 +24,6 @@ import msgspec
 import numpy as np
 import zenoh
 
-from autochair.geometry import mount_mismatch
 from autochair.runtime import ConfigError, Node, service_main
 from autochair.runtime.node import Publisher
 from autochair_msgs import EStopAssert, FrameTransform, LaserScan, Odometry, SafetyLimit, keys
@@ -128,10 +127,7 @@ def start(node: Node, cfg: SafetyConfig) -> None:
     def on_tf(tf: FrameTransform) -> None:
         if tf.child_frame_id != cfg.frame_id:
             return
-        t, q = tf.translation, tf.rotation
-        err = mount_mismatch(tf.parent_frame_id, (t.x, t.y, t.z), (q.x, q.y, q.z, q.w),
-                             (chair.laser_x_m, chair.laser_y_m, chair.laser_z_m),
-                             chair.laser_yaw_rad)
+        err = chair.laser_tf_error(tf)
         with lock:
             changed = state.on_mount(err)
         if err:
