@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
+import signal
 import subprocess
+import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -109,6 +112,69 @@ class Stream:
             stamp_ns=time.time_ns(), v_mps=self.v if v is None else v,
             omega_radps=self.omega if omega is None else omega, source=self.source,
             stream_start_ns=self.start_ns)))
+
+
+@contextlib.contextmanager
+def supervised(tmp_path: Path, names: list[str]) -> Iterator[tuple[Path, str]]:
+    """supervisord running `names` from the config `autochair.deploy` generates, on a free
+    loopback hub; yields (supervisord.conf, hub) and stops it (TERM stops its programs)."""
+    from autochair import deploy
+    from autochair.launcher import free_port
+    from autochair.processes import by_name
+
+    bin_dir = Path(sys.executable).parent
+    hub = f"tcp/127.0.0.1:{free_port()}"
+    paths = deploy.Paths(bin_dir=str(bin_dir), config=str(tmp_path / "chair.toml"),
+                         log_dir=str(tmp_path), run_dir=str(tmp_path))
+    (tmp_path / "chair.toml").write_text(f'[zenoh]\nconnect = ["{hub}"]\n')
+    values = {**deploy.CHAIR_VALUES, "hub": hub, "run_dir": str(tmp_path)}
+    conf = tmp_path / "supervisord.conf"
+    conf.write_text(deploy.supervisord_conf([by_name(n) for n in names], values, paths))
+    proc = subprocess.Popen([str(bin_dir / "supervisord"), "-c", str(conf)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        yield conf, hub
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def supervisorctl(conf: Path, *args: str) -> str:
+    return subprocess.run([str(Path(sys.executable).parent / "supervisorctl"), "-c", str(conf),
+                           *args], capture_output=True, text=True, timeout=20).stdout.strip()
+
+
+Spawn = Callable[..., "subprocess.Popen[bytes]"]
+
+
+@contextlib.contextmanager
+def spawned(tmp_path: Path) -> Iterator[tuple[str, Spawn]]:
+    """A private hub on a free loopback port, and a way to start services on it (each logging
+    to tmp_path); everything is stopped afterwards."""
+    from autochair.launcher import free_port, wait_port
+
+    port = free_port()
+    hub = f"tcp/127.0.0.1:{port}"
+    procs: list[subprocess.Popen[bytes]] = []
+
+    def start(module: str, *args: str) -> subprocess.Popen[bytes]:
+        name = module.rsplit(".", 1)[-1]
+        log = open(tmp_path / f"{name}-{len(procs)}.log", "wb")  # noqa: SIM115
+        p = subprocess.Popen([sys.executable, "-m", module, *args], stdout=log, stderr=log)
+        procs.append(p)
+        return p
+
+    try:
+        start("autochair.router", "--listen", hub)
+        assert wait_port("127.0.0.1", port, 10), "hub did not come up"
+        yield hub, lambda module, *a: start(module, "--connect", hub, *a)
+    finally:
+        for p in reversed(procs):
+            stop_process(p)
 
 
 def stop_process(p: subprocess.Popen[bytes] | subprocess.Popen[str]) -> None:

@@ -10,8 +10,6 @@ clear path.
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -20,10 +18,10 @@ import msgspec
 import pytest
 import zenoh
 
-from autochair.launcher import Launcher, free_port, wait_port
+from autochair.launcher import Launcher
 from autochair.lidar.sim_node import BLIND_SIGNAL
 from autochair_msgs import EStopAssert, GroundTruth, Health, SafetyLimit, VelocityCommand, keys
-from tests.helpers import Recorder, client_session, stop_process, wait_for
+from tests.helpers import Recorder, Spawn, client_session, spawned, stop_process, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -104,29 +102,13 @@ def test_blinded_laser_does_not_drive_forward(stack_factory: Callable[..., Launc
 
 
 
-Spawn = Callable[..., subprocess.Popen[bytes]]
+
 
 
 @pytest.fixture
 def spawn(tmp_path: Path) -> Iterator[tuple[str, Spawn]]:
-    """A private hub on a free loopback port, and services started on it (all stopped after)."""
-    port = free_port()
-    hub = f"tcp/127.0.0.1:{port}"
-    procs: list[subprocess.Popen[bytes]] = []
-
-    def start(module: str, *args: str) -> subprocess.Popen[bytes]:
-        log = open(tmp_path / f"{module.rsplit('.', 1)[-1]}-{len(procs)}.log", "wb")  # noqa: SIM115
-        p = subprocess.Popen([sys.executable, "-m", module, *args], stdout=log, stderr=log)
-        procs.append(p)
-        return p
-
-    try:
-        start("autochair.router", "--listen", hub)
-        assert wait_port("127.0.0.1", port, 10), "hub did not come up"
-        yield hub, lambda module, *a: start(module, "--connect", hub, *a)
-    finally:
-        for p in reversed(procs):
-            stop_process(p)
+    with spawned(tmp_path) as (hub, start):
+        yield hub, start
 
 
 def test_laser_mount_mismatch_stops_until_they_agree(spawn: tuple[str, Spawn],

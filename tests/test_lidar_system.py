@@ -6,8 +6,6 @@ import itertools
 import math
 import os
 import signal
-import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -15,43 +13,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from autochair.launcher import free_port, wait_port
+from autochair.launcher import free_port
 from autochair.lidar.core import WRAP
 from autochair_msgs import FrameTransform, Health, LaserScan, OccupancyGrid, keys
-from tests.helpers import Recorder, client_session, wait_for
+from tests.helpers import Recorder, Spawn, client_session, spawned, wait_for
 
 pytestmark = pytest.mark.slow
 
-Spawn = Callable[..., subprocess.Popen[bytes]]
+
 
 
 @pytest.fixture
 def spawn(tmp_path: Path) -> Iterator[tuple[str, Spawn]]:
-    """A private hub, and a way to start services on it; everything is stopped afterwards."""
-    port = free_port()
-    hub = f"tcp/127.0.0.1:{port}"
-    procs: list[subprocess.Popen[bytes]] = []
-
-    def start(module: str, *args: str) -> subprocess.Popen[bytes]:
-        name = module.rsplit(".", 1)[-1]
-        log = open(tmp_path / f"{name}-{len(procs)}.log", "wb")  # noqa: SIM115
-        p = subprocess.Popen([sys.executable, "-m", module, *args], stdout=log, stderr=log)
-        procs.append(p)
-        return p
-
-    try:
-        start("autochair.router", "--listen", hub)
-        assert wait_port("127.0.0.1", port, 10), "hub did not come up"
-        yield hub, lambda module, *a: start(module, "--connect", hub, *a)
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in reversed(procs):
-            try:
-                p.wait(5)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+    with spawned(tmp_path) as (hub, start):
+        yield hub, start
 
 
 def health_of(rec: Recorder, service: str) -> Health | None:

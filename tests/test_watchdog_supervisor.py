@@ -4,7 +4,6 @@ and restarted by supervisord's autorestart."""
 from __future__ import annotations
 
 import signal
-import subprocess
 import sys
 import time
 from collections.abc import Iterator
@@ -15,12 +14,9 @@ import psutil
 import pytest
 import zenoh
 
-from autochair import deploy
-from autochair.launcher import free_port
-from autochair.processes import by_name
 from autochair.runtime.client import alive_services, open_client
 from autochair_msgs import EncoderSample, keys
-from tests.helpers import wait_for
+from tests.helpers import supervised, supervisorctl, wait_for
 
 BIN = Path(sys.executable).parent
 pytestmark = [pytest.mark.slow,
@@ -34,36 +30,14 @@ ENC = msgspec.msgpack.Encoder()
 
 @pytest.fixture()
 def stack(tmp_path: Path) -> Iterator[tuple[Path, str, Path]]:
-    hub = f"tcp/127.0.0.1:{free_port()}"
-    paths = deploy.Paths(bin_dir=str(BIN), config=str(tmp_path / "chair.toml"),
-                         log_dir=str(tmp_path), run_dir=str(tmp_path))
-    (tmp_path / "chair.toml").write_text(f'[zenoh]\nconnect = ["{hub}"]\n')
-    values = {**deploy.CHAIR_VALUES, "hub": hub, "run_dir": str(tmp_path)}
-    conf = tmp_path / "supervisord.conf"
-    conf.write_text(deploy.supervisord_conf([by_name("router"), by_name("odometry")], values,
-                                            paths))
-    proc = subprocess.Popen([str(BIN / "supervisord"), "-c", str(conf)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
+    with supervised(tmp_path, ["router", "odometry"]) as (conf, hub):
         yield conf, hub, tmp_path / "odometry.log"
-    finally:
-        proc.send_signal(signal.SIGTERM)  # supervisord stops its programs (TERM) first
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
-def ctl(conf: Path, *args: str) -> str:
-    return subprocess.run([str(BIN / "supervisorctl"), "-c", str(conf), *args],
-                          capture_output=True, text=True, timeout=20).stdout.strip()
 
 
 def service_pid(conf: Path) -> tuple[int, int] | None:
     """(wrapper pid, odometry pid) under supervisord, once both exist."""
     try:
-        wrapper = int(ctl(conf, "pid", "odometry"))
+        wrapper = int(supervisorctl(conf, "pid", "odometry"))
         children = psutil.Process(wrapper).children()
     except (ValueError, psutil.Error):
         return None
@@ -117,6 +91,6 @@ def test_supervisord_restarts_a_hung_service(stack: tuple[Path, str, Path]) -> N
         assert not psutil.pid_exists(old[1]) or \
             psutil.Process(old[1]).status() == psutil.STATUS_ZOMBIE
         assert detect_s < 2.0 + 0.1  # + this loop's log polling
-        assert "RUNNING" in ctl(conf, "status", "router")
+        assert "RUNNING" in supervisorctl(conf, "status", "router")
     finally:
         session.close()
