@@ -88,10 +88,11 @@ def test_stale_desired_gives_exact_neutral() -> None:
     core = core_(stale_s=0.3)
     assert drive(core, 0.5, 0.0, 0.0) is Verdict.OK
     out = core.update(0.0, 0.0, 0.005, 0.1, ns(0.1))
-    assert out.active and out.longitudinal_v > 2.5
+    assert out.active and out.longitudinal_v > 2.5 and out.desired == (0.5, 0.0)
     out = core.update(0.0, 0.0, 0.005, 0.31, ns(0.31))
     assert not out.active
     assert (out.longitudinal_v, out.angular_v, out.v_effort) == (2.5, 2.5, 0.0)
+    assert out.desired == (0.0, 0.0)
 
 
 def test_never_commanded_is_neutral() -> None:

@@ -58,6 +58,7 @@ class PidOutput:
     longitudinal_v: float
     angular_v: float
     active: bool
+    desired: tuple[float, float] = (0.0, 0.0)  # within caps and limit ((0, 0) when stopped)
 
 
 @dataclass(frozen=True)
@@ -278,7 +279,7 @@ class VelocityPidCore:
             self._active = False
             self.v_pid.reset(v_meas)
             self.omega_pid.reset(omega_meas)
-            return PidOutput(0.0, 0.0, NEUTRAL_V, NEUTRAL_V, False)
+            return PidOutput(0.0, 0.0, NEUTRAL_V, NEUTRAL_V, False, desired or (0.0, 0.0))
         if not self._active:
             self._active = True  # re-seeded from the measured velocity: nothing lunges
             self.v_pid.reset(v_meas)
@@ -286,7 +287,7 @@ class VelocityPidCore:
         cv = self.v_pid.update(desired[0], v_meas, dt)
         cw = self.omega_pid.update(desired[1], omega_meas, dt)
         return PidOutput(cv, cw, effort_to_volts(cv, self.min_v, self.max_v),
-                         effort_to_volts(cw, self.min_v, self.max_v), True)
+                         effort_to_volts(cw, self.min_v, self.max_v), True, desired)
 
 
 def effort_to_volts(c: float, min_v: float = 1.1, max_v: float = 3.9) -> float:

@@ -136,7 +136,6 @@ def start(node: Node, cfg: PidConfig) -> None:
             was = core.obeying
             out = core.update(odom.v_mps, odom.omega_radps, odom.sample_dt_s, now, now_ns,
                               (odom.mcu_restarts, odom.link_epoch))
-            desired = core.desired(now, now_ns) or (0.0, 0.0)
             inhibit = core.inhibit(now)
             ended = was and not core.obeying
             owner = core.owner
@@ -148,8 +147,8 @@ def start(node: Node, cfg: PidConfig) -> None:
         sat = any(abs(v - 2.5) >= min(cfg.max_v - 2.5, 2.5 - cfg.min_v) - 1e-9
                   for v in (out.longitudinal_v, out.angular_v))
         status_pub.put(PidStatus(
-            stamp_ns=stamp, v_desired_mps=desired[0], v_measured_mps=odom.v_mps,
-            v_effort=out.v_effort, omega_desired_radps=desired[1],
+            stamp_ns=stamp, v_desired_mps=out.desired[0], v_measured_mps=odom.v_mps,
+            v_effort=out.v_effort, omega_desired_radps=out.desired[1],
             omega_measured_radps=odom.omega_radps, omega_effort=out.omega_effort,
             active=out.active, saturated=sat, inhibit=inhibit))
         node.health.count("updates")
