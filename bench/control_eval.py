@@ -27,7 +27,7 @@ from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSamp
 from autochair.geometry import wrap_angle as wrap
 from autochair.odometry.core import OdometryCore
 from autochair.pid.core import Command, VelocityPidCore
-from autochair.sim.model import ChairModel
+from autochair.sim.chair.model import ChairModel
 from autochair_msgs import GoalRequest, Pose2D
 
 DT = 0.005  # encoder rate

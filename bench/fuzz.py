@@ -183,8 +183,8 @@ def fuzz_scip(rng: random.Random, n: int, batch: int) -> dict[str, object]:
 
 def scan_corpus(rng: random.Random) -> list[Scan]:
     """Simulated URG-04LX scans of the hallway, as the ingest delivers them."""
-    from autochair.lidar.sim import UrgParams, ray_scan
-    from autochair.lidar.world import DEFAULT_WORLD, load_world
+    from autochair.sim.lidar.scanner import UrgParams, ray_scan
+    from autochair.sim.world import DEFAULT_WORLD, load_world
 
     world, urg = load_world(DEFAULT_WORLD), UrgParams()
     inc = 2 * math.pi / urg.ares

@@ -57,7 +57,7 @@ class Bench:
     def __init__(self, tmp: Path) -> None:
         self.hub = f"tcp/127.0.0.1:{free_port()}"
         py = sys.executable
-        self.router = subprocess.Popen([py, "-m", "autochair.router", "--listen", self.hub],
+        self.router = subprocess.Popen([py, "-m", "autochair.router.node", "--listen", self.hub],
                                        stderr=subprocess.DEVNULL)
         self.logger = subprocess.Popen(
             [py, "-m", "autochair.logger.node", "--connect", self.hub, "--set",

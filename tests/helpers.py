@@ -169,7 +169,7 @@ def spawned(tmp_path: Path) -> Iterator[tuple[str, Spawn]]:
         return p
 
     try:
-        start("autochair.router", "--listen", hub)
+        start("autochair.router.node", "--listen", hub)
         assert wait_port("127.0.0.1", port, 10), "hub did not come up"
         yield hub, lambda module, *a: start(module, "--connect", hub, *a)
     finally:

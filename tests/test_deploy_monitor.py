@@ -12,7 +12,7 @@ import pytest
 
 from autochair.cli import main as cli
 from autochair.commands.certs import make_all
-from autochair.monitor import MonitorState
+from autochair.commands.monitor_core import MonitorState
 from autochair.runtime.node import encode
 from autochair_msgs import Health, LaserScan, LogEvent, Odometry, keys
 from tests.test_deploy_tls import Chair

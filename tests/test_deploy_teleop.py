@@ -13,8 +13,8 @@ import time
 import msgspec
 
 from autochair.commands.teleop import TeleopLink, loop
+from autochair.commands.teleop_core import Teleop, TeleopLimits
 from autochair.launcher import free_port
-from autochair.teleop import Teleop, TeleopLimits
 from autochair_msgs import CommandOwner, VelocityCommand, keys
 from tests.test_deploy_tls import open_json, wait_for
 

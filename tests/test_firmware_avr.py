@@ -88,7 +88,8 @@ def rig(built: tuple[Path, Path]) -> Iterator[tuple[Harness, zenoh.Session,
     try:
         harness = Harness(harness_bin, elf)
         procs.append(harness.proc)
-        procs.append(subprocess.Popen([sys.executable, "-m", "autochair.router", "--listen", hub]))
+        procs.append(subprocess.Popen([sys.executable, "-m", "autochair.router.node",
+                                      "--listen", hub]))
         session = session_when_up(hub)
         gateway = subprocess.Popen([sys.executable, "-m", "autochair.gateway.node", "--connect",
                                     hub, "--set", f"port={harness.pty}",

@@ -1,7 +1,8 @@
 """The firmware's C protocol code (firmware/autochair_arduino/ac_protocol.c) on the host.
 
 Built with the host gcc as a ctypes library and checked byte for byte against the Python
-protocol (autochair.protocol.arduino) and the Python firmware emulation (autochair.sim.firmware).
+protocol (autochair.protocol.arduino) and the Python firmware emulation
+(autochair.sim.chair.firmware).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from autochair.protocol import arduino as proto
-from autochair.sim.firmware import Firmware
+from autochair.sim.chair.firmware import Firmware
 from tests.firmware_lib import Command, Frame, Fw, Rx, Telemetry, buf, build_protocol_lib
 
 u16 = st.integers(0, 0xFFFF)

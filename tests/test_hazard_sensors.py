@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
-from autochair.lidar.sim import ERR_NO_RETURN, UrgParams, ray_scan
-from autochair.lidar.world import DEFAULT_WORLD, load_world
 from autochair.runtime.config import ChairGeometry
 from autochair.safety.core import DIRECTIONS, SafetyCore, SafetyParams, Scan, rect_outline
+from autochair.sim.lidar.scanner import ERR_NO_RETURN, UrgParams, ray_scan
+from autochair.sim.world import DEFAULT_WORLD, load_world
 
 CHAIR = ChairGeometry()
 PARAMS = SafetyParams(front_m=CHAIR.front_m, rear_m=CHAIR.rear_m,

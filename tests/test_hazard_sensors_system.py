@@ -19,7 +19,7 @@ import pytest
 import zenoh
 
 from autochair.launcher import Launcher
-from autochair.lidar.sim_node import BLIND_SIGNAL
+from autochair.sim.lidar.node import BLIND_SIGNAL
 from autochair_msgs import EStopAssert, GroundTruth, Health, SafetyLimit, VelocityCommand, keys
 from tests.helpers import Recorder, Spawn, client_session, spawned, stop_process, wait_for
 
@@ -123,7 +123,7 @@ def test_laser_mount_mismatch_stops_until_they_agree(spawn: tuple[str, Spawn],
         health = Recorder(session, keys.HEALTH.key, Health)
         clears = Recorder(session, keys.ESTOP_CLEAR.key, EStopAssert)
         asserts = Recorder(session, keys.ESTOP_ASSERT.key, EStopAssert)
-        start("autochair.lidar.sim_node", "--set", f"pty_link={link}")
+        start("autochair.sim.lidar.node", "--set", f"pty_link={link}")
         start("autochair.safety.node")
         wrong = start("autochair.lidar.node", "--set", f"url={link}",
                       "--set", "chair.laser_x_m=0.95")

@@ -22,10 +22,10 @@ from autochair.lidar.core import (
     Unwrapper,
 )
 from autochair.lidar.node import LidarConfig, mount_transform
-from autochair.lidar.sim import UrgDevice, UrgParams, ray_scan
-from autochair.lidar.world import World, WorldError, load_world, parse_world, raycast
 from autochair.protocol import scip
 from autochair.runtime.config import ChairGeometry
+from autochair.sim.lidar.scanner import UrgDevice, UrgParams, ray_scan
+from autochair.sim.world import World, WorldError, load_world, parse_world, raycast
 from autochair_msgs import LaserScan
 
 MOUNT = ChairGeometry().laser_mount  # (0.8636, 0.2032, 0.0), the [chair] default

@@ -56,7 +56,7 @@ def test_sim_to_ingest_over_pty(spawn: tuple[str, Spawn], tmp_path: Path) -> Non
         health = Recorder(session, keys.HEALTH.key, Health)
         link = tmp_path / "lidar"
         # Boot the device clock 3 s before its 24-bit wrap so the run crosses it.
-        start("autochair.lidar.sim_node", "--set", f"pty_link={link}",
+        start("autochair.sim.lidar.node", "--set", f"pty_link={link}",
               "--set", f"clock_start_ms={WRAP - 3000}")
         start("autochair.lidar.node", "--set", f"url={link}")
         wait_for(lambda: len(scans.messages()) >= 45, 30, "45 scans")
@@ -90,7 +90,7 @@ def test_sim_to_ingest_over_tcp(spawn: tuple[str, Spawn]) -> None:
     try:
         scans = Recorder(session, keys.SCAN.key, LaserScan)
         port = free_port()
-        start("autochair.lidar.sim_node", "--set", f"tcp_port={port}")
+        start("autochair.sim.lidar.node", "--set", f"tcp_port={port}")
         start("autochair.lidar.node", "--set", f"url=tcp://127.0.0.1:{port}")
         wait_for(lambda: len(scans.messages()) >= 10, 30, "10 scans over TCP")
         assert len(scans.latest().ranges_m) == 682
@@ -105,7 +105,7 @@ def test_reconnect_after_unplug(spawn: tuple[str, Spawn], tmp_path: Path) -> Non
         scans = Recorder(session, keys.SCAN.key, LaserScan)
         health = Recorder(session, keys.HEALTH.key, Health)
         link = tmp_path / "lidar"
-        sim = start("autochair.lidar.sim_node", "--set", f"pty_link={link}",
+        sim = start("autochair.sim.lidar.node", "--set", f"pty_link={link}",
                     "--set", "unplug_s=2.0")
         start("autochair.lidar.node", "--set", f"url={link}")
         wait_for(lambda: len(scans.messages()) >= 5, 30, "first scans")
@@ -134,7 +134,7 @@ def test_40_scans_per_second_none_lost_with_mapping(spawn: tuple[str, Spawn],
         grids = Recorder(session, keys.MAP_GRID.key, OccupancyGrid)
         health = Recorder(session, keys.HEALTH.key, Health)
         link = tmp_path / "lidar"
-        start("autochair.lidar.sim_node", "--set", f"pty_link={link}",
+        start("autochair.sim.lidar.node", "--set", f"pty_link={link}",
               "--set", "scan_rate_hz=40")
         start("autochair.lidar.node", "--set", f"url={link}")
         start("autochair.mapping.node", "--set", "require_odom=false")

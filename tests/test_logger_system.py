@@ -49,7 +49,7 @@ def stop(p: subprocess.Popen[bytes]) -> None:
 
 @pytest.fixture
 def router(hub: str) -> Iterator[str]:
-    p = spawn("autochair.router", "--listen", hub)
+    p = spawn("autochair.router.node", "--listen", hub)
     try:
         yield hub
     finally:

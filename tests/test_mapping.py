@@ -7,8 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from autochair.lidar.sim import UrgParams, ray_scan
-from autochair.lidar.world import load_world
 from autochair.mapping.core import (
     GridSpec,
     OccupancyMapper,
@@ -18,6 +16,8 @@ from autochair.mapping.core import (
     scan_points,
 )
 from autochair.runtime.config import ChairGeometry
+from autochair.sim.lidar.scanner import UrgParams, ray_scan
+from autochair.sim.world import load_world
 from autochair_msgs import Odometry
 
 MOUNT = ChairGeometry().laser_mount  # (0.8636, 0.2032, 0.0), the [chair] default

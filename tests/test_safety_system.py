@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from autochair.launcher import Launcher
-from autochair.lidar.world import DEFAULT_WORLD, World, parse_world
 from autochair.runtime import ChairGeometry
+from autochair.sim.world import DEFAULT_WORLD, World, parse_world
 from autochair_msgs import EStopState, GroundTruth, SafetyLimit, keys
 from tests.helpers import Recorder, Stream, client_session, make_stack, pid_ready, wait_for
 

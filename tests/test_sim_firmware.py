@@ -5,7 +5,7 @@ from __future__ import annotations
 import itertools
 
 from autochair.protocol import arduino as proto
-from autochair.sim.firmware import Firmware
+from autochair.sim.chair.firmware import Firmware
 
 DT = 0.005
 

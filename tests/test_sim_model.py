@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from autochair.geometry import wrap_angle
-from autochair.sim.model import (
+from autochair.sim.chair.model import (
     NEUTRAL_V,
     ChairModel,
     ChairParams,

@@ -28,10 +28,10 @@ def sim(tmp_path: Path) -> Iterator[tuple[zenoh.Session, Path, subprocess.Popen[
     procs: list[subprocess.Popen[bytes]] = []
     session: zenoh.Session | None = None
     try:
-        procs.append(subprocess.Popen([sys.executable, "-m", "autochair.router",
+        procs.append(subprocess.Popen([sys.executable, "-m", "autochair.router.node",
                                        "--listen", hub]))
         session = session_when_up(hub)  # the hub is up before the sim joins it
-        procs.append(subprocess.Popen([sys.executable, "-m", "autochair.sim.node",
+        procs.append(subprocess.Popen([sys.executable, "-m", "autochair.sim.chair.node",
                                        "--connect", hub, "--set", f"pty_link={link}"]))
         yield session, link, procs[-1]
     finally:

@@ -13,8 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from autochair.runtime.config import load_section
-from autochair.teleop import (
+from autochair.commands.teleop_core import (
     PadConfig,
     Teleop,
     TeleopConfig,
@@ -25,6 +24,7 @@ from autochair.teleop import (
     stick,
     twist_units,
 )
+from autochair.runtime.config import load_section
 
 RATE = 20.0
 PERIOD = 1.0 / RATE

@@ -24,9 +24,9 @@ import pytest
 
 from autochair import deploy
 from autochair.commands.certs import make_all
+from autochair.commands.teleop_core import TeleopConfig
 from autochair.launcher import Launcher, free_port
 from autochair.runtime.node import encode
-from autochair.teleop import TeleopConfig
 from autochair_msgs import CommandOwner, GroundTruth, PidStatus, VelocityCommand, keys
 from tests.helpers import JS, Recorder, client_session, npm_ready, pid_ready, stop_process, wait_for
 

@@ -17,8 +17,8 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 import pytest
 
 from autochair.commands.teleop import Event, TeleopLink, loop
+from autochair.commands.teleop_core import PadConfig, Teleop, TeleopConfig
 from autochair.launcher import Launcher
-from autochair.teleop import PadConfig, Teleop, TeleopConfig
 from autochair_msgs import EStopState, keys
 from tests.helpers import Recorder, client_session, pid_ready, wait_for
 from tests.test_teleop_foxglove import CFG, DRIVE_CHAIN, STALE_S, Chair, stream_figures

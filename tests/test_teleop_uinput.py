@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from autochair.teleop import PadConfig, Teleop, TeleopLimits
+from autochair.commands.teleop_core import PadConfig, Teleop, TeleopLimits
 from tests.helpers import wait_for
 
 pytest.importorskip("pygame", reason="pygame-ce (the `remote` extra) missing")

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from autochair.teleop import Teleop, TeleopLimits
+from autochair.commands.teleop_core import Teleop, TeleopLimits
 from tests.helpers import stop_process, wait_for
 
 pytest.importorskip("pygame", reason="pygame-ce (the `remote` extra) missing")
@@ -97,7 +97,7 @@ def test_the_pad_reader_runs_headless_and_maps_every_configured_name(
     without a display (dummy video driver, no window), every [teleop.pad] name maps to an SDL
     constant, and with no pad attached a sample is a release (nothing drives)."""
     from autochair.commands.teleop import Event, SdlInputs
-    from autochair.teleop import PAD_AXES, PAD_BUTTONS, PadConfig
+    from autochair.commands.teleop_core import PAD_AXES, PAD_BUTTONS, PadConfig
 
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
     monkeypatch.setenv("PYGAME_HIDE_SUPPORT_PROMPT", "1")

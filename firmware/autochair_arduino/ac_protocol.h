@@ -1,7 +1,7 @@
 /* Chair <-> host serial protocol and the firmware's safety rules, hardware-independent.
  *
  * Spec: docs/arduino-protocol.md. Python twin: services/autochair/protocol/arduino.py (framing)
- * and services/autochair/sim/firmware.py (rules); tests/test_firmware_protocol.py checks this
+ * and services/autochair/sim/chair/firmware.py (rules); tests/test_firmware_protocol.py checks this
  * code byte for byte against both. No AVR registers here: time is passed in (µs, u32 wrapping),
  * so the same file builds for the ATmega328P and for host unit tests.
  */

@@ -36,12 +36,12 @@ class Process:
 
 
 PROCESSES: tuple[Process, ...] = (
-    Process("router", "autochair.router", "autochair-router",
+    Process("router", "autochair.router.node", "autochair-router",
             ("--listen", "{hub}"), after=(), ready="hub_port", doc="Zenoh hub for discovery"),
     Process("estop", "autochair.estop.node", "autochair-estop",
             ("--set", "state_file={state_dir}/estop.json"),
             doc="E-stop latch; the gateway holds neutral while latched or silent"),
-    Process("sim", "autochair.sim.node", "autochair-sim",
+    Process("sim", "autochair.sim.chair.node", "autochair-sim",
             ("--set", "pty_link={run_dir}/arduino"), sim_only=True,
             doc="Simulated chair + Arduino on a pty"),
     Process("gateway", "autochair.gateway.node", "autochair-gateway",
@@ -56,7 +56,7 @@ PROCESSES: tuple[Process, ...] = (
             doc="Smooth control law: goals and waypoints to comfort-limited (v, ω)"),
     Process("logger", "autochair.logger.node", "autochair-logger",
             ("--set", "path={record_path}"), doc="Records every logged key to MCAP"),
-    Process("lidar-sim", "autochair.lidar.sim_node", "autochair-lidar-sim",
+    Process("lidar-sim", "autochair.sim.lidar.node", "autochair-lidar-sim",
             ("--set", "pty_link={run_dir}/lidar"), sim_only=True,
             doc="Simulated Hokuyo URG-04LX (SCIP 2.0) on a pty, seeing the hallway world"),
     Process("lidar", "autochair.lidar.node", "autochair-lidar",

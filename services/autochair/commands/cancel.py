@@ -6,7 +6,7 @@ import argparse
 from typing import Any
 
 from autochair.cli import CliError
-from autochair.remote import add_link_args
+from autochair.commands.link import add_link_args
 
 
 def register(sub: Any) -> None:
@@ -17,7 +17,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
     from autochair.runtime.client import request
     from autochair_msgs import GoalReply, GoalRequest, keys
 

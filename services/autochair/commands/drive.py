@@ -8,7 +8,7 @@ import time
 from typing import Any
 
 from autochair.cli import CliError
-from autochair.remote import add_link_args
+from autochair.commands.link import add_link_args
 
 MAX_V, MAX_W = 2.0, 2.0
 
@@ -30,7 +30,7 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
     from autochair.runtime.client import alive_services, pid_caps, subscribe
     from autochair_msgs import Odometry, VelocityCommand, keys
 

@@ -11,7 +11,7 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from autochair.cli import CliError
-from autochair.remote import add_link_args
+from autochair.commands.link import add_link_args
 
 if TYPE_CHECKING:
     import zenoh
@@ -45,7 +45,7 @@ def _who() -> str:
 def run_estop(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
     from autochair.runtime.client import subscribe
     from autochair_msgs import EStopAssert, keys
 
@@ -113,7 +113,7 @@ def _clear(session: zenoh.Session, states: list[EStopState], source: str) -> int
 
 
 def run_release(args: argparse.Namespace) -> int:
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
     from autochair.runtime.client import request
     from autochair_msgs import EStopRelease, EStopReply, keys
 

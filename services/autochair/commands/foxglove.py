@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     import zenoh
     from foxglove.websocket import ServerListener
 
-    from autochair.teleop import TeleopConfig
+    from autochair.commands.teleop_core import TeleopConfig
 
 # Zenoh rows bridged as raw JSON for plots (besides the derived foxglove.* channels).
 PLOT_KEYS = ("ODOM", "PID_STATUS", "HEALTH", "GOAL_STATUS")
@@ -37,7 +37,7 @@ OWNER_TOPIC = "autochair/cmd/owner"  # {"owner": "teleop" | "autonomy"}: take ov
 
 
 def register(sub: Any) -> None:
-    from autochair.remote import add_link_args
+    from autochair.commands.link import add_link_args
 
     p: argparse.ArgumentParser = sub.add_parser(
         "foxglove", help="live Foxglove WebSocket bridge (pose, tf, scan, map, plots)",
@@ -123,7 +123,7 @@ class PanelTeleop:
     def __init__(self, session: zenoh.Session, cfg: TeleopConfig, by: str,
                  topic: str = TELEOP_TOPIC, log: Any = print) -> None:
         from autochair.commands.teleop import TeleopLink
-        from autochair.teleop import Teleop
+        from autochair.commands.teleop_core import Teleop
 
         self.cfg, self.topic, self.log = cfg, topic, log
         self.core = Teleop(cfg.limits(), scale=1.0)  # the panel sends m/s: no speed scale
@@ -154,7 +154,7 @@ class PanelTeleop:
     def on_message_data(self, client: Any, client_channel_id: int, data: bytes) -> None:
         import time
 
-        from autochair.teleop import parse_twist, twist_units
+        from autochair.commands.teleop_core import parse_twist, twist_units
 
         now = time.monotonic()
         with self._lock:
@@ -235,8 +235,8 @@ def run(args: argparse.Namespace) -> int:
     from foxglove.websocket import Capability
 
     from autochair.cli import CliError
+    from autochair.commands.link import open_session
     from autochair.commands.teleop import refuse_beyond_pid_caps, teleop_config
-    from autochair.remote import open_session
     from autochair.runtime.node import _install_signal_handlers, wait_for_stop
 
     cfg = None if args.no_teleop else teleop_config(args)

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from autochair.cli import CliError
-from autochair.remote import add_link_args
+from autochair.commands.link import add_link_args
 
 
 def register(sub: Any) -> None:
@@ -60,7 +60,7 @@ def read_waypoints(path: str) -> list[tuple[float, float, float]]:
 
 def run(args: argparse.Namespace) -> int:
 
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
     from autochair.runtime.client import request, subscribe
     from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
 

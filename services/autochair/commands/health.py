@@ -13,7 +13,7 @@ import threading
 import time
 from typing import Any
 
-from autochair.remote import add_link_args
+from autochair.commands.link import add_link_args
 
 HEALTHY = ("ok", "degraded")
 
@@ -64,7 +64,7 @@ def check(session: Any, service: str, timeout_s: float, max_age_s: float) -> tup
 
 def run(args: argparse.Namespace) -> int:
     from autochair.cli import CliError
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
 
     try:
         session = open_session(args, timeout_ms=int(min(args.timeout, 5.0) * 1000))

@@ -10,7 +10,7 @@ from typing import Any
 
 
 def register(sub: Any) -> None:
-    from autochair.remote import add_link_args
+    from autochair.commands.link import add_link_args
 
     p: argparse.ArgumentParser = sub.add_parser(
         "monitor", help="live dashboard: services, health, pose, scan, faults",
@@ -28,8 +28,8 @@ def run(args: argparse.Namespace) -> int:
     import zenoh
 
     from autochair import deploy
-    from autochair.monitor import MonitorState
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
+    from autochair.commands.monitor_core import MonitorState
     from autochair_msgs import keys
 
     session = open_session(args)

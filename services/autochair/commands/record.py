@@ -6,7 +6,7 @@ import argparse
 import os
 from typing import Any
 
-from autochair.remote import add_chair_arg
+from autochair.commands.link import add_chair_arg
 
 
 def register(sub: Any) -> None:
@@ -25,8 +25,8 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from autochair.commands.link import chair_arg
     from autochair.logger.node import main
-    from autochair.remote import chair_arg
     from autochair.runtime.config import ENV_CHAIR
 
     chair = chair_arg(args)

@@ -18,7 +18,7 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from autochair.cli import CliError
-from autochair.remote import add_link_args
+from autochair.commands.link import add_link_args
 
 if TYPE_CHECKING:
     import zenoh
@@ -129,9 +129,9 @@ def target_namespace(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     import zenoh
 
+    from autochair.commands.link import open_session
     from autochair.logger import replay
     from autochair.logger.reader import Recording
-    from autochair.remote import open_session
 
     if not args.rate > 0:
         raise CliError("--rate must be > 0")

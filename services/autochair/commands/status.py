@@ -9,7 +9,7 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any
 
-from autochair.remote import add_link_args
+from autochair.commands.link import add_link_args
 
 if TYPE_CHECKING:
     from autochair_msgs import Health
@@ -33,7 +33,7 @@ def register(sub: Any) -> None:
 
 def own_chair(args: argparse.Namespace) -> str:
     """The chair whose namespace the session is in ("" for none)."""
-    from autochair.remote import chair_arg
+    from autochair.commands.link import chair_arg
     from autochair.runtime.config import ENV_CHAIR, ConfigError, load_section
     from autochair.runtime.config import ZenohSettings as Z
 
@@ -53,7 +53,7 @@ def own_chair(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
     from autochair.runtime.client import alive_chairs, subscribe_chairs
     from autochair_msgs import keys
 

@@ -6,8 +6,8 @@ arrows forward/back, a/d turn, q/e arcs, space stop, +/- speed, t take over from
 h hand back, ! latch the e-stop, x or Ctrl-C quit. In the teleop window (a local X/Wayland
 session) keys have key-up: the chair stops when you let go. In the terminal there is no key-up:
 the deadman tolerates the first auto-repeat delay, then the repeat period (see
-autochair.teleop). Commands go on keys.TELEOP with source "teleop"; the velocity PID obeys them
-only after `t` (keys.CMD_OWNER). Settings: the [teleop] section of --config.
+autochair.commands.teleop_core). Commands go on keys.TELEOP with source "teleop"; the velocity
+PID obeys them only after `t` (keys.CMD_OWNER). Settings: the [teleop] section of --config.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
-from autochair.teleop import (
+from autochair.commands.teleop_core import (
     ESTOP_KEY,
     KEYMAP,
     PAD_AXES,
@@ -44,7 +44,7 @@ ESTOP_CONFIRM_S = 3.0  # an e-stop press is repeated until the e-stop service sh
 
 
 def register(sub: Any) -> None:
-    from autochair.remote import add_link_args
+    from autochair.commands.link import add_link_args
 
     p: argparse.ArgumentParser = sub.add_parser(
         "teleop", help="drive by gamepad or keyboard (deadman, speed limits, explicit takeover)",
@@ -450,7 +450,7 @@ def run(args: argparse.Namespace) -> int:
     import socket
 
     from autochair.cli import CliError
-    from autochair.remote import open_session
+    from autochair.commands.link import open_session
 
     cfg = teleop_config(args)
     session = open_session(args)

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from autochair.cli import CliError
-from autochair.remote import add_chair_arg
+from autochair.commands.link import add_chair_arg
 
 DEFAULT_RECORD_DIR = "recordings"
 

@@ -2,7 +2,7 @@
 device-clock unwrapping and offset estimation, reconnect backoff.
 
 No serial, socket or clock imports: the node passes a `Transport` and the clocks in, so tests
-can wire this straight to the simulated device (`autochair.lidar.sim.UrgDevice`).
+can wire this straight to the simulated device (`autochair.sim.lidar.scanner.UrgDevice`).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from autochair.protocol import scip
 
-from .world import World, raycast
+from ..world import World, raycast
 
 ERR_NO_RETURN = 1  # device error code for "nothing within DMAX" (any value < DMIN is an error)
 ERR_TOO_CLOSE = 2

@@ -19,8 +19,8 @@ from collections import deque
 import msgspec
 
 from autochair.runtime import ConfigError, Node, service_main
-from autochair.sim.firmware import Firmware
-from autochair.sim.model import ChairModel, ChairParams
+from autochair.sim.chair.firmware import Firmware
+from autochair.sim.chair.model import ChairModel, ChairParams
 from autochair_msgs import GroundTruth, keys
 from autochair_msgs.sim import SimFault, SimFaultReply
 

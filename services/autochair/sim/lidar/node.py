@@ -32,8 +32,8 @@ from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import GroundTruth, keys
 
-from .sim import ERR_NO_RETURN, ScanFn, UrgDevice, UrgParams, ray_scan
-from .world import DEFAULT_WORLD, WorldError, load_world
+from ..world import DEFAULT_WORLD, WorldError, load_world
+from .scanner import ERR_NO_RETURN, ScanFn, UrgDevice, UrgParams, ray_scan
 
 BLIND_SIGNAL = signal.SIGRTMIN  # test hook: toggles blinding
 MAX_OUT = 1 << 18  # bytes queued for a reader that does not read; more is dropped (counted)

@@ -1,0 +1,1 @@
+"""The simulated chair: its motion and its Arduino, on a pty."""
