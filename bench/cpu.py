@@ -41,6 +41,8 @@ import zenoh
 from autochair.launcher import Launcher, free_port
 from autochair.processes import local_values, selected
 from autochair.runtime.client import open_client
+from autochair.runtime.config import ZenohSettings
+from autochair.runtime.session import open_session
 from autochair_msgs import GroundTruth, VelocityCommand, keys
 
 RESULTS = Path(__file__).parent / "results" / "cpu.json"
@@ -224,14 +226,9 @@ def run_stack(case: str, args: argparse.Namespace, work: Path,
 
 # --- the transport floor -------------------------------------------------------------------
 def _floor_session(role: str, endpoint: str) -> zenoh.Session:
-    cfg = zenoh.Config()
-    cfg.insert_json5("mode", '"peer"')
-    cfg.insert_json5("scouting/multicast/enabled", "false")
     if role == "pub":
-        cfg.insert_json5("listen/endpoints", f'["{endpoint}"]')
-    else:
-        cfg.insert_json5("connect/endpoints", f'["{endpoint}"]')
-    return zenoh.open(cfg)
+        return open_session(ZenohSettings(connect=[], listen=[endpoint]))
+    return open_session(ZenohSettings(connect=[endpoint]))
 
 
 def floor_role(role: str, endpoint: str, spec: str) -> int:

@@ -28,6 +28,8 @@ import zenoh
 from tests.logger_samples import samples
 
 from autochair.logger.writer import LoggerConfig, Recorder
+from autochair.runtime.config import ConfigError, ZenohSettings
+from autochair.runtime.session import open_session
 from autochair_msgs import Health, keys
 
 RESULTS = Path(__file__).parent / "results" / "logger.json"
@@ -64,12 +66,7 @@ class Bench:
              f"path={tmp}/bench.mcap", "--set", f"queue_size={QUEUE}", "--log-level",
              "WARNING"], stderr=subprocess.DEVNULL)
         self.proc = psutil.Process(self.logger.pid)
-        cfg = zenoh.Config()
-        cfg.insert_json5("mode", '"peer"')
-        cfg.insert_json5("connect/endpoints", json.dumps([self.hub]))
-        cfg.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-        cfg.insert_json5("scouting/multicast/enabled", "false")
-        wait(lambda: self._open(cfg), 15)
+        wait(lambda: self._open(ZenohSettings(connect=[self.hub])), 15)
         self.health: Health | None = None
         dec = msgspec.msgpack.Decoder(Health)
 
@@ -83,11 +80,11 @@ class Bench:
                                 for p in self.pubs.values()), 20)
         self.payloads = {t.key: ENC.encode(samples(1)[t.key]) for t in MIX}
 
-    def _open(self, cfg: zenoh.Config) -> bool:
+    def _open(self, settings: ZenohSettings) -> bool:
         try:
-            self.session = zenoh.open(cfg)
+            self.session = open_session(settings)
             return True
-        except zenoh.ZError:
+        except ConfigError:
             return False
 
     def counter(self, name: str) -> int:

@@ -5,15 +5,14 @@ from __future__ import annotations
 import sys
 import threading
 
-import zenoh
-
 from autochair.runtime.config import load_zenoh
 from autochair.runtime.node import _install_signal_handlers, wait_for_stop
+from autochair.runtime.session import open_session
 
 
 def main(argv: list[str]) -> int:
     key_in, key_out = argv
-    session = zenoh.open(load_zenoh().to_zenoh())
+    session = open_session(load_zenoh())
     pub = session.declare_publisher(key_out, express=True)
     session.declare_subscriber(key_in, lambda s: pub.put(s.payload))
     stop = threading.Event()

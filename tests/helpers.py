@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import json
 import shutil
 import signal
 import subprocess
@@ -20,6 +19,7 @@ import zenoh
 
 from autochair.launcher import Launcher
 from autochair.processes import PROCESSES, local_values
+from autochair.runtime.session import client_settings, open_session
 
 T = TypeVar("T")
 
@@ -38,11 +38,7 @@ def wait_for(cond: Callable[[], T | None], timeout: float, what: str = "conditio
 
 
 def client_session(hub: str) -> zenoh.Session:
-    cfg = zenoh.Config()
-    cfg.insert_json5("mode", '"client"')
-    cfg.insert_json5("connect/endpoints", json.dumps([hub]))
-    cfg.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(cfg)
+    return open_session(client_settings(hub))
 
 
 class Recorder:

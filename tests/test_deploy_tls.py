@@ -22,6 +22,7 @@ import zenoh
 from autochair import deploy
 from autochair.commands.certs import make_all
 from autochair.launcher import free_port
+from autochair.runtime.session import open_session
 from autochair_msgs import EStopAssert, EStopRelease, EStopReply, EStopState, Health, keys
 from tests.helpers import stop_process
 from tests.helpers import wait_for as wait  # fails the test with what it waited for
@@ -37,7 +38,7 @@ def wait_for(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
 
 
 def open_json(obj: object) -> zenoh.Session:
-    return zenoh.open(zenoh.Config.from_json5(json.dumps(obj)))
+    return open_session(zenoh.Config.from_json5(json.dumps(obj)))
 
 
 class Chair:

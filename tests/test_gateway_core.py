@@ -118,3 +118,26 @@ def test_commands_stamped_too_long_ago_or_in_the_future_are_refused(age_s: float
     assert core.on_command(3.0, 2.5, True, 1.0, age_s=age_s) is ok
     assert (core.output(1.0).reason == "command") is ok
     assert core.rejected_age == (0 if ok else 1)
+
+
+def test_link_writes_on_change_and_keepalive_and_reopens_a_silent_port() -> None:
+    core = running(keepalive_s=0.02, rx_stall_s=2.0)
+    core.link_up(0.0)
+    out = core.due(0.0)
+    assert out is not None and out.reason == "neutral:startup"
+    assert core.sent(out, 0.0) == (True, False)  # a new reason, and a normal one
+    assert core.due(0.01) is None  # unchanged, keepalive not yet due
+    assert core.due(0.02) == out  # keepalive (the firmware neutralises after 200 ms)
+    assert core.sent(out, 0.02) == (False, False)
+    core.on_command(3.0, 2.5, True, now_s=0.03)
+    cmd = core.due(0.03)
+    assert cmd is not None and cmd.reason == "command"  # changed: written at once
+    core.sent(cmd, 0.03)
+    stale = core.due(0.2)
+    assert stale is not None and core.sent(stale, 0.2) == (True, True)  # stale is a fault
+    # Telemetry keeps the link; 2 s without any reopens it.
+    assert not core.received(3, 1.0) and not core.received(0, 3.0)
+    assert core.received(0, 3.01)
+    core.link_up(4.0)  # a new link forgets the command and the last output
+    assert not core.received(0, 5.0) and core.due(4.0) is not None
+    assert core.output(4.0).reason == "neutral:startup"

@@ -22,6 +22,8 @@ import zenoh
 from autochair.launcher import Launcher
 from autochair.logger.replay import check_namespace, drive_chain_alive, refusal, target_key
 from autochair.logger.writer import LoggerConfig, Recorder
+from autochair.runtime.config import ZenohSettings
+from autochair.runtime.session import open_session
 from autochair_msgs import keys
 from tests.helpers import client_session, stop_process, wait_for
 from tests.logger_samples import T0, samples
@@ -52,11 +54,7 @@ def test_namespace_prefixes_every_key_and_rejects_wildcards() -> None:
 
 
 def isolated_session() -> zenoh.Session:
-    cfg = zenoh.Config()
-    cfg.insert_json5("mode", '"peer"')
-    cfg.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-    cfg.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(cfg)
+    return open_session(ZenohSettings(connect=[]))
 
 
 def test_watch_sees_tokens_and_fails_closed_when_it_cannot_ask(

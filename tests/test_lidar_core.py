@@ -10,14 +10,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from autochair.backoff import Backoff
 from autochair.geometry import mount_mismatch
 from autochair.lidar.core import (
     WRAP,
-    Backoff,
     ClockSync,
+    IngestPolicy,
     LaserParams,
     LidarClient,
     LidarTimeout,
+    Link,
     ScanDecoder,
     Unwrapper,
 )
@@ -152,6 +154,25 @@ def test_backoff_grows_caps_and_jitters() -> None:
     assert Backoff(0.1, 2.0, 1.0, 0.25).next_s(0.0) == pytest.approx(0.075)
     b.reset()
     assert b.next_s(0.5) == pytest.approx(0.1)
+
+
+def test_ingest_policy_gives_up_on_bad_or_silent_links_and_backs_off() -> None:
+    p = IngestPolicy(3, 1.0, Backoff(0.1, 2.0, 1.0, 0.0))
+    # An outage is reported once, with growing delays.
+    assert p.open_failed(0.5) == (pytest.approx(0.1), True)
+    assert p.open_failed(0.5) == (pytest.approx(0.2), False)
+    assert p.opened() is False and p.state is Link.WAITING  # the first link: no reconnect
+    p.streaming(10.0)
+    assert p.state is Link.STREAMING and not p.stalled(11.0) and p.stalled(11.01)
+    # Bad scans in a row: reported at the 1st, given up at the 3rd; a good one resets.
+    assert p.scan_bad() == (True, False) and p.scan_bad() == (False, False)
+    p.scan_ok(10.5)
+    assert p.scan_bad() == (True, False) and p.scan_bad() == (False, False)
+    assert p.scan_bad() == (True, True)
+    # A link that streamed is retried quickly; one that never did keeps backing off.
+    assert p.lost(0.5) == pytest.approx(0.1) and p.state is Link.RECONNECTING
+    assert p.opened() is True
+    assert p.lost(0.5) == pytest.approx(0.2)
 
 
 def test_stale_scans_before_the_handshake_are_skipped() -> None:

@@ -48,6 +48,7 @@ from autochair.runtime.config import (
     check_chair,
     load_zenoh,
 )
+from autochair.runtime.session import open_session
 from autochair_msgs import Empty, GoalStatus, Health, Odometry, keys
 from tests.helpers import wait_for
 
@@ -126,11 +127,7 @@ def test_replay_publishes_into_its_own_namespace_unless_told() -> None:
 @pytest.fixture
 def hub() -> Iterator[str]:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    cfg = zenoh.Config()
-    cfg.insert_json5("mode", '"router"')
-    cfg.insert_json5("listen/endpoints", json.dumps([endpoint]))
-    cfg.insert_json5("scouting/multicast/enabled", "false")
-    router = zenoh.open(cfg)
+    router = open_session(ZenohSettings(mode="router", connect=[], listen=[endpoint]))
     try:
         yield endpoint
     finally:
@@ -222,7 +219,7 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def open_json(obj: object) -> zenoh.Session:
-    return zenoh.open(zenoh.Config.from_json5(json.dumps(obj)))
+    return open_session(zenoh.Config.from_json5(json.dumps(obj)))
 
 
 def test_acl_sees_namespaced_keys_and_holds_in_every_chair(certs: Path) -> None:

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import json
 import os
 import signal
 import socket
@@ -27,8 +26,10 @@ from pathlib import Path
 
 import zenoh
 
+from autochair.backoff import Backoff
 from autochair.processes import Process, stack_values
 from autochair.runtime.config import chair_in
+from autochair.runtime.session import client_settings, open_session
 from autochair.runtime.watchdog import NotifyChannel
 
 PR_SET_PDEATHSIG = 1
@@ -66,7 +67,9 @@ class Child:
     popen: subprocess.Popen[bytes] | None = None
     state: str = "stopped"  # starting | up | hung | exited | restarting | stopped
     restarts: int = 0
-    backoff: int = 0  # restarts in a row without a long run: the next delay doubles with it
+    # Restarts in a row without a long run: the delay doubles, 0.5 s to 8 s (no jitter: one
+    # machine, and a person watching wants predictable restarts).
+    backoff: Backoff = field(default_factory=lambda: Backoff(0.5, 2.0, 8.0, 0.0))
     spawned_at: float = 0.0
     exit_code: int | None = None
     next_start: float = 0.0
@@ -147,14 +150,8 @@ class Launcher:
                            f"(logs in {self.run_dir})")
 
     def _watch_liveliness(self) -> None:
-        cfg = zenoh.Config()
-        cfg.insert_json5("mode", '"client"')
-        cfg.insert_json5("connect/endpoints", f'["{self.hub}"]')
-        cfg.insert_json5("scouting/multicast/enabled", "false")
         chair = chair_in({**os.environ, **self.env})  # the children's namespace, if any
-        if chair:
-            cfg.insert_json5("namespace", json.dumps(chair))
-        self._session = zenoh.open(cfg)
+        self._session = open_session(client_settings(self.hub, chair))
 
         def on_token(sample: zenoh.Sample) -> None:
             name = str(sample.key_expr).rsplit("/", 1)[-1]
@@ -201,10 +198,9 @@ class Launcher:
                 child.exit_code = child.popen.returncode
                 child.popen = None
                 if self.restart:
-                    # A child that ran a while before failing starts the backoff afresh.
-                    child.backoff = child.backoff + 1 if now - child.spawned_at < 30 else 1
-                    delay = min(0.5 * 2 ** min(child.backoff - 1, 4), 8.0)
-                    child.next_start = now + delay
+                    if now - child.spawned_at >= 30:  # it ran a while: afresh
+                        child.backoff.reset()
+                    child.next_start = now + child.backoff.next_s(0.0)
                     self._set(child, "restarting")
                 else:
                     self._set(child, "exited")

@@ -17,11 +17,11 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.runtime.client import request
     from autochair_msgs import GoalReply, GoalRequest, keys
 
-    session = open_session(args)
+    session = tool_session(args)
     try:
         reply = request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
     finally:

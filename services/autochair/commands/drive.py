@@ -30,7 +30,7 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.runtime.client import alive_services, pid_caps, subscribe
     from autochair_msgs import Odometry, VelocityCommand, keys
 
@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--for must be > 0 seconds")
     if not 1 <= args.rate <= 200:
         raise CliError("--rate must be within 1–200 Hz")
-    session = open_session(args)
+    session = tool_session(args)
     try:
         if "pid" not in alive_services(session):
             print("warning: no velocity PID is running (see `autochair status`)", flush=True)

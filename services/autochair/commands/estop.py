@@ -45,11 +45,11 @@ def _who() -> str:
 def run_estop(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.runtime.client import subscribe
     from autochair_msgs import EStopAssert, keys
 
-    session = open_session(args)
+    session = tool_session(args)
     try:
         states: list[EStopState] = []
         subscribe(session, keys.ESTOP_STATE, states.append)
@@ -113,11 +113,11 @@ def _clear(session: zenoh.Session, states: list[EStopState], source: str) -> int
 
 
 def run_release(args: argparse.Namespace) -> int:
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.runtime.client import request
     from autochair_msgs import EStopRelease, EStopReply, keys
 
-    session = open_session(args)
+    session = tool_session(args)
     try:
         reply = request(session, keys.ESTOP_RELEASE, EStopRelease(by=_who()), EStopReply)
         if not reply.ok:

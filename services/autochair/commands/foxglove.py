@@ -235,12 +235,12 @@ def run(args: argparse.Namespace) -> int:
     from foxglove.websocket import Capability
 
     from autochair.cli import CliError
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.commands.teleop import refuse_beyond_pid_caps, teleop_config
     from autochair.runtime.node import _install_signal_handlers, wait_for_stop
 
     cfg = None if args.no_teleop else teleop_config(args)
-    session = open_session(args)
+    session = tool_session(args)
     stop = threading.Event()
     loop: threading.Thread | None = None
     try:

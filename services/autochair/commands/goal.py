@@ -60,7 +60,7 @@ def read_waypoints(path: str) -> list[tuple[float, float, float]]:
 
 def run(args: argparse.Namespace) -> int:
 
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.runtime.client import request, subscribe
     from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
 
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     req = GoalRequest(waypoints=[Pose2D(x, y, math.radians(yaw)) for x, y, yaw in rows],
                       tolerance_m=args.tolerance_cm / 100.0,
                       tolerance_rad=math.radians(args.tolerance_deg), vmax_mps=args.vmax)
-    session = open_session(args)
+    session = tool_session(args)
     try:
         status: list[GoalStatus] = []
         cond = threading.Condition()

@@ -64,10 +64,10 @@ def check(session: Any, service: str, timeout_s: float, max_age_s: float) -> tup
 
 def run(args: argparse.Namespace) -> int:
     from autochair.cli import CliError
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
 
     try:
-        session = open_session(args, timeout_ms=int(min(args.timeout, 5.0) * 1000))
+        session = tool_session(args, timeout_ms=int(min(args.timeout, 5.0) * 1000))
     except CliError as e:
         print(f"{args.service}: {e}", flush=True)
         return 1

@@ -1,4 +1,4 @@
-"""The Zenoh session of the CLI's tools (status, drive, monitor, teleop, foxglove, ...).
+"""The link of the CLI's tools to a chair (status, drive, monitor, teleop, foxglove, ...).
 
 `--zenoh-config FILE` (or $AUTOCHAIR_ZENOH_CONFIG) is a laptop profile from `autochair certs`
 (client over mutual TLS); without it, a plain client of `--connect` / $AUTOCHAIR_CONNECT.
@@ -15,7 +15,7 @@ import zenoh
 
 from autochair.cli import CliError
 from autochair.runtime.client import open_client
-from autochair.runtime.config import ENV_CHAIR, ConfigError, ZenohSettings, check_chair
+from autochair.runtime.config import ENV_CHAIR, ConfigError, check_chair
 
 ENV_ZENOH_CONFIG = "AUTOCHAIR_ZENOH_CONFIG"
 
@@ -48,25 +48,13 @@ def chair_arg(args: argparse.Namespace) -> str | None:
         raise CliError(str(e)) from None
 
 
-def open_session(args: argparse.Namespace, timeout_ms: int = 5000,
+def tool_session(args: argparse.Namespace, timeout_ms: int = 5000,
                  chair: str | None = None) -> zenoh.Session:
-    """The tool's client session; `chair` (else --chair) overrides the chair ("" = none)."""
-    chair = chair if chair is not None else chair_arg(args)
+    """The tool's client session (a context manager); `chair` (else --chair) overrides the
+    chair ("" = none). Failures are one-line CliErrors."""
     try:
-        if not args.zenoh_config:
-            return open_client(args.connect, timeout_ms=timeout_ms, chair=chair)
-        if chair is None:
-            chair = os.environ.get(ENV_CHAIR, "")
-            if chair:
-                check_chair(chair, f"${ENV_CHAIR}")
-        settings = ZenohSettings(mode="client", listen=[], config_file=args.zenoh_config,
-                                 connect=[args.connect] if args.connect else [],
-                                 namespace=chair)
-        cfg = settings.to_zenoh()
-        cfg.insert_json5("connect/timeout_ms", str(timeout_ms))
-        cfg.insert_json5("connect/exit_on_failure", "true")
-        return zenoh.open(cfg)
+        return open_client(args.connect, timeout_ms=timeout_ms,
+                           chair=chair if chair is not None else chair_arg(args),
+                           zenoh_config=args.zenoh_config or "")
     except ConfigError as e:
         raise CliError(str(e)) from None
-    except zenoh.ZError as e:
-        raise CliError(f"cannot reach the chair with {args.zenoh_config}: {e}") from None

@@ -28,11 +28,11 @@ def run(args: argparse.Namespace) -> int:
     import zenoh
 
     from autochair import deploy
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.commands.monitor_core import MonitorState
     from autochair_msgs import keys
 
-    session = open_session(args)
+    session = tool_session(args)
     state = MonitorState([p.name for p in deploy.deployed()])
     lock = threading.Lock()
     bad = [0]

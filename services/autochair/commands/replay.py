@@ -129,7 +129,7 @@ def target_namespace(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     import zenoh
 
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.logger import replay
     from autochair.logger.reader import Recording
 
@@ -148,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
     # The session is in `namespace` (Zenoh's own): every key it publishes and every liveliness
     # token it watches is NAMESPACE/autochair/..., so the watch guards exactly where it
     # publishes.
-    session = open_session(args, chair=namespace)
+    session = tool_session(args, chair=namespace)
     pubs: dict[str, zenoh.Publisher] = {}
     allowed: dict[str, bool] = {}  # key → matches --keys
     watch = DriveChainWatch(session)

@@ -47,17 +47,17 @@ def own_chair(args: argparse.Namespace) -> str:
     try:
         return load_section(Z, "zenoh").namespace
     except ConfigError:
-        return ""  # open_session reports it
+        return ""  # tool_session reports it
 
 
 def run(args: argparse.Namespace) -> int:
     import msgspec
 
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
     from autochair.runtime.client import alive_chairs, subscribe_chairs
     from autochair_msgs import keys
 
-    session = open_session(args)
+    session = tool_session(args)
     own = own_chair(args)
     health: dict[tuple[str, str], Health] = {}
     lock = threading.Lock()

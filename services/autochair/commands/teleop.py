@@ -450,10 +450,10 @@ def run(args: argparse.Namespace) -> int:
     import socket
 
     from autochair.cli import CliError
-    from autochair.commands.link import open_session
+    from autochair.commands.link import tool_session
 
     cfg = teleop_config(args)
-    session = open_session(args)
+    session = tool_session(args)
     try:
         if not args.hand_back:
             refuse_beyond_pid_caps(session, cfg.limits())

@@ -8,6 +8,7 @@
 - `clear` (keys.ESTOP_CLEAR, services only by the hub's ACL) clears one source's cause.
 - `release` (keys.ESTOP_RELEASE) clears the latch, refused while any cause is active.
 - `restore` reads the saved state; an unreadable one restores as latched.
+- `snapshot`/`saved`: the state file's content, and what a save's outcome changes.
 - `health` says what the node reports, including a latch that cannot be persisted.
 """
 
@@ -90,6 +91,20 @@ class EStopCore:
         why = f"state file unreadable ({read_error})"
         self.latch(SELF, why, False, now_ns)
         return f"e-stop LATCHED: {why}"
+
+    def snapshot(self, now_ns: int) -> bytes:
+        """The state file's content."""
+        return msgspec.json.encode(self.state(now_ns))
+
+    def saved(self, error: str) -> str:
+        """The outcome of a save ("" = written): an event to report when that changed (a
+        latch that cannot be persisted is an error, never silent), else ""."""
+        before, self.persist_error = self.persist_error, error
+        if error and error != before:
+            return f"e-stop state cannot be saved ({error}): the latch would not survive a restart"
+        if before and not error:
+            return "e-stop state saved again"
+        return ""
 
     def health(self) -> tuple[str, str]:
         """(health state, detail). A latch that cannot be persisted is a fault: it would be

@@ -28,103 +28,112 @@ class EStopConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     state_file: str = ""
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    """Write `data` to `path` through a temporary file and a rename (fsynced: latch changes
-    are rare and must survive a power cut)."""
-    tmp = path.with_name(path.name + ".tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-    try:
-        os.write(fd, data)
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    tmp.replace(path)
+class StateFile:
+    """Where the latch survives a restart: read once, written atomically and fsynced (latch
+    changes are rare and must survive a power cut). I/O only; the core decides."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def read(self) -> tuple[bytes | None, str]:
+        """(content or None when there is none, why it could not be read)."""
+        try:
+            return self.path.read_bytes(), ""
+        except FileNotFoundError:
+            return None, ""
+        except OSError as e:
+            return None, f"{type(e).__name__}: {e}"
+
+    def write(self, data: bytes) -> str:
+        """"" when written, else why not (one line)."""
+        tmp = self.path.with_name(self.path.name + ".tmp")
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+            try:
+                os.write(fd, data)
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            tmp.replace(self.path)
+        except OSError as e:
+            return f"{self.path}: {type(e).__name__}: {e.strerror or e}"
+        return ""
 
 
 def start(node: Node, cfg: EStopConfig) -> None:
-    core = EStopCore()
-    lock = threading.Lock()
-    path = Path(cfg.state_file) if cfg.state_file else None
-    if path is not None:
-        saved: bytes | None = None
-        read_error = ""
-        try:
-            saved = path.read_bytes()
-        except FileNotFoundError:
-            pass
-        except OSError as e:
-            read_error = f"{type(e).__name__}: {e}"
-        warning = core.restore(saved, read_error, time.time_ns())
-        if warning:
-            node.event("warning", f"{warning} ({path})")
-    pub = node.publisher(keys.ESTOP_STATE)
+    latch = _Latch(node, StateFile(Path(cfg.state_file)) if cfg.state_file else None)
+    with latch.lock:
+        latch.save()  # at once: a state directory that cannot be written is reported first
+    node.subscribe(keys.ESTOP_ASSERT, latch.on_assert)
+    node.subscribe(keys.ESTOP_CLEAR, latch.on_clear)
+    node.serve(keys.ESTOP_RELEASE, latch.on_release)
+    node.every(1.0 / cfg.rate_hz, latch.publish, "state")
 
-    def publish() -> None:
-        with lock:
-            state = core.state(time.time_ns())
-            node.health.state, node.health.detail = core.health()
-        pub.put(state)
 
-    def save() -> None:
-        """Persist the latch (call with `lock` held); a failure is a fault, never silent."""
-        if path is None:
+class _Latch:
+    """EStopCore wired to Zenoh and the state file."""
+
+    def __init__(self, node: Node, file: StateFile | None) -> None:
+        self.node, self.file, self.core = node, file, EStopCore()
+        self.lock = threading.Lock()
+        self.pub = node.publisher(keys.ESTOP_STATE)
+        if file is not None:
+            warning = self.core.restore(*file.read(), time.time_ns())
+            if warning:
+                node.event("warning", f"{warning} ({file.path})")
+
+    def publish(self) -> None:
+        with self.lock:
+            state = self.core.state(time.time_ns())
+            self.node.health.state, self.node.health.detail = self.core.health()
+        self.pub.put(state)
+
+    def save(self) -> None:
+        """Persist the latch (call with `lock` held)."""
+        if self.file is None:
             return
-        before = core.persist_error
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            _write_atomic(path, msgspec.json.encode(core.state(time.time_ns())))
-        except OSError as e:
-            core.persist_error = f"{path}: {type(e).__name__}: {e.strerror or e}"
-            node.health.count("save_errors")
-            if core.persist_error != before:
-                node.event("error", f"e-stop state cannot be saved ({core.persist_error}): "
-                                    "the latch would not survive a restart")
-        else:
-            core.persist_error = ""
-            if before:
-                node.event("info", f"e-stop state saved again to {path}")
-        node.health.state, node.health.detail = core.health()
+        error = self.file.write(self.core.snapshot(time.time_ns()))
+        if error:
+            self.node.health.count("save_errors")
+        news = self.core.saved(error)
+        if news:
+            self.node.event("error" if error else "info", news)
+        self.node.health.state, self.node.health.detail = self.core.health()
 
-    def on_assert(msg: EStopAssert) -> None:
-        node.health.count("assert_msgs")
-        with lock:
-            changed = core.latch(msg.source, msg.reason, msg.active, time.time_ns())
+    def on_assert(self, msg: EStopAssert) -> None:
+        self.node.health.count("assert_msgs")
+        with self.lock:
+            changed = self.core.latch(msg.source, msg.reason, msg.active, time.time_ns())
             if changed:
-                save()
+                self.save()
         if changed:
             kind = "asserted" if msg.active else "pressed"
-            node.event("error", f"e-stop {kind} by {msg.source}: {msg.reason}")
-            node.health.count("asserts")
-            publish()
+            self.node.event("error", f"e-stop {kind} by {msg.source}: {msg.reason}")
+            self.node.health.count("asserts")
+            self.publish()
 
-    def on_clear(msg: EStopAssert) -> None:
-        node.health.count("clear_msgs")
-        with lock:
-            changed = core.clear(msg.source)
+    def on_clear(self, msg: EStopAssert) -> None:
+        self.node.health.count("clear_msgs")
+        with self.lock:
+            changed = self.core.clear(msg.source)
             if changed:
-                save()
+                self.save()
         if changed:
-            node.event("info", f"e-stop cause of {msg.source} cleared: {msg.reason}")
-            node.health.count("clears")
-            publish()
+            self.node.event("info", f"e-stop cause of {msg.source} cleared: {msg.reason}")
+            self.node.health.count("clears")
+            self.publish()
 
-    def on_release(req: EStopRelease) -> EStopReply:
-        with lock:
-            error = core.release()
+    def on_release(self, req: EStopRelease) -> EStopReply:
+        with self.lock:
+            error = self.core.release()
             if not error:
-                save()
-            latched = core.latched
-        node.event("warning" if error else "info",
-                   f"e-stop release by {req.by}: {error or 'released'}")
-        publish()
+                self.save()
+            latched = self.core.latched
+        self.node.event("warning" if error else "info",
+                        f"e-stop release by {req.by}: {error or 'released'}")
+        self.publish()
         return EStopReply(ok=not error, latched=latched, error=error)
-
-    with lock:
-        save()  # at once: a state directory that cannot be written is reported before a latch
-    node.subscribe(keys.ESTOP_ASSERT, on_assert)
-    node.subscribe(keys.ESTOP_CLEAR, on_clear)
-    node.serve(keys.ESTOP_RELEASE, on_release)
-    node.every(1.0 / cfg.rate_hz, publish, "state")
 
 
 def main(argv: list[str] | None = None) -> int:

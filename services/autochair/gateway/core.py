@@ -52,6 +52,14 @@ class GatewayCore:
     _estop_t: float = -math.inf
     _tx_seq: int = 0
     _ack_seq: int = 0
+    # The serial link: frames go out when the output changes and at least every keepalive_s
+    # (the firmware's watchdog neutralises after 200 ms of silence); a port with no telemetry
+    # for rx_stall_s is reopened.
+    keepalive_s: float = 0.02
+    rx_stall_s: float = 2.0
+    _sent: Output | None = None
+    _sent_t: float = -math.inf
+    _rx_t: float = -math.inf
 
     def on_bytes(self, data: bytes) -> list[tuple[Telemetry, int]]:
         """Decode serial bytes; returns each telemetry frame with the count of frames missed."""
@@ -98,6 +106,32 @@ class GatewayCore:
     def reset(self) -> None:
         """Forget the last command (e.g. after a reconnect): output goes neutral until a new one."""
         self._cmd, self._cmd_t, self._last_seq = None, -math.inf, None
+
+    def link_up(self, now_s: float) -> None:
+        """A port was (re)opened: nothing carries over from the old link."""
+        self.reset()
+        self._sent, self._rx_t = None, now_s
+
+    def due(self, now_s: float) -> Output | None:
+        """The output to write now: when it changed or the keepalive is due, else None."""
+        out = self.output(now_s)
+        if out != self._sent or now_s - self._sent_t >= self.keepalive_s:
+            return out
+        return None
+
+    def sent(self, out: Output, now_s: float) -> tuple[bool, bool]:
+        """`out` was written: (its reason changed, the new reason is a fault). Neutral
+        because nothing is asked (startup, parked) is normal; any other neutral is a fault."""
+        changed = self._sent is None or out.reason != self._sent.reason
+        self._sent, self._sent_t = out, now_s
+        return changed, out.reason not in ("command", "neutral:startup", "neutral:disabled")
+
+    def received(self, frames: int, now_s: float) -> bool:
+        """Telemetry arrived (`frames` decoded); True when the link has been silent for
+        rx_stall_s and must be reopened."""
+        if frames:
+            self._rx_t = now_s
+        return now_s - self._rx_t > self.rx_stall_s
 
     def output(self, now_s: float) -> Output:
         if self._estop_latched:

@@ -10,8 +10,8 @@ import time
 
 import msgspec
 import serial
-import zenoh
 
+from autochair.backoff import Backoff
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import EncoderSample, EStopState, JoystickCommand, JoystickOutput, keys
 
@@ -40,12 +40,11 @@ class Gateway:
         stale = node.stale
         self.core = GatewayCore(stale_s=stale.joystick_s, estop_stale_s=stale.estop_s,
                                 skew_s=stale.clock_skew_s,
-                                require_estop=cfg.require_estop, min_v=cfg.min_v, max_v=cfg.max_v)
+                                require_estop=cfg.require_estop, min_v=cfg.min_v, max_v=cfg.max_v,
+                                keepalive_s=1.0 / cfg.keepalive_hz, rx_stall_s=cfg.rx_stall_s)
         self.lock = threading.Lock()  # core + port writes: command callback vs tick vs reader
         self.port: serial.SerialBase | None = None
-        self.last_out: Output | None = None
-        self.last_write = 0.0
-        self.last_rx = 0.0
+        self.backoff = Backoff(cfg.reconnect_min_s, 2.0, cfg.reconnect_max_s, 0.2)
         self.link_epoch = 0  # serial connections so far (EncoderSample.link_epoch)
         self.enc_pub = node.publisher(keys.ENCODERS)
         self.out_pub = node.publisher(keys.JOYSTICK_OUT)
@@ -56,10 +55,8 @@ class Gateway:
         h.state, h.detail = "degraded", f"connecting to {cfg.port}"
         node.subscribe(keys.JOYSTICK, self.on_command)
         node.subscribe(keys.ESTOP_STATE, self.on_estop)
-        # A killed process's token disappears within milliseconds, far sooner than the
-        # heartbeat goes stale; a hung one is still caught by the heartbeat.
-        self._estop_token = node.session.liveliness().declare_subscriber(
-            f"{keys.PREFIX}/alive/estop", self.on_estop_token)
+        # A hung e-stop is still caught by the heartbeat; a dead one by its token at once.
+        node.watch_alive("estop", self.on_estop_alive)
         node.every(0.005, self.tick, "tick")
         node.thread(self.serial_loop, "serial")
 
@@ -80,8 +77,8 @@ class Gateway:
             if state.latched:
                 self._write(self.core.output(time.monotonic()))  # at once, not at the next tick
 
-    def on_estop_token(self, sample: zenoh.Sample) -> None:
-        if sample.kind == zenoh.SampleKind.DELETE:
+    def on_estop_alive(self, alive: bool) -> None:
+        if not alive:
             with self.lock:
                 self.core.on_estop_gone()
                 self._write(self.core.output(time.monotonic()))
@@ -89,9 +86,8 @@ class Gateway:
     def tick(self) -> None:
         """Watchdog and keepalive: write when the output changes or the keepalive is due."""
         with self.lock:
-            now = time.monotonic()
-            out = self.core.output(now)
-            if out != self.last_out or now - self.last_write >= 1.0 / self.cfg.keepalive_hz:
+            out = self.core.due(time.monotonic())
+            if out is not None:
                 self._write(out)
 
     def _write(self, out: Output) -> None:
@@ -103,11 +99,9 @@ class Gateway:
         except (serial.SerialException, OSError) as e:
             self._lost(f"write failed: {e}")
             return
-        if out.reason != (self.last_out.reason if self.last_out else None):
-            # Neutral because nothing is asked (startup, parked) is normal; the rest is a fault.
-            normal = out.reason in ("command", "neutral:startup", "neutral:disabled")
-            self.node.event("info" if normal else "warning", f"output {out.reason}")
-        self.last_out, self.last_write = out, time.monotonic()
+        changed, fault = self.core.sent(out, time.monotonic())
+        if changed:
+            self.node.event("warning" if fault else "info", f"output {out.reason}")
         self.node.health.count("frames_out")
         self.out_pub.put(JoystickOutput(
             stamp_ns=time.time_ns(), seq=seq, longitudinal_v=out.longitudinal_v,
@@ -115,21 +109,17 @@ class Gateway:
 
     # --- chair → host ----------------------------------------------------------------------
     def serial_loop(self) -> None:
-        backoff = self.cfg.reconnect_min_s
-        announced = False
         while not self.node.stop_event.is_set():
             if self.port is None:
                 if self._open():
-                    backoff, announced = self.cfg.reconnect_min_s, False
-                else:
-                    if not announced:  # say it once per outage, not once per attempt
-                        self.node.event("warning", f"serial port {self.cfg.port} unavailable; "
-                                        "holding neutral and retrying with backoff")
-                        announced = True
-                    # jitter keeps several gateways (or a flapping hub) from retrying in lockstep
-                    self.node.stop_event.wait(backoff * random.uniform(0.8, 1.2))
-                    backoff = min(backoff * 2, self.cfg.reconnect_max_s)
+                    self.backoff.reset()
                     continue
+                if self.backoff.attempt == 0:  # say it once per outage, not once per attempt
+                    self.node.event("warning", f"serial port {self.cfg.port} unavailable; "
+                                    "holding neutral and retrying with backoff")
+                # jitter keeps several gateways (or a flapping hub) from retrying in lockstep
+                self.node.stop_event.wait(self.backoff.next_s(random.random()))
+                continue
             self._read_once()
 
     def _open(self) -> bool:
@@ -140,8 +130,7 @@ class Gateway:
             return False
         with self.lock:
             self.port = port
-            self.core.reset()
-            self.last_rx = time.monotonic()
+            self.core.link_up(time.monotonic())
             with contextlib.suppress(serial.SerialException, OSError):
                 port.write(b"\x00")  # end any partial frame the firmware holds
             self._write(self.core.output(time.monotonic()))
@@ -162,19 +151,15 @@ class Gateway:
             with self.lock:
                 self._lost(f"read failed: {e}")
             return
-        now = time.monotonic()
-        if not data:
-            if now - self.last_rx > self.cfg.rx_stall_s:
-                with self.lock:
-                    self._lost(f"no telemetry for {self.cfg.rx_stall_s:.1f} s")
-            return
         stamp = time.time_ns()
         stats = self.core.decoder.stats
         bad_before = stats.bad_frames
         with self.lock:
-            frames = self.core.on_bytes(data)
+            frames = self.core.on_bytes(data) if data else []
+            if self.core.received(len(frames), time.monotonic()):
+                self._lost(f"no telemetry for {self.cfg.rx_stall_s:.1f} s")
+                return
         for frame, gap in frames:
-            self.last_rx = now
             self.enc_pub.put(EncoderSample(
                 stamp_ns=stamp, seq=frame.seq, mcu_time_us=frame.t_us, left_counts=frame.left,
                 right_counts=frame.right, status=frame.status, dropped=gap,
@@ -193,7 +178,6 @@ class Gateway:
             return
         with contextlib.suppress(serial.SerialException, OSError):
             port.close()
-        self.last_out = None
         self.node.health.count("disconnects")
         self.node.health.state, self.node.health.detail = "degraded", f"disconnected: {why}"
         self.node.event("warning", f"serial port {self.cfg.port} lost ({why}); holding neutral")

@@ -7,6 +7,7 @@ can wire this straight to the simulated device (`autochair.sim.lidar.scanner.Urg
 
 from __future__ import annotations
 
+import enum
 import math
 from collections import deque
 from collections.abc import Callable
@@ -15,6 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
+from autochair.backoff import Backoff
 from autochair.protocol import scip
 from autochair_msgs import LaserScan
 
@@ -111,26 +113,64 @@ class ClockSync:
         return device_ms * 1_000_000 + self.offset_ns
 
 
-class Backoff:
-    """Exponential backoff with jitter, capped: retries slow down to one per `max_s`, never a
-    storm, yet a returning device is picked up within about `max_s`."""
-
-    def __init__(self, base_s: float = 0.1, factor: float = 2.0, max_s: float = 1.0,
-                 jitter: float = 0.25) -> None:
-        self.base_s, self.factor, self.max_s, self.jitter = base_s, factor, max_s, jitter
-        self.attempt = 0
-
-    def reset(self) -> None:
-        self.attempt = 0
-
-    def next_s(self, u: float) -> float:
-        """Delay before the next attempt; `u` uniform in [0, 1) (passed in: pure)."""
-        d = min(self.max_s, self.base_s * self.factor ** self.attempt)
-        self.attempt += 1
-        return d * (1.0 - self.jitter + 2.0 * self.jitter * u)
-
-
 Count = Callable[[str, int], None]
+
+
+class Link(enum.Enum):
+    WAITING = "waiting"  # the device cannot be opened
+    STREAMING = "streaming"
+    RECONNECTING = "reconnecting"  # the link was lost; waiting before the next attempt
+
+
+@dataclass
+class IngestPolicy:
+    """When the ingest gives up on a link, and how long it waits before the next attempt.
+    Pure: `now` (monotonic s) and the random draw `u` are passed in."""
+
+    max_consecutive_errors: int
+    stall_timeout_s: float
+    backoff: Backoff
+    state: Link = Link.WAITING
+    errors: int = 0  # bad scans in a row
+    last_ok: float = -math.inf
+    links: int = 0  # transports opened
+    scans_this_link: int = 0
+
+    def open_failed(self, u: float) -> tuple[float, bool]:
+        """(delay before the next attempt, report it: the first failure of an outage)."""
+        report = self.backoff.attempt == 0
+        self.state = Link.WAITING
+        return self.backoff.next_s(u), report
+
+    def opened(self) -> bool:
+        """A transport is open; True when it replaces a lost one (a reconnect)."""
+        self.links += 1
+        self.errors, self.scans_this_link = 0, 0
+        return self.links > 1
+
+    def streaming(self, now: float) -> None:
+        """The handshake worked: the stall clock starts now."""
+        self.state, self.last_ok = Link.STREAMING, now
+
+    def scan_ok(self, now: float) -> None:
+        self.errors, self.last_ok = 0, now
+        self.scans_this_link += 1
+
+    def scan_bad(self) -> tuple[bool, bool]:
+        """(report it: the 1st, 10th, 100th in a row or the last, give up on the link)."""
+        self.errors += 1
+        give_up = self.errors >= self.max_consecutive_errors
+        return self.errors in (1, 10, 100) or give_up, give_up
+
+    def stalled(self, now: float) -> bool:
+        return now - self.last_ok > self.stall_timeout_s
+
+    def lost(self, u: float) -> float:
+        """The link is gone: the delay before reopening (quick again if it streamed)."""
+        if self.scans_this_link:
+            self.backoff.reset()
+        self.state = Link.RECONNECTING
+        return self.backoff.next_s(u)
 
 
 class ScanDecoder:

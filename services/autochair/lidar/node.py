@@ -17,13 +17,14 @@ import tty
 
 import msgspec
 
+from autochair.backoff import Backoff
 from autochair.geometry import yaw_quaternion
 from autochair.protocol import scip
 from autochair.runtime.config import ChairGeometry, ConfigError
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import FrameTransform, Quaternion, Vector3, keys
 
-from .core import Backoff, LidarClient, LidarTimeout, ScanDecoder
+from .core import IngestPolicy, LidarClient, LidarTimeout, ScanDecoder
 
 
 class LidarConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -143,80 +144,84 @@ def mount_transform(cfg: LidarConfig, chair: ChairGeometry, stamp_ns: int) -> Fr
 
 def start(node: Node, cfg: LidarConfig) -> None:
     check_config(cfg)
-    scans = node.publisher(keys.SCAN)
     tf = node.publisher(keys.TF_STATIC)
-    health = node.health
-    health.thresholds.update(stall_timeout_s=cfg.stall_timeout_s,
-                             backoff_max_s=cfg.backoff_max_s)
+    node.health.thresholds.update(stall_timeout_s=cfg.stall_timeout_s,
+                                  backoff_max_s=cfg.backoff_max_s)
     node.every(cfg.tf_period_s, lambda: tf.put(mount_transform(cfg, node.chair, time.time_ns())),
                "tf")
-    stop = node.stop_event
+    node.thread(_Ingest(node, cfg).loop, "ingest")
 
-    def count(name: str, n: int) -> None:
-        health.count(name, n)
 
-    def session(t: FdTransport | TcpTransport) -> None:
-        client = LidarClient(t, count, time.monotonic, cfg.reply_timeout_s)
+class _Ingest:
+    """The reconnect loop and one streaming session per link; IngestPolicy decides."""
+
+    def __init__(self, node: Node, cfg: LidarConfig) -> None:
+        self.node, self.cfg = node, cfg
+        self.scans = node.publisher(keys.SCAN)
+        self.policy = IngestPolicy(cfg.max_consecutive_errors, cfg.stall_timeout_s,
+                                   Backoff(cfg.backoff_base_s, 2.0, cfg.backoff_max_s,
+                                           cfg.backoff_jitter))
+        self.rng = random.Random()
+
+    def count(self, name: str, n: int) -> None:
+        self.node.health.count(name, n)
+
+    def loop(self) -> None:
+        node, cfg, stop = self.node, self.cfg, self.node.stop_event
+        while not stop.is_set():
+            try:
+                t = open_transport(cfg)
+            except OSError as e:
+                self.count("connect_failures", 1)
+                delay, report = self.policy.open_failed(self.rng.random())
+                if report:
+                    node.event("warning", f"lidar: cannot open {cfg.url}: {e}")
+                node.health.state, node.health.detail = "degraded", f"waiting for {cfg.url}"
+                stop.wait(delay)
+                continue
+            if self.policy.opened():
+                self.count("reconnects", 1)
+            try:
+                self.session(t)
+            except (scip.ScipError, OSError) as e:
+                self.count(_classify(e), 1)
+                if not stop.is_set():
+                    node.event("warning", f"lidar: link lost ({_classify(e)}): {e}")
+            finally:
+                t.close()
+            node.health.state, node.health.detail = "degraded", f"reconnecting to {cfg.url}"
+            stop.wait(self.policy.lost(self.rng.random()))
+
+    def session(self, t: FdTransport | TcpTransport) -> None:
+        cfg, node, policy = self.cfg, self.node, self.policy
+        client = LidarClient(t, self.count, time.monotonic, cfg.reply_timeout_s)
         params, req = client.start(None if cfg.start_step < 0 else cfg.start_step,
                                    None if cfg.end_step < 0 else cfg.end_step,
                                    cfg.cluster, cfg.interval, cfg.command)
-        dec = ScanDecoder(params, req, cfg.frame_id, count, cfg.sync_window)
-        health.state, health.detail = "ok", f"{params.model} on {cfg.url}"
+        dec = ScanDecoder(params, req, cfg.frame_id, self.count, cfg.sync_window)
+        node.health.state, node.health.detail = "ok", f"{params.model} on {cfg.url}"
         node.event("info", f"lidar streaming: {params.model}, {dec.n} beams, "
                    f"{params.scan_rpm} rpm, on {cfg.url}")
-        last_ok, errors = time.monotonic(), 0
-        while not stop.is_set():
+        policy.streaming(time.monotonic())
+        while not node.stop_event.is_set():
             blocks = client.scan_blocks(0.1)
             rx_ns = time.time_ns()
             for block in blocks:
                 try:
                     msg = dec.decode(block, rx_ns)
                 except scip.ScipError as e:
-                    count(_classify(e), 1)
-                    errors += 1
-                    if errors in (1, 10, 100) or errors >= cfg.max_consecutive_errors:
+                    self.count(_classify(e), 1)
+                    report, give_up = policy.scan_bad()
+                    if report:
                         node.event("warning", f"lidar: bad scan: {e}")
-                    if errors >= cfg.max_consecutive_errors:
+                    if give_up:
                         raise
                     continue
-                errors, last_ok = 0, time.monotonic()
-                scans.put(msg)
-                count("scans", 1)
-            if time.monotonic() - last_ok > cfg.stall_timeout_s:
+                policy.scan_ok(time.monotonic())
+                self.scans.put(msg)
+                self.count("scans", 1)
+            if policy.stalled(time.monotonic()):
                 raise LidarTimeout(f"no valid scan for {cfg.stall_timeout_s} s")
-
-    def loop() -> None:
-        backoff = Backoff(cfg.backoff_base_s, 2.0, cfg.backoff_max_s, cfg.backoff_jitter)
-        rng = random.Random()
-        connected_once = False
-        while not stop.is_set():
-            try:
-                t = open_transport(cfg)
-            except OSError as e:
-                count("connect_failures", 1)
-                if backoff.attempt == 0:
-                    node.event("warning", f"lidar: cannot open {cfg.url}: {e}")
-                health.state, health.detail = "degraded", f"waiting for {cfg.url}"
-                stop.wait(backoff.next_s(rng.random()))
-                continue
-            if connected_once:
-                count("reconnects", 1)
-            connected_once = True
-            before = health.counters.get("scans", 0)
-            try:
-                session(t)
-            except (scip.ScipError, OSError) as e:
-                count(_classify(e), 1)
-                if not stop.is_set():
-                    node.event("warning", f"lidar: link lost ({_classify(e)}): {e}")
-            finally:
-                t.close()
-            if health.counters.get("scans", 0) > before:
-                backoff.reset()  # it worked for a while: retry quickly
-            health.state, health.detail = "degraded", f"reconnecting to {cfg.url}"
-            stop.wait(backoff.next_s(rng.random()))
-
-    node.thread(loop, "ingest")
 
 
 def main(argv: list[str] | None = None) -> int:

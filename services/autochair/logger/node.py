@@ -10,14 +10,10 @@ exclusively, a taken name gets a suffix (see autochair.logger.writer).
 
 from __future__ import annotations
 
-import contextlib
 import sys
 import threading
 import time
 from collections import deque
-from typing import Any
-
-import zenoh
 
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import keys
@@ -51,62 +47,69 @@ def start(node: Node, cfg: LoggerConfig) -> None:
     limit = cfg.queue_size
     health = node.health
 
-    def on_sample(sample: zenoh.Sample) -> None:
+    def on_sample(key: str, payload: bytes) -> None:
         # Runs on a Zenoh thread: append and return, nothing else (never block a publisher).
         if len(queue) >= limit:
             health.count("dropped")
             return
-        queue.append((str(sample.key_expr), sample.payload.to_bytes(), time.time_ns()))
+        queue.append((key, payload, time.time_ns()))
 
-    subscribers = [node.session.declare_subscriber(k, on_sample) for k in logged_keys()]
-    writer = threading.Thread(target=_write_loop, args=(node, recorder, queue, subscribers),
+    node.record_raw(logged_keys(), on_sample)
+    writer = threading.Thread(target=_write_loop, args=(node, recorder, queue),
                               name="logger-writer", daemon=False)
     writer.start()
 
 
-def _write_loop(node: Node, recorder: Recorder, queue: deque[tuple[str, bytes, int]],
-                subscribers: list[Any]) -> None:
-    health = node.health
-    reported = {k: 0 for k in recorder.counters}
-    dropped_reported = 0
-    last_report = time.monotonic()
-    queue_max = 0
+class _Reporter:
+    """Moves the recorder's counters into health once a second; a drop becomes a warning."""
+
+    def __init__(self, node: Node, recorder: Recorder) -> None:
+        self.node, self.recorder = node, recorder
+        self.reported = dict.fromkeys(recorder.counters, 0)
+        self.dropped_reported = 0
+        self.last = time.monotonic()
+        self.queue_max = 0
+
+    def report(self, now: float, queued: int, force: bool) -> None:
+        if now - self.last < 1.0 and not force:
+            return
+        self.last = now
+        health, recorder = self.node.health, self.recorder
+        for k, v in recorder.counters.items():
+            if v != self.reported[k]:
+                health.count(k, v - self.reported[k])
+                self.reported[k] = v
+        health.counters["queue_max"] = self.queue_max
+        health.counters["files"] = len(recorder.files)
+        if self.reported["decode_errors"] and recorder.last_error:
+            health.record_fault(recorder.last_error)
+        dropped = health.counters.get("dropped", 0)
+        if dropped > self.dropped_reported:
+            msg = (f"queue full ({queued}/{recorder.cfg.queue_size}): dropped "
+                   f"{dropped - self.dropped_reported} samples ({dropped} in all)")
+            recorder.note("warning", msg, time.time_ns())
+            self.node.event("warning", msg)
+            self.dropped_reported = dropped
+
+
+def _write_loop(node: Node, recorder: Recorder, queue: deque[tuple[str, bytes, int]]) -> None:
+    reporter = _Reporter(node, recorder)
     try:
         while True:
             stopping = node.stop_event.is_set()
-            queue_max = max(queue_max, len(queue))
+            reporter.queue_max = max(reporter.queue_max, len(queue))
             n = 0
             while queue:
-                key, payload, recv_ns = queue.popleft()
-                recorder.write(key, payload, recv_ns)
+                recorder.write(*queue.popleft())
                 n += 1
             now = time.monotonic()
             recorder.tick(now)
-            if now - last_report >= 1.0 or stopping:
-                last_report = now
-                for k, v in recorder.counters.items():
-                    if v != reported[k]:
-                        health.count(k, v - reported[k])
-                        reported[k] = v
-                health.counters["queue_max"] = queue_max
-                health.counters["files"] = len(recorder.files)
-                if reported["decode_errors"] and recorder.last_error:
-                    health.fault(recorder.last_error)
-                dropped = health.counters.get("dropped", 0)
-                if dropped > dropped_reported:
-                    msg = (f"queue full ({len(queue)}/{recorder.cfg.queue_size}): dropped "
-                           f"{dropped - dropped_reported} samples ({dropped} in all)")
-                    recorder.note("warning", msg, time.time_ns())
-                    node.event("warning", msg)
-                    dropped_reported = dropped
+            reporter.report(now, len(queue), stopping)
             if stopping:
                 break
             if n == 0:
                 node.stop_event.wait(IDLE_WAIT_S)
     finally:
-        for sub in subscribers:
-            with contextlib.suppress(zenoh.ZError):
-                sub.undeclare()
         recorder.finish()
         node.log.info("recording finished: %s (%d messages)", ", ".join(
             str(p) for p in recorder.files), recorder.counters["written"])

@@ -11,10 +11,9 @@ import logging
 import sys
 import threading
 
-import zenoh
-
 from autochair.runtime.config import ConfigError, ZenohSettings, load_section
 from autochair.runtime.node import _install_signal_handlers, setup_logging, wait_for_stop
+from autochair.runtime.session import open_session
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -31,8 +30,8 @@ def main(argv: list[str] | None = None) -> int:
         settings.listen = [e.strip() for e in args.listen.split(",")] + [
             e for e in settings.listen if not e.endswith(":0")
         ]
-        session = zenoh.open(settings.to_zenoh())
-    except (ConfigError, zenoh.ZError) as e:
+        session = open_session(settings)
+    except ConfigError as e:
         print(f"autochair-router: error: {e}", file=sys.stderr)
         return 2
     stop = threading.Event()

@@ -10,25 +10,28 @@ import zenoh
 
 from autochair_msgs import keys
 
-from .config import ConfigError, load_zenoh
+from .config import load_zenoh
+from .session import open_session
 
 
 def open_client(connect: str | None = None, config: str | None = None,
-                timeout_ms: int = 3000, chair: str | None = None) -> zenoh.Session:
+                timeout_ms: int = 3000, chair: str | None = None,
+                zenoh_config: str = "") -> zenoh.Session:
     """A client session to the hub, in chair `chair`'s namespace (None: $AUTOCHAIR_CHAIR, else
-    the config's [zenoh] namespace; "": none); ConfigError (one line) when the name is not a
-    chair name or the hub cannot be reached."""
+    the config's [zenoh] namespace; "": none); `zenoh_config`: a laptop's Zenoh profile (TLS)
+    from `autochair certs`. ConfigError (one line) when the name is not a chair name or the hub
+    cannot be reached."""
     settings = load_zenoh(config, connect, chair)
     settings.mode, settings.listen = "client", []
-    cfg = settings.to_zenoh()
-    cfg.insert_json5("connect/timeout_ms", str(timeout_ms))
-    cfg.insert_json5("connect/exit_on_failure", "true")
-    try:
-        return zenoh.open(cfg)
-    except zenoh.ZError:
-        raise ConfigError(
-            f"no autochair hub at {', '.join(settings.connect)} (is `autochair up` running? "
-            "set --connect or AUTOCHAIR_CONNECT)") from None
+    if zenoh_config:
+        settings.config_file = zenoh_config
+        settings.connect = [connect] if connect else []  # else the profile's endpoints
+        why = f"cannot reach the chair with {zenoh_config}: {{reason}}"
+    else:
+        why = (f"no autochair hub at {', '.join(settings.connect)} (is `autochair up` running? "
+               "set --connect or AUTOCHAIR_CONNECT)")
+    return open_session(settings, client_timeout_ms=timeout_ms, log_level="error",
+                        unreachable=why)
 
 
 T = TypeVar("T", bound=msgspec.Struct)

@@ -27,6 +27,7 @@ from .config import (
     load_section,
     load_zenoh,
 )
+from .session import open_session
 from .watchdog import CHECK_PERIOD_S, Liveness, Notifier
 
 T = TypeVar("T", bound=msgspec.Struct)
@@ -59,7 +60,8 @@ class HealthState:
         with self._lock:
             self.counters[name] = self.counters.get(name, 0) + n
 
-    def fault(self, message: str) -> None:
+    def record_fault(self, message: str) -> None:
+        """Remember the last fault for health (the state is left as it is)."""
         self.last_fault = message
         self.last_fault_stamp_ns = time.time_ns()
 
@@ -130,10 +132,7 @@ class Node:
         self._threads: list[threading.Thread] = []
         self._closers: list[Callable[[], Any]] = []
         settings = settings or ZenohSettings()
-        try:
-            self.session = zenoh.open(settings.to_zenoh())
-        except zenoh.ZError as e:
-            raise ConfigError(f"cannot open Zenoh session: {e}") from None
+        self.session = open_session(settings)
         self._token = self.session.liveliness().declare_token(f"{keys.PREFIX}/alive/{name}")
         self._health_pub = self.publisher(keys.HEALTH, keys.HEALTH.for_service(name))
         self._log_pub = self.publisher(keys.LOG)
@@ -141,14 +140,41 @@ class Node:
 
     # --- messaging -----------------------------------------------------------------------------
     def publisher(self, topic: keys.Topic[Any], key: str | None = None, *,
-                  express: bool = True) -> Publisher:
-        # express: send at once instead of batching; the drive chain is latency-bound.
-        # Publishers are not undeclared one by one: a callback may be using one, and
-        # session.close() undeclares them all.
+                  express: bool = True, reliable: bool = False) -> Publisher:
+        """express: send at once instead of batching (the drive chain is latency-bound).
+        reliable: block instead of dropping under congestion (e.g. an e-stop assert, which
+        must never be lost), where the default drops: a stale control sample is worse than
+        none. Publishers are undeclared by session.close(), not one by one: a callback may
+        be using one."""
         pub = self.session.declare_publisher(
-            key or topic.key, express=express, congestion_control=zenoh.CongestionControl.DROP
-        )
+            key or topic.key, express=express,
+            congestion_control=(zenoh.CongestionControl.BLOCK if reliable
+                                else zenoh.CongestionControl.DROP),
+            reliability=zenoh.Reliability.RELIABLE)
         return Publisher(pub, self.stop_event)
+
+    def watch_alive(self, service: str, on_change: Callable[[bool], None]) -> None:
+        """`on_change(alive)` when `service`'s liveliness token appears or vanishes. A killed
+        process's token vanishes within milliseconds, far sooner than any heartbeat."""
+        def on_token(sample: zenoh.Sample) -> None:
+            token = self.liveness.enter(f"token {service}", time.monotonic())
+            try:
+                on_change(sample.kind == zenoh.SampleKind.PUT)
+            finally:
+                self.liveness.leave(token)
+
+        sub = self.session.liveliness().declare_subscriber(f"{keys.PREFIX}/alive/{service}",
+                                                           on_token)
+        self._closers.append(sub.undeclare)
+
+    def record_raw(self, key_exprs: list[str], on_sample: Callable[[str, bytes], None]) -> None:
+        """Undecoded samples of `key_exprs` (the logger's intake): `on_sample(key, payload)`
+        runs on a Zenoh thread and must return at once."""
+        def forward(sample: zenoh.Sample) -> None:
+            on_sample(str(sample.key_expr), sample.payload.to_bytes())
+
+        for k in key_exprs:
+            self._closers.append(self.session.declare_subscriber(k, forward).undeclare)
 
     def subscribe(self, topic: keys.Topic[T], callback: Callable[[T], None],
                   key: str | None = None) -> None:
@@ -181,7 +207,7 @@ class Node:
                 if self.stop_event.is_set():
                     return  # racing shutdown (e.g. a publisher already closed): not a fault
                 self.health.count("callback_errors")
-                self.health.fault(f"{type(e).__name__}: {e}")
+                self.health.record_fault(f"{type(e).__name__}: {e}")
                 self.log.exception("callback for %s failed", sample.key_expr)
 
         sub = self.session.declare_subscriber(key or topic.key, on_sample)
@@ -228,7 +254,7 @@ class Node:
                 handler(query)
             except Exception as e:
                 self.health.count("query_errors")
-                self.health.fault(f"{type(e).__name__}: {e}")
+                self.health.record_fault(f"{type(e).__name__}: {e}")
                 self.log.exception("query on %s failed", topic.key)
             finally:
                 self.liveness.leave(token)
@@ -244,7 +270,7 @@ class Node:
         """Log locally and publish a LogEvent (warnings and worse also become `last_fault`)."""
         self.log.log(getattr(logging, level.upper(), logging.INFO), message)
         if level in ("warning", "error", "fatal"):
-            self.health.fault(message)
+            self.health.record_fault(message)
         with contextlib.suppress(zenoh.ZError):  # the session may be closing
             self._log_pub.put(LogEvent(stamp_ns=time.time_ns(), service=self.name,
                                        level=level, message=message))
@@ -272,7 +298,7 @@ class Node:
                     fn()
                 except Exception as e:
                     self.health.count(f"errors:{name}")
-                    self.health.fault(f"{name}: {type(e).__name__}: {e}")
+                    self.health.record_fault(f"{name}: {type(e).__name__}: {e}")
                     self.log.exception("periodic %s failed", name)
                 next_t += period_s
                 now = time.monotonic()

@@ -42,6 +42,7 @@ import enum
 import math
 from dataclasses import dataclass, field
 
+import msgspec
 import numpy as np
 import numpy.typing as npt
 
@@ -54,13 +55,10 @@ DIRECTIONS = ("fwd", "rev", "ccw", "cw")
 _WORDS = {"fwd": "ahead", "rev": "behind", "ccw": "turning left", "cw": "turning right"}
 
 
-@dataclass(frozen=True)
-class SafetyParams:
-    front_m: float = 0.95  # footprint ahead of the drive axle ([chair]; the laser sits at 0.86)
-    rear_m: float = 0.25  # behind the axle ([chair])
-    half_width_m: float = 0.35  # 0.7 m wide ([chair])
-    # The laser's (x, y, yaw) in the chair frame ([chair] laser_x_m, laser_y_m, laser_yaw_rad).
-    mount: tuple[float, float, float] = (0.8636, 0.2032, 0.0)
+class SafetyTuning(msgspec.Struct, kw_only=True, frozen=True, forbid_unknown_fields=True):
+    """The monitor's tuning, SI units: the [safety] settings the core uses (the node's
+    SafetyConfig extends this, so each default is written once, here). Checked on creation."""
+
     padding_m: float = 0.05  # grown on every side (laser noise, mounting tolerance)
     decel_mps2: float = 1.0  # planned braking deceleration (comfort limit ~1 m/s²)
     reaction_s: float = 1.0  # latency margin: scan age + PID + chair controller lag (~1 s)
@@ -68,7 +66,7 @@ class SafetyParams:
     alpha_radps2: float = 1.5  # planned angular deceleration
     stop_margin_rad: float = 0.05
     v_max_fwd_mps: float = 1.2  # caps of the published bounds (no obstacle in view)
-    v_max_rev_mps: float = 0.5  # the laser cannot see behind the chair: back up slowly
+    v_max_rev_mps: float = 0.5  # attended (teleop) reverse: the laser cannot see behind
     omega_max_radps: float = 1.0
     kappa_max_per_m: float = 3.0  # arc curvature is clamped to this (|ω/v| at low speed)
     moving_mps: float = 0.05  # |v| above this follows the arc, below it the path is straight
@@ -81,17 +79,23 @@ class SafetyParams:
     # blinded laser has 0 %. 0.3 leaves room for dark or glass surfaces; open spaces wider than
     # DMAX read as blind.
     min_valid_fraction: float = 0.3
-    blind_speed_mps: float = 0.3  # the unseen part of the footprint swings at most this fast
-    blind_reverse_autonomy_mps: float = 0.0  # autonomy reversing with no sensor behind: off
+    # The footprint the laser cannot see swings at most this fast: |ω| ≤ this / R_max.
+    blind_speed_mps: float = 0.3
+    # Autonomy may reverse this fast with nothing sensing behind the chair (0 = never).
+    blind_reverse_autonomy_mps: float = 0.0
     max_increment_rad: float = math.radians(2.0)  # coarser scans miss chair legs: rejected
     max_range_min_m: float = 0.5  # a device that cannot see nearer than this: rejected
     max_range_max_m: float = 100.0
 
+    def __post_init__(self) -> None:
+        err = self.check()
+        if err:
+            raise ValueError(err)  # msgspec reports it naming the section when decoding
+
     def check(self) -> str:
         """"" if sane, else why not (one line)."""
-        for name in ("front_m", "rear_m", "half_width_m", "decel_mps2", "alpha_radps2",
-                     "step_m", "step_rad", "estop_decel_mps2", "max_increment_rad",
-                     "max_range_max_m"):
+        for name in ("decel_mps2", "alpha_radps2", "step_m", "step_rad", "estop_decel_mps2",
+                     "max_increment_rad", "max_range_max_m"):
             if not getattr(self, name) > 0:
                 return f"{name} must be > 0"
         for name in ("padding_m", "reaction_s", "stop_margin_m", "stop_margin_rad",
@@ -102,9 +106,32 @@ class SafetyParams:
                 return f"{name} must be ≥ 0"
         if not 0.0 <= self.min_valid_fraction <= 1.0:
             return "min_valid_fraction must be within [0, 1]"
+        return ""
+
+
+class SafetyParams(SafetyTuning, kw_only=True, frozen=True):
+    """The tuning plus the chair's geometry ([chair]: footprint and laser mount)."""
+
+    front_m: float = 0.95  # footprint ahead of the drive axle (the laser sits at 0.86)
+    rear_m: float = 0.25  # behind the axle
+    half_width_m: float = 0.35  # 0.7 m wide
+    # The laser's (x, y, yaw) in the chair frame ([chair] laser_x_m, laser_y_m, laser_yaw_rad).
+    mount: tuple[float, float, float] = (0.8636, 0.2032, 0.0)
+
+    def check(self) -> str:
+        for name in ("front_m", "rear_m", "half_width_m"):
+            if not getattr(self, name) > 0:
+                return f"{name} must be > 0"
         if not all(math.isfinite(m) for m in self.mount):
             return "the laser mount must be finite"
-        return ""
+        return super().check()
+
+    @classmethod
+    def of(cls, tuning: SafetyTuning, front_m: float, rear_m: float, half_width_m: float,
+           mount: tuple[float, float, float]) -> SafetyParams:
+        """`tuning` (or any subclass, e.g. the node's config) on this chair."""
+        return cls(**{n: getattr(tuning, n) for n in SafetyTuning.__struct_fields__},
+                   front_m=front_m, rear_m=rear_m, half_width_m=half_width_m, mount=mount)
 
 
 @dataclass(frozen=True)
@@ -276,10 +303,7 @@ def unseen_swing(p: SafetyParams, fov: tuple[float, float], step: float = 0.001
 
 class SafetyCore:
     def __init__(self, params: SafetyParams) -> None:
-        err = params.check()
-        if err:
-            raise ValueError(err)
-        self.p = params
+        self.p = params  # checked when created
         p = params
         lin = p.v_max_fwd_mps * p.reaction_s + p.v_max_fwd_mps ** 2 / (2 * p.decel_mps2)
         self.horizon_m = lin + p.stop_margin_m + 0.5  # a little beyond the longest stop

@@ -15,224 +15,149 @@ even braking at `estop_decel_mps2`, and clears its cause on keys.ESTOP_CLEAR on 
 
 from __future__ import annotations
 
-import math
 import sys
 import threading
 import time
+from typing import Annotated
 
 import msgspec
 import numpy as np
-import zenoh
 
-from autochair.runtime import ConfigError, Node, service_main
-from autochair.runtime.node import Publisher
+from autochair.runtime import Node, service_main
 from autochair_msgs import EStopAssert, FrameTransform, LaserScan, Odometry, SafetyLimit, keys
 
-from .core import (
-    DIRECTIONS,
-    EStopAction,
-    Limit,
-    MonitorState,
-    SafetyCore,
-    SafetyParams,
-    Scan,
-    stop_limit,
-)
+from .core import EStopAction, Limit, SafetyCore, SafetyParams, SafetyTuning, Scan
+from .monitor import Monitor, ScanVerdict
 
 IMMINENT = "imminent collision"
 
 
-class SafetyConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    """[safety] section. SI units. The footprint and the laser mount are the [chair] section."""
+class SafetyConfig(SafetyTuning, kw_only=True, frozen=True):
+    """[safety] section: the core's tuning (SafetyTuning) plus the node's own settings. The
+    footprint and the laser mount are the [chair] section."""
 
-    padding_m: float = 0.05  # grown on every side
-    decel_mps2: float = 1.0  # planned braking deceleration
-    reaction_s: float = 1.0  # latency margin (scan age, PID, chair controller lag ~1 s)
-    stop_margin_m: float = 0.10  # stop this short of the obstacle
-    alpha_radps2: float = 1.5  # planned angular deceleration
-    v_max_fwd_mps: float = 1.2  # published bound with nothing in view
-    v_max_rev_mps: float = 0.5  # attended (teleop) reverse: the laser cannot see behind
-    omega_max_radps: float = 1.0
     estop_on_imminent: bool = True  # assert the e-stop on a collision it could not prevent
-    estop_decel_mps2: float = 2.0
-    # Fewer valid beams than this in a direction's swept sector: that direction is blocked.
-    min_valid_fraction: float = 0.3
-    # The footprint the laser cannot see swings at most this fast: |ω| ≤ this / R_max.
-    blind_speed_mps: float = 0.3
-    # Autonomy may reverse this fast with nothing sensing behind the chair (0 = never).
-    blind_reverse_autonomy_mps: float = 0.0
     frame_id: str = "laser"  # scans in any other frame are rejected (a stop)
-    clear_hold_s: float = 1.0  # e-stop clear repeated on every scan this long
-
-
-def params_from(cfg: SafetyConfig, node: Node) -> SafetyParams:
-    chair = node.chair
-    names = ("padding_m", "decel_mps2", "reaction_s", "stop_margin_m", "alpha_radps2",
-             "v_max_fwd_mps", "v_max_rev_mps", "omega_max_radps", "estop_decel_mps2",
-             "min_valid_fraction", "blind_speed_mps", "blind_reverse_autonomy_mps")
-    return SafetyParams(front_m=chair.front_m, rear_m=chair.rear_m,
-                        half_width_m=chair.half_width_m, mount=chair.laser_mount,
-                        **{n: getattr(cfg, n) for n in names})
-
-
-def reliable_publisher(node: Node, topic: keys.Topic[EStopAssert]) -> Publisher:
-    """Congestion control BLOCK (reliable, never dropped under load), unlike Node.publisher's
-    DROP: one lost e-stop sample must change nothing."""
-    pub = node.session.declare_publisher(
-        topic.key, express=True, congestion_control=zenoh.CongestionControl.BLOCK,
-        reliability=zenoh.Reliability.RELIABLE)
-    return Publisher(pub, node.stop_event)
+    clear_hold_s: Annotated[float, msgspec.Meta(ge=0)] = 1.0  # e-stop clear repeated this long
 
 
 def start(node: Node, cfg: SafetyConfig) -> None:
-    try:
-        core = SafetyCore(params_from(cfg, node))
-    except ValueError as e:
-        raise ConfigError(f"[safety] {e}") from None
-    if cfg.clear_hold_s < 0:
-        raise ConfigError("[safety] clear_hold_s must be ≥ 0")
     chair = node.chair
-    health = node.health
-    health.thresholds.update(scan_s=node.stale.scan_s, odometry_s=node.stale.odometry_s,
-                             decel_mps2=cfg.decel_mps2, reaction_s=cfg.reaction_s,
-                             min_valid_fraction=cfg.min_valid_fraction,
-                             blind_speed_mps=cfg.blind_speed_mps,
-                             blind_reverse_autonomy_mps=cfg.blind_reverse_autonomy_mps)
-    limit_pub = node.publisher(keys.SAFETY_LIMIT)
-    assert_pub = reliable_publisher(node, keys.ESTOP_ASSERT)
-    clear_pub = reliable_publisher(node, keys.ESTOP_CLEAR)
-    lock = threading.Lock()
-    motion = {"v": 0.0, "w": 0.0, "t": -math.inf}
-    state = MonitorState(stale_s=node.stale.scan_s, clear_hold_s=cfg.clear_hold_s)
+    core = SafetyCore(SafetyParams.of(cfg, chair.front_m, chair.rear_m, chair.half_width_m,
+                                      chair.laser_mount))
+    monitor = Monitor(core, node.stale.scan_s, node.stale.odometry_s, cfg.clear_hold_s,
+                      cfg.frame_id)
+    node.health.thresholds.update(
+        scan_s=node.stale.scan_s, odometry_s=node.stale.odometry_s, decel_mps2=cfg.decel_mps2,
+        reaction_s=cfg.reaction_s, min_valid_fraction=cfg.min_valid_fraction,
+        blind_speed_mps=cfg.blind_speed_mps,
+        blind_reverse_autonomy_mps=cfg.blind_reverse_autonomy_mps)
+    wiring = _Wiring(node, cfg, monitor)
+    wiring.estop(EStopAction.CLEAR)  # a restarted monitor clears the cause it left behind
+    node.watch_alive("lidar", wiring.on_lidar_alive)
+    node.subscribe(keys.ODOM, wiring.on_odom)
+    node.subscribe(keys.TF_STATIC, wiring.on_tf)
+    node.subscribe(keys.SCAN, wiring.on_scan)
+    node.every(0.1, wiring.tick, "watchdog")
 
-    def publish(lim: Limit) -> None:
-        limit_pub.put(SafetyLimit(stamp_ns=time.time_ns(), v_max_fwd_mps=lim.v_fwd,
-                                  v_max_rev_mps=lim.v_rev, omega_max_radps=lim.omega,
-                                  reason=lim.reason, v_max_rev_autonomy_mps=lim.v_rev_autonomy))
 
-    def estop(action: EStopAction) -> None:
-        if action is EStopAction.ASSERT:
-            assert_pub.put(EStopAssert(stamp_ns=time.time_ns(), source=node.name,
-                                       reason=IMMINENT, active=True))
-            health.count("estop_asserts")
-        elif action is EStopAction.CLEAR:
-            clear_pub.put(EStopAssert(stamp_ns=time.time_ns(), source=node.name,
-                                      reason=IMMINENT, active=False))
-            health.count("estop_clears")
+class _Wiring:
+    """Monitor verdicts to publications, counters and events."""
 
-    def on_odom(o: Odometry) -> None:
-        with lock:
-            motion.update(v=o.v_mps, w=o.omega_radps, t=time.monotonic())
+    def __init__(self, node: Node, cfg: SafetyConfig, monitor: Monitor) -> None:
+        self.node, self.cfg, self.monitor = node, cfg, monitor
+        self.health = node.health
+        self.lock = threading.Lock()
+        self.limit_pub = node.publisher(keys.SAFETY_LIMIT)
+        self.assert_pub = node.publisher(keys.ESTOP_ASSERT, reliable=True)
+        self.clear_pub = node.publisher(keys.ESTOP_CLEAR, reliable=True)
 
-    def on_tf(tf: FrameTransform) -> None:
-        if tf.child_frame_id != cfg.frame_id:
+    def publish(self, lim: Limit) -> None:
+        self.limit_pub.put(SafetyLimit(
+            stamp_ns=time.time_ns(), v_max_fwd_mps=lim.v_fwd, v_max_rev_mps=lim.v_rev,
+            omega_max_radps=lim.omega, reason=lim.reason,
+            v_max_rev_autonomy_mps=lim.v_rev_autonomy))
+
+    def estop(self, action: EStopAction) -> None:
+        if action is EStopAction.NONE:
             return
-        err = chair.laser_tf_error(tf)
-        with lock:
-            changed = state.on_mount(err)
-        if err:
-            health.count("mount_mismatch")
-            publish(stop_limit(f"laser mount mismatch: {err}"))  # at once, not at the next scan
-        if changed and err:
-            node.event("error", f"safety: laser mount mismatch: {err}: stop until tf_static "
-                                "and [chair] agree")
-        elif changed:
-            node.event("info", "safety: laser mount in tf_static agrees with [chair]")
+        pub = self.assert_pub if action is EStopAction.ASSERT else self.clear_pub
+        pub.put(EStopAssert(stamp_ns=time.time_ns(), source=self.node.name, reason=IMMINENT,
+                            active=action is EStopAction.ASSERT))
+        self.health.count("estop_asserts" if action is EStopAction.ASSERT else "estop_clears")
 
-    def on_scan(msg: LaserScan) -> None:
-        now = time.monotonic()
-        with lock:
-            fresh = now - motion["t"] <= node.stale.odometry_s
-            v, w = (motion["v"], motion["w"]) if fresh else (0.0, 0.0)
-        if not fresh:
-            health.count("odometry_stale")
+    def on_odom(self, o: Odometry) -> None:
+        with self.lock:
+            self.monitor.on_odom(o.v_mps, o.omega_radps, time.monotonic())
+
+    def on_tf(self, tf: FrameTransform) -> None:
+        if tf.child_frame_id != self.cfg.frame_id:
+            return
+        err = self.node.chair.laser_tf_error(tf)
+        with self.lock:
+            stop, changed = self.monitor.on_mount(err)
+        if stop is not None:
+            self.health.count("mount_mismatch")
+            self.publish(stop)  # at once, not at the next scan
+        if changed and err:
+            self.node.event("error", f"safety: laser mount mismatch: {err}: stop until "
+                                     "tf_static and [chair] agree")
+        elif changed:
+            self.node.event("info", "safety: laser mount in tf_static agrees with [chair]")
+
+    def on_scan(self, msg: LaserScan) -> None:
         scan = Scan(np.asarray(msg.ranges_m, dtype=np.float64), msg.angle_min_rad,
                     msg.angle_increment_rad, msg.range_min_m, msg.range_max_m, msg.frame_id)
-        lim = core.assess(scan, v, w, cfg.frame_id)
-        with lock:
-            state.on_scan(now, lim.reason if lim.rejected else "")  # "scan rejected: why"
-            mount_err = state.mount_error
-            # A rejected scan says nothing new about a collision: the previous verdict stands.
-            imminent = state.imminent if lim.rejected else lim.imminent
-            action, changed = state.estop(imminent, now)
-        published = lim
-        if mount_err:
-            published = stop_limit(f"laser mount mismatch: {mount_err}")
-        publish(published)
-        if cfg.estop_on_imminent:
-            estop(action)
-            if changed and imminent:
-                node.event("error", f"safety: {IMMINENT} at {v:.2f} m/s ({lim.reason}): "
-                                    "e-stop")
-            elif changed:
-                node.event("info", f"safety: {IMMINENT} no more: cause cleared")
-        health.count("limits")
+        with self.lock:
+            verdict = self.monitor.on_scan(scan, time.monotonic())
+        self.publish(verdict.published)
+        if self.cfg.estop_on_imminent:
+            self.estop(verdict.estop)
+            if verdict.imminent_changed:
+                self.node.event(*(("error", f"safety: {IMMINENT} at {verdict.v:.2f} m/s "
+                                            f"({verdict.assessed.reason}): e-stop")
+                                  if verdict.imminent
+                                  else ("info", f"safety: {IMMINENT} no more: cause cleared")))
+        self._count(verdict)
+        if verdict.blind_changed:
+            self.node.event(*(("warning", f"safety: {'; '.join(verdict.assessed.blind)}: stop "
+                                          "those directions") if verdict.blind
+                              else ("info", "safety: the laser sees every direction's sector "
+                                            "again")))
+        self.health.state = "degraded" if verdict.degraded else "ok"
+        self.health.detail = verdict.detail
+
+    def _count(self, verdict: ScanVerdict) -> None:
+        count, lim = self.health.count, verdict.assessed
+        count("limits")
+        if verdict.odometry_stale:
+            count("odometry_stale")
         if lim.rejected:
-            health.count("rejected_scans")
-            health.count(f"rejected:{lim.rejected}")
-        blind = tuple(name for name, frac in zip(DIRECTIONS, lim.valid_fraction, strict=True)
-                      if frac is not None and frac < cfg.min_valid_fraction)
-        for name in blind:
-            health.count(f"blind:{name}")
-        with lock:
-            blind_changed = state.on_blind(blind)
-        if blind_changed and blind:
-            node.event("warning", f"safety: {'; '.join(lim.blind)}: stop those directions")
-        elif blind_changed:
-            node.event("info", "safety: the laser sees every direction's sector again")
-        if published.v_fwd < cfg.v_max_fwd_mps:
-            health.count("limited_fwd")
-        if published.v_fwd == 0.0:
-            health.count("stopped_fwd")
-        health.state = ("degraded" if published is not lim or lim.rejected or lim.blind
-                        else "ok")
-        health.detail = detail(published, lim)
+            count("rejected_scans")
+            count(f"rejected:{lim.rejected}")
+        for name in verdict.blind:
+            count(f"blind:{name}")
+        if verdict.published.v_fwd < self.cfg.v_max_fwd_mps:
+            count("limited_fwd")
+        if verdict.published.v_fwd == 0.0:
+            count("stopped_fwd")
 
-    def detail(published: Limit, lim: Limit) -> str:
-        head = (f"fwd ≤ {published.v_fwd:.2f} rev ≤ {published.v_rev:.2f} (autonomy "
-                f"{published.v_rev_autonomy:.2f}) m/s |ω| ≤ {published.omega:.2f} rad/s")
-        if published.reason != lim.reason or lim.rejected:
-            return f"stop: {published.reason}; {head}"
-        parts = [f"nearest {lim.nearest_m:.2f} m; {head}", *lim.blind]
-        if not lim.rear_seen:
-            parts.append("rear unseen: autonomy may not reverse" if lim.v_rev_autonomy == 0
-                         else f"rear unseen: autonomy reverses blind ≤ {lim.v_rev_autonomy:.2f}"
-                              " m/s")
-        if lim.unseen_radius_m > 0:
-            parts.append(f"|ω| ≤ {lim.omega_unseen_cap:.2f} rad/s for the unseen footprint "
-                         f"(R {lim.unseen_radius_m:.2f} m at {cfg.blind_speed_mps} m/s)")
-        return "; ".join(parts)
+    def tick(self) -> None:
+        with self.lock:
+            t = self.monitor.tick(time.monotonic())
+        if t.stop is not None:
+            self.publish(t.stop)
+            self.health.count("stale_stops")
+            self.health.state, self.health.detail = "degraded", f"stop: {t.reason}"
+        if t.changed:
+            self.node.event(*(("warning", f"safety: {t.reason}: stop") if t.faults
+                              else ("info", "safety: scans fresh, limits from the scan")))
 
-    def watchdog() -> None:
-        now = time.monotonic()
-        with lock:
-            silent = state.stale(now)
-            faults, changed = state.poll(now)
-            reason = state.reason(now)
-        if silent:
-            publish(stop_limit(reason))
-            health.count("stale_stops")
-            health.state, health.detail = "degraded", f"stop: {reason}"
-        if changed and faults:
-            node.event("warning", f"safety: {reason}: stop")
-        elif changed:
-            node.event("info", "safety: scans fresh, limits from the scan")
-
-    def on_lidar_token(sample: zenoh.Sample) -> None:
-        if sample.kind == zenoh.SampleKind.DELETE:  # the ingest died: stop now, not in 0.5 s
-            with lock:
-                state.source_lost()
-            watchdog()
-
-    # At start: clear any cause a previous instance of this monitor left behind.
-    estop(EStopAction.CLEAR)
-    token_sub = node.session.liveliness().declare_subscriber(f"{keys.PREFIX}/alive/lidar",
-                                                            on_lidar_token)
-    node.on_close(token_sub.undeclare)
-    node.subscribe(keys.ODOM, on_odom)
-    node.subscribe(keys.TF_STATIC, on_tf)
-    node.subscribe(keys.SCAN, on_scan)
-    node.every(0.1, watchdog, "watchdog")
+    def on_lidar_alive(self, alive: bool) -> None:
+        if not alive:  # the ingest died: stop now, not in 0.5 s
+            with self.lock:
+                self.monitor.source_lost()
+            self.tick()
 
 
 def main(argv: list[str] | None = None) -> int:
