@@ -75,7 +75,7 @@ def test_monitor_once_over_tls_as_view_only_laptop(chair: Chair, tmp_path: Path,
     def feed() -> None:
         while not stop.wait(0.05):
             svc.put(keys.HEALTH.for_service("odometry"), encode(h))
-            svc.put(keys.ODOM.key, encode(o))
+            svc.put(keys.ODOM_SLOW.key, encode(o))
             svc.put(keys.SCAN.key, encode(s))
             svc.put(keys.LOG.key, encode(e))
 

@@ -139,3 +139,16 @@ def test_an_implausible_counter_jump_does_not_poison_the_pose() -> None:
     assert core.implausible == 1 and core.x == x and math.isfinite(core.yaw)
     core.update(100 + 2_000_000 + 100, 200, 15000)  # then on from the new counters
     assert core.x > x and core.x - x < 0.05
+
+
+def test_decimator_is_drift_free_and_rebases_on_late_samples_and_clock_steps() -> None:
+    from autochair.timing import Decimator
+
+    d = Decimator.at(50.0)  # 20 ms
+    ms = 1_000_000
+    passed = [t for t in range(0, 200 * ms, 5 * ms) if d(t)]  # 200 Hz in
+    assert passed == list(range(0, 200 * ms, 20 * ms))  # exactly every 4th, no drift
+    assert d(1000 * ms) and not d(1005 * ms)  # late: re-based on the sample
+    assert d(10 * ms) and not d(15 * ms) and d(30 * ms)  # clock stepped back: re-based
+    every = Decimator.at(0.0)
+    assert all(every(t) for t in (0, 1, 1, 2))

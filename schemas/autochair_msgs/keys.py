@@ -67,6 +67,9 @@ CMD_OWNER = Topic("autochair/cmd/owner", CommandOwner, 1, True,
                   "(PID obeys TELEOP only). Teleop takes over and hands back explicitly and "
                   "repeats its claim ~1 Hz; a lost link leaves \"teleop\" (stale → stop)")
 ODOM = Topic("autochair/odom", Odometry, 200, True, "Encoder odometry (odometry)")
+ODOM_SLOW = Topic("autochair/odom/slow", Odometry, 50, False,
+                  "The same odometry decimated to 50 Hz for consumers that need no more "
+                  "(safety, control, tools); not recorded: autochair/odom is, at full rate")
 TF = Topic("autochair/tf", FrameTransform, 50, True,
            "Dynamic transform world → chair (odometry; the pose of ODOM, decimated)")
 TF_STATIC = Topic("autochair/tf_static", FrameTransform, 1, True,

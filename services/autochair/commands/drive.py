@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
             with lock:
                 latest[:] = [msg]
 
-        subscribe(session, keys.ODOM, on_odom)
+        subscribe(session, keys.ODOM_SLOW, on_odom)
 
         # This command is the deliberate act: the PID obeys it only if it began after any
         # stop (an e-stop, a restart, ...); an old `drive` that simply goes on is refused.

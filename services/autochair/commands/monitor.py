@@ -60,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
     session.liveliness().declare_subscriber(keys.ALIVE, on_alive, history=True)
     session.declare_subscriber(keys.HEALTH.key,
                                handler(keys.HEALTH, lambda m: state.on_health(m, now())))
-    session.declare_subscriber(keys.ODOM.key, handler(keys.ODOM, lambda m: state.on_odom(m, now())))
+    session.declare_subscriber(keys.ODOM_SLOW.key,
+                               handler(keys.ODOM_SLOW, lambda m: state.on_odom(m, now())))
     session.declare_subscriber(keys.SCAN.key, handler(keys.SCAN, lambda m: state.on_scan(m, now())))
     session.declare_subscriber(keys.LOG.key, handler(keys.LOG, state.on_log))
     try:

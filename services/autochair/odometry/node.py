@@ -1,5 +1,6 @@
-"""Odometry node: EncoderSample → Odometry at the encoder rate, and the world→chair transform
-(keys.TF) at `tf_rate_hz` (the same pose as keys.ODOM, for viewers; 0 = every sample)."""
+"""Odometry node: EncoderSample → Odometry at the encoder rate (keys.ODOM, for the velocity PID
+and the recording), decimated to `slow_rate_hz` (keys.ODOM_SLOW, for everyone else), and the
+world→chair transform (keys.TF) at `tf_rate_hz` (the same pose, for viewers)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import msgspec
 
 from autochair.geometry import yaw_quaternion
 from autochair.runtime import ConfigError, Node, service_main
+from autochair.timing import Decimator
 from autochair_msgs import EncoderSample, FrameTransform, Odometry, Quaternion, Vector3, keys
 
 from .core import OdometryCore
@@ -22,20 +24,21 @@ class OdometryConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     velocity_window_s: float = 0.02
     publish_tf: bool = True
     tf_rate_hz: float = 50.0  # keys.TF at most this often (by sample stamp); 0 = every sample
+    slow_rate_hz: float = 50.0  # keys.ODOM_SLOW likewise
 
 
 def start(node: Node, cfg: OdometryConfig) -> None:
     if cfg.wheel_radius_m <= 0 or cfg.base_m <= 0 or cfg.counts_per_rev <= 0:
         raise ConfigError("[odometry] wheel_radius_m, base_m and counts_per_rev must be > 0")
-    if cfg.tf_rate_hz < 0:
-        raise ConfigError("[odometry] tf_rate_hz must be ≥ 0")
+    if cfg.tf_rate_hz < 0 or cfg.slow_rate_hz < 0:
+        raise ConfigError("[odometry] tf_rate_hz and slow_rate_hz must be ≥ 0")
     core = OdometryCore(wheel_radius_m=cfg.wheel_radius_m, base_m=cfg.base_m,
                         counts_per_rev=cfg.counts_per_rev,
                         velocity_window_s=cfg.velocity_window_s)
     odom_pub = node.publisher(keys.ODOM)
     tf_pub = node.publisher(keys.TF)
-    tf_period_ns = int(1e9 / cfg.tf_rate_hz) if cfg.tf_rate_hz > 0 else 0
-    tf_due = [0]  # stamp from which the next transform is published
+    slow_pub = node.publisher(keys.ODOM_SLOW)
+    tf_due, slow_due = Decimator.at(cfg.tf_rate_hz), Decimator.at(cfg.slow_rate_hz)
 
     def on_sample(s: EncoderSample) -> None:
         restarts, implausible = core.restarts, core.implausible
@@ -48,14 +51,13 @@ def start(node: Node, cfg: OdometryConfig) -> None:
             node.health.count("mcu_restarts")
             node.event("warning", "chair MCU restarted; odometry continues from the last pose")
         stamp = s.stamp_ns or time.time_ns()
-        odom_pub.put(Odometry(stamp_ns=stamp, x_m=st.x, y_m=st.y, yaw_rad=st.yaw, v_mps=st.v,
-                              omega_radps=st.omega, distance_m=st.distance,
-                              sample_dt_s=st.dt, source_seq=s.seq,
-                              mcu_restarts=core.restarts, link_epoch=s.link_epoch))
-        if cfg.publish_tf and (stamp >= tf_due[0] or stamp < tf_due[0] - tf_period_ns):
-            # drift-free: one per period; a late sample or a clock step re-bases
-            late = stamp - tf_due[0] >= tf_period_ns or stamp < tf_due[0] - tf_period_ns
-            tf_due[0] = (stamp if late else tf_due[0]) + tf_period_ns
+        odom = Odometry(stamp_ns=stamp, x_m=st.x, y_m=st.y, yaw_rad=st.yaw, v_mps=st.v,
+                        omega_radps=st.omega, distance_m=st.distance, sample_dt_s=st.dt,
+                        source_seq=s.seq, mcu_restarts=core.restarts, link_epoch=s.link_epoch)
+        odom_pub.put(odom)
+        if slow_due(stamp):
+            slow_pub.put(odom)
+        if cfg.publish_tf and tf_due(stamp):
             tf_pub.put(FrameTransform(
                 stamp_ns=stamp, parent_frame_id="world", child_frame_id="chair",
                 translation=Vector3(st.x, st.y, 0.0),

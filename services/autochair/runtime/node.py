@@ -421,6 +421,30 @@ def setup_logging(level: str = "INFO") -> None:
     )
 
 
+def _parser(name: str, description: str) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=f"autochair-{name}", description=description)
+    parser.add_argument("--config", help="TOML config file (default: $AUTOCHAIR_CONFIG)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help=f"override a [{name}] setting (or stale.KEY, chair.KEY); "
+                             "repeatable")
+    parser.add_argument("--connect", help="Zenoh endpoint(s) of the hub, comma-separated")
+    parser.add_argument("--log-level", default="INFO")
+    return parser
+
+
+def _settings(name: str, config_type: type[C], path: str | None, sets: list[str]
+              ) -> tuple[C, StaleConfig, ChairGeometry]:
+    """The service's section and the shared [stale] and [chair], each with its --set
+    overrides (`stale.KEY=...`, `chair.KEY=...`; the rest are the service's)."""
+    def overrides(prefix: str) -> list[str]:
+        return [o.removeprefix(prefix) for o in sets if o.startswith(prefix)]
+
+    own = [o for o in sets if not o.startswith(("stale.", "chair."))]
+    return (load_section(config_type, name, path, own),
+            load_section(StaleConfig, "stale", path, overrides("stale.")),
+            load_section(ChairGeometry, "chair", path, overrides("chair.")))
+
+
 def service_main(
     name: str,
     config_type: type[C],
@@ -433,28 +457,11 @@ def service_main(
     `start(node, config)` declares subscriptions and loops and returns; errors there that are
     the user's (bad config, missing device) are ConfigError and print as one line.
     """
-    parser = argparse.ArgumentParser(prog=f"autochair-{name}", description=description)
-    parser.add_argument("--config", help="TOML config file (default: $AUTOCHAIR_CONFIG)")
-    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help=f"override a [{name}] setting (or stale.KEY, chair.KEY); "
-                             "repeatable")
-    parser.add_argument("--connect", help="Zenoh endpoint(s) of the hub, comma-separated")
-    parser.add_argument("--log-level", default="INFO")
-    args = parser.parse_args(argv)
+    args = _parser(name, description).parse_args(argv)
     setup_logging(args.log_level)
-    shared = ("stale.", "chair.")
-    own = [o for o in args.set if not o.startswith(shared)]
-
-    def overrides(prefix: str) -> list[str]:
-        return [o.removeprefix(prefix) for o in args.set if o.startswith(prefix)]
-
     try:
-        config = load_section(config_type, name, args.config, own)
-        stale = load_section(StaleConfig, "stale", args.config, overrides("stale."))
-        chair = load_section(ChairGeometry, "chair", args.config,
-                             overrides("chair."))
-        settings = load_zenoh(args.config, args.connect)
-        node = Node(name, settings, stale, chair)
+        config, stale, chair = _settings(name, config_type, args.config, args.set)
+        node = Node(name, load_zenoh(args.config, args.connect), stale, chair)
     except ConfigError as e:
         print(f"autochair-{name}: error: {e}", file=sys.stderr)
         return 2

@@ -49,6 +49,7 @@ import numpy.typing as npt
 F64 = npt.NDArray[np.float64]
 BOOL = npt.NDArray[np.bool_]
 TWO_PI = 2.0 * math.pi
+_WINDOW = 5  # poses per coarse window of the sweep (SafetyCore._free)
 
 # Direction names, the order of the per-direction tuples in `Limit`.
 DIRECTIONS = ("fwd", "rev", "ccw", "cw")
@@ -331,14 +332,40 @@ class SafetyCore:
                           p.half_width_m + pad - np.abs(ly))
 
     def _free(self, pts: F64, x: F64, y: F64, th: F64, steps: F64) -> float:
-        """Free extent along poses (x, y, th)[k] reached after steps[k] (steps[0] = 0)."""
+        """Free extent along poses (x, y, th)[k] reached after steps[k] (steps[0] = 0): the
+        step before the first pose at which a point is inside the padded footprint (or, for a
+        point already inside at pose 0, deeper inside).
+
+        Coarse to fine, exactly equal to testing every pose (tests/test_safety_core.py):
+        penetration is 1-Lipschitz in a point's position in the chair frame, so a pose within
+        `half` steps of a window's centre pose moves any point that could be inside by at most
+        `e`; only windows whose centre pose, with the footprint grown by `e`, takes a point
+        deeper than it started can hold the first hit. Those are then tested pose by pose.
+        """
         if pts.shape[0] == 0:
             return math.inf
-        pen = self._penetration(pts, x, y, th, self.p.padding_m)
-        start = pen[0]
-        blocked = (pen[1:] > 0) & ((start <= 0)[None, :] | (pen[1:] > start[None, :] + 1e-9))
-        hit = np.flatnonzero(blocked.any(axis=1))
-        return math.inf if hit.size == 0 else float(steps[hit[0]])  # last free step
+        p, pad, k = self.p, self.p.padding_m, x.size
+        start = self._penetration(pts, x[:1], y[:1], th[:1], pad)[0]
+        floor = np.maximum(start, 0.0)
+        half = _WINDOW // 2
+        d = float(np.hypot(np.diff(x), np.diff(y)).max(initial=0.0))
+        a = float(np.abs(np.diff(th)).max(initial=0.0))
+        r0 = math.hypot(max(p.front_m, p.rear_m) + pad, p.half_width_m + pad)
+        e = half * (d + a * r0) / (1.0 - math.sqrt(2.0) * half * a) + 1e-9
+        centres = np.arange(0, k, _WINDOW)
+        if k - 1 > centres[-1] + half:  # the last poses are nobody's window yet
+            centres = np.append(centres, k - 1)
+        grown = self._penetration(pts, x[centres], y[centres], th[centres], pad + e)
+        for c in centres[np.flatnonzero((grown > floor[None, :]).any(axis=1))]:
+            lo, hi = max(1, c - half), min(k, c + half + 1)
+            if lo >= hi:
+                continue
+            pen = self._penetration(pts, x[lo:hi], y[lo:hi], th[lo:hi], pad)
+            blocked = (pen > 0) & ((start <= 0)[None, :] | (pen > start[None, :] + 1e-9))
+            hit = np.flatnonzero(blocked.any(axis=1))
+            if hit.size:
+                return float(steps[lo + hit[0] - 1])  # the last free step
+        return math.inf
 
     def _arc(self, kappa: float, sign: float) -> tuple[F64, F64, F64, F64]:
         s = np.arange(0.0, self.horizon_m + self.p.step_m, self.p.step_m)

@@ -55,7 +55,7 @@ def start(node: Node, cfg: SafetyConfig) -> None:
     wiring = _Wiring(node, cfg, monitor)
     wiring.estop(EStopAction.CLEAR)  # a restarted monitor clears the cause it left behind
     node.watch_alive("lidar", wiring.on_lidar_alive)
-    node.subscribe(keys.ODOM, wiring.on_odom)
+    node.subscribe(keys.ODOM_SLOW, wiring.on_odom)
     node.subscribe(keys.TF_STATIC, wiring.on_tf)
     node.subscribe(keys.SCAN, wiring.on_scan)
     node.every(0.1, wiring.tick, "watchdog")
