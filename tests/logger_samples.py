@@ -65,7 +65,7 @@ def auto_sample(type_: Any, i: int) -> Any:
 
 def samples(i: int = 0) -> dict[str, msgspec.Struct]:
     """One message per concrete key (per-service rows get the key of service "pid")."""
-    out = _hand_samples(i)
+    out = {k: m for k, m in _hand_samples(i).items() if keys.by_key(k).logged}
     for t in keys.TOPICS:  # rows added to the table later: generated samples
         key = t.for_service("pid") if t.key.endswith("/*") else t.key
         if t.logged and t.kind == "pub" and key not in out:

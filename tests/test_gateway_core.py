@@ -125,16 +125,17 @@ def test_link_writes_on_change_and_keepalive_and_reopens_a_silent_port() -> None
     core.link_up(0.0)
     out = core.due(0.0)
     assert out is not None and out.reason == "neutral:startup"
-    assert core.sent(out, 0.0) == (True, False)  # a new reason, and a normal one
+    assert core.sent(out, 0.0) == (True, False, True)  # a new reason, a normal one, reported
     assert core.due(0.01) is None  # unchanged, keepalive not yet due
     assert core.due(0.02) == out  # keepalive (the firmware neutralises after 200 ms)
-    assert core.sent(out, 0.02) == (False, False)
+    assert core.sent(out, 0.02) == (False, False, False)  # the same frame: not reported again
+    assert core.sent(out, 0.1) == (False, False, True)  # ... until report_s later
     core.on_command(3.0, 2.5, True, now_s=0.03)
     cmd = core.due(0.03)
     assert cmd is not None and cmd.reason == "command"  # changed: written at once
     core.sent(cmd, 0.03)
     stale = core.due(0.2)
-    assert stale is not None and core.sent(stale, 0.2) == (True, True)  # stale is a fault
+    assert stale is not None and core.sent(stale, 0.2) == (True, True, True)  # a fault
     # Telemetry keeps the link; 2 s without any reopens it.
     assert not core.received(3, 1.0) and not core.received(0, 3.0)
     assert core.received(0, 3.01)

@@ -26,7 +26,7 @@ from autochair.runtime.config import ZenohSettings
 from autochair.runtime.session import open_session
 from autochair_msgs import keys
 from tests.helpers import client_session, stop_process, wait_for
-from tests.logger_samples import T0, samples
+from tests.logger_samples import QUERY_SAMPLES, T0, samples
 
 ENC = msgspec.msgpack.Encoder()
 
@@ -90,7 +90,9 @@ def write_recording(path: Path, rounds: int, period_ns: int,
     rec = Recorder(LoggerConfig(path=str(path)), T0, 0.0)
     sent: list[tuple[str, bytes]] = []
     for i in range(rounds):
-        for key, msg in samples(i).items():
+        # keys.JOYSTICK is no longer recorded, but older recordings hold it.
+        joystick = {keys.JOYSTICK.key: QUERY_SAMPLES[keys.JOYSTICK.key]}
+        for key, msg in {**samples(i), **joystick}.items():
             if only and key not in only:
                 continue
             payload = ENC.encode(msg)

@@ -272,3 +272,15 @@ def test_packed_chunk_indexes_give_the_same_file(tmp_path: Path) -> None:
         reader = make_reader(fh)
         assert len(reader.get_summary().chunk_indexes) > 40  # type: ignore[union-attr]
         assert sum(1 for _ in reader.iter_messages()) == 300
+
+
+def test_intake_records_a_whole_map_at_most_every_map_period() -> None:
+    from autochair.logger.writer import Intake
+
+    intake = Intake(LoggerConfig(map_period_s=5.0))
+    s = 1_000_000_000
+    taken = [t for t in range(0, 20 * s, s) if intake.take(keys.MAP_GRID.key, t)]
+    assert taken == [0, 5 * s, 10 * s, 15 * s]  # a 1 Hz map: one in five
+    assert all(intake.take(keys.ODOM.key, t) for t in range(0, s, 5_000_000))  # all else
+    every = Intake(LoggerConfig(map_period_s=0.0))
+    assert all(every.take(keys.MAP_CLOUD.key, t) for t in range(0, 5 * s, s))

@@ -81,7 +81,9 @@ class Logger:
         self._sub = session.declare_subscriber(
             "autochair/health/logger", lambda s: self.health.append(dec.decode(
                 s.payload.to_bytes())))
-        self.proc = spawn("autochair.logger.node", "--connect", hub, "--set", f"path={path}")
+        # Every map too (map_period_s=0): these tests count every message sent.
+        self.proc = spawn("autochair.logger.node", "--connect", hub, "--set", f"path={path}",
+                          "--set", "map_period_s=0")
 
     def counter(self, name: str) -> int:
         return self.health[-1].counters.get(name, 0) if self.health else -1

@@ -53,8 +53,9 @@ class Topic(Generic[T]):
 # --- drive chain ---------------------------------------------------------------------------
 ENCODERS = Topic("autochair/chair/encoders", EncoderSample, 200, True,
                  "Encoder telemetry from the chair (gateway)")
-JOYSTICK = Topic("autochair/chair/joystick", JoystickCommand, 200, True,
-                 "Joystick voltages wanted (velocity PID → gateway)")
+JOYSTICK = Topic("autochair/chair/joystick", JoystickCommand, 200, False,
+                 "Joystick voltages wanted (velocity PID → gateway); not recorded: the PID's "
+                 "effort is in pid/status and what reached the chair in joystick_out")
 JOYSTICK_OUT = Topic("autochair/chair/joystick_out", JoystickOutput, 200, True,
                      "Joystick frames actually written to the chair (gateway)")
 CMD_VEL = Topic("autochair/cmd/vel", VelocityCommand, 20, True,
@@ -70,7 +71,7 @@ ODOM = Topic("autochair/odom", Odometry, 200, True, "Encoder odometry (odometry)
 ODOM_SLOW = Topic("autochair/odom/slow", Odometry, 50, False,
                   "The same odometry decimated to 50 Hz for consumers that need no more "
                   "(safety, control, tools); not recorded: autochair/odom is, at full rate")
-TF = Topic("autochair/tf", FrameTransform, 50, True,
+TF = Topic("autochair/tf", FrameTransform, 20, True,
            "Dynamic transform world → chair (odometry; the pose of ODOM, decimated)")
 TF_STATIC = Topic("autochair/tf_static", FrameTransform, 1, True,
                   "Static transforms, e.g. chair → laser, repeated for late joiners")

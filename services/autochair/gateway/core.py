@@ -59,6 +59,10 @@ class GatewayCore:
     rx_stall_s: float = 2.0
     _sent: Output | None = None
     _sent_t: float = -math.inf
+    # What was written is reported (keys.JOYSTICK_OUT) when it changes, else every report_s.
+    report_s: float = 0.1
+    _reported: Output | None = None
+    _reported_t: float = -math.inf
     _rx_t: float = -math.inf
 
     def on_bytes(self, data: bytes) -> list[tuple[Telemetry, int]]:
@@ -119,12 +123,18 @@ class GatewayCore:
             return out
         return None
 
-    def sent(self, out: Output, now_s: float) -> tuple[bool, bool]:
-        """`out` was written: (its reason changed, the new reason is a fault). Neutral
-        because nothing is asked (startup, parked) is normal; any other neutral is a fault."""
+    def sent(self, out: Output, now_s: float) -> tuple[bool, bool, bool]:
+        """`out` was written: (its reason changed, the new reason is a fault, report it).
+        Neutral because nothing is asked (startup, parked) is normal; any other neutral is a
+        fault. A frame is reported when it differs from the last reported or report_s after
+        it: a parked chair's identical neutral frames are not 200 records a second."""
         changed = self._sent is None or out.reason != self._sent.reason
         self._sent, self._sent_t = out, now_s
-        return changed, out.reason not in ("command", "neutral:startup", "neutral:disabled")
+        report = out != self._reported or now_s - self._reported_t >= self.report_s
+        if report:
+            self._reported, self._reported_t = out, now_s
+        return changed, out.reason not in ("command", "neutral:startup", "neutral:disabled"), \
+            report
 
     def received(self, frames: int, now_s: float) -> bool:
         """Telemetry arrived (`frames` decoded); True when the link has been silent for

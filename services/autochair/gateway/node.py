@@ -99,13 +99,15 @@ class Gateway:
         except (serial.SerialException, OSError) as e:
             self._lost(f"write failed: {e}")
             return
-        changed, fault = self.core.sent(out, time.monotonic())
+        changed, fault, report = self.core.sent(out, time.monotonic())
         if changed:
             self.node.event("warning" if fault else "info", f"output {out.reason}")
         self.node.health.count("frames_out")
-        self.out_pub.put(JoystickOutput(
-            stamp_ns=time.time_ns(), seq=seq, longitudinal_v=out.longitudinal_v,
-            angular_v=out.angular_v, enable=out.enable, reason=out.reason, clamped=out.clamped))
+        if report:
+            self.out_pub.put(JoystickOutput(
+                stamp_ns=time.time_ns(), seq=seq, longitudinal_v=out.longitudinal_v,
+                angular_v=out.angular_v, enable=out.enable, reason=out.reason,
+                clamped=out.clamped))
 
     # --- chair → host ----------------------------------------------------------------------
     def serial_loop(self) -> None:

@@ -9,10 +9,10 @@ and the map work without any user scripts.
 | /map             | foxglove.Grid              | keys.MAP_GRID                      |
 | /log             | foxglove.Log               | keys.LOG, new faults in keys.HEALTH |
 
-/tf (from keys.TF) and /pose are duplicates of channels recorded at the full rate (keys.TF,
-keys.ODOM): they are decimated to at most `max_hz` (by message stamp; the logger's
-`derived_max_hz`, default 20 Hz), enough for the 3D panel. Static transforms, scans, maps and
-logs are derived from every message.
+/tf (from keys.TF), /pose and /scan are duplicates of channels recorded at the full rate
+(keys.TF, keys.ODOM, keys.SCAN): they are decimated by message stamp to at most `max_hz` (the
+logger's `derived_max_hz`, default 20 Hz) and `scan_max_hz` (`derived_scan_hz`, default 5 Hz),
+enough for the 3D panel. Static transforms, maps and logs are derived from every message.
 
 Times are {sec, nsec}; bytes are base64. The schemas are Foxglove's own (copied from npm
 `@foxglove/schemas` into foxglove_schemas.json). foxglove.LaserScan has no range limits and
@@ -32,6 +32,7 @@ from typing import Any
 import msgspec
 
 from autochair import geometry
+from autochair.timing import Decimator
 from autochair_msgs import (
     FrameTransform,
     Health,
@@ -120,34 +121,20 @@ class Deriver:
     """Maps one decoded message to its foxglove.* messages. Keeps the last fault seen per
     service so a Health fault becomes one Log entry, not one per second."""
 
-    def __init__(self, max_hz: float = 0.0) -> None:
+    def __init__(self, max_hz: float = 0.0, scan_max_hz: float = 0.0) -> None:
         self._faults: dict[str, int] = {}
-        # Decimation of the high-rate duplicates (0 = every message): next stamp due per key.
-        self._period_ns = int(1e9 / max_hz) if max_hz > 0 else 0
-        self._due: dict[str, int] = {}
+        # Decimation of the duplicates of full-rate raw channels (0 = every message).
+        tf, pose, scan = Decimator.at(max_hz), Decimator.at(max_hz), Decimator.at(scan_max_hz)
         self._by_key: dict[str, Callable[[Any], list[Derived]]] = {
-            keys.TF.key: lambda m: [(TOPIC_TF, m.stamp_ns, _tf(m))]
-            if self._take(keys.TF.key, m.stamp_ns) else [],
+            keys.TF.key: lambda m: [(TOPIC_TF, m.stamp_ns, _tf(m))] if tf(m.stamp_ns) else [],
             keys.TF_STATIC.key: lambda m: [(TOPIC_TF, m.stamp_ns, _tf(m))],
             keys.ODOM.key: lambda m: [(TOPIC_POSE, m.stamp_ns, _pose(m))]
-            if self._take(keys.ODOM.key, m.stamp_ns) else [],
-            keys.SCAN.key: lambda m: [(TOPIC_SCAN, m.stamp_ns, _scan(m))],
+            if pose(m.stamp_ns) else [],
+            keys.SCAN.key: lambda m: [(TOPIC_SCAN, m.stamp_ns, _scan(m))]
+            if scan(m.stamp_ns) else [],
             keys.MAP_GRID.key: lambda m: [(TOPIC_MAP, m.stamp_ns, _grid(m))],
             keys.LOG.key: self._log,
         }
-
-    def _take(self, key: str, stamp_ns: int) -> bool:
-        """Whether a message of a decimated key, stamped `stamp_ns`, is derived: the first,
-        then one per period (a stamp going backwards, e.g. a restart, restarts the count)."""
-        if not self._period_ns:
-            return True
-        due = self._due.get(key)
-        if due is not None and due - self._period_ns <= stamp_ns < due:
-            return False
-        self._due[key] = (due + self._period_ns
-                          if due is not None and 0 <= stamp_ns - due < self._period_ns
-                          else stamp_ns + self._period_ns)
-        return True
 
     def derive(self, key: str, msg: msgspec.Struct) -> list[Derived]:
         fn = self._by_key.get(key)

@@ -18,9 +18,9 @@ from collections import deque
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import keys
 
-from .writer import LoggerConfig, Recorder
+from .writer import Intake, LoggerConfig, Recorder
 
-IDLE_WAIT_S = 0.005  # writer poll period when the queue is empty
+IDLE_WAIT_S = 0.02  # writer poll period when the queue is empty (50 wakeups/s, not 200)
 
 
 def logged_keys() -> list[str]:
@@ -46,13 +46,17 @@ def start(node: Node, cfg: LoggerConfig) -> None:
     queue: deque[tuple[str, bytes, int]] = deque()
     limit = cfg.queue_size
     health = node.health
+    intake = Intake(cfg)
 
     def on_sample(key: str, payload: bytes) -> None:
         # Runs on a Zenoh thread: append and return, nothing else (never block a publisher).
+        now = time.time_ns()
+        if not intake.take(key, now):
+            return
         if len(queue) >= limit:
             health.count("dropped")
             return
-        queue.append((key, payload, time.time_ns()))
+        queue.append((key, payload, now))
 
     node.record_raw(logged_keys(), on_sample)
     writer = threading.Thread(target=_write_loop, args=(node, recorder, queue),
