@@ -142,3 +142,31 @@ def test_link_writes_on_change_and_keepalive_and_reopens_a_silent_port() -> None
     core.link_up(4.0)  # a new link forgets the command and the last output
     assert not core.received(0, 5.0) and core.due(4.0) is not None
     assert core.output(4.0).reason == "neutral:startup"
+
+
+def test_a_parked_chairs_telemetry_is_passed_on_at_20_hz_and_motion_at_once() -> None:
+    core = running(parked_period_s=0.05, hold_s=1.0)
+    core.link_up(0.0)
+    still = Telemetry(seq=0, t_us=0, left=100, right=200, status=0)
+
+    def frames(t0: float, t1: float, frame: Telemetry = still) -> list[float]:
+        return [t / 1000 for t in range(int(t0 * 1000), int(t1 * 1000), 5)
+                if core.pass_on(frame, 0, t / 1000)]
+
+    # Positive control: a frame that moved keeps the full rate for hold_s.
+    assert core.pass_on(still, 0, 0.0)
+    assert len(frames(0.005, 1.0)) == 199  # every 5 ms frame within the hold
+    parked = frames(1.0, 2.0)
+    assert 19 <= len(parked) <= 21  # parked: 20 Hz
+    # A wheel turning by one count, a lost frame, a status change: passed on at once.
+    moved = Telemetry(seq=1, t_us=0, left=101, right=200, status=0)
+    assert core.pass_on(moved, 0, 2.001) and core.pass_on(moved, 0, 2.006)
+    assert core.pass_on(moved, 3, 3.5)
+    # An enabled output (driving) keeps the full rate even while the wheels are still.
+    core2 = running(parked_period_s=0.05, hold_s=1.0)
+    core2.link_up(0.0)
+    core2.on_command(3.0, 2.5, True, now_s=5.0)
+    out = core2.due(5.0)
+    assert out is not None and out.enable
+    core2.sent(out, 5.0)
+    assert all(core2.pass_on(still, 0, 5.0 + k * 0.005) for k in range(40))

@@ -59,6 +59,14 @@ class GatewayCore:
     rx_stall_s: float = 2.0
     _sent: Output | None = None
     _sent_t: float = -math.inf
+    # A parked chair's telemetry (no motion, output not enabled, for hold_s) is passed on
+    # every parked_period_s, not at the frame rate: absolute counters and the MCU clock lose
+    # nothing in between, and the whole chain downstream idles at 20 Hz instead of 200.
+    parked_period_s: float = 0.05
+    hold_s: float = 1.0
+    _passed: tuple[int, int, int] | None = None  # (left, right, status) last passed on
+    _passed_t: float = -math.inf
+    _busy_until: float = -math.inf
     # What was written is reported (keys.JOYSTICK_OUT) when it changes, else every report_s.
     report_s: float = 0.1
     _reported: Output | None = None
@@ -135,6 +143,18 @@ class GatewayCore:
             self._reported, self._reported_t = out, now_s
         return changed, out.reason not in ("command", "neutral:startup", "neutral:disabled"), \
             report
+
+    def pass_on(self, frame: Telemetry, gap: int, now_s: float) -> bool:
+        """Whether to publish this telemetry frame: always while the chair moves, the output
+        is enabled or frames were lost, and for hold_s after; parked, one per
+        parked_period_s."""
+        seen = (frame.left, frame.right, frame.status)
+        if gap or seen != self._passed or (self._sent is not None and self._sent.enable):
+            self._busy_until = now_s + self.hold_s
+        if now_s < self._busy_until or now_s - self._passed_t >= self.parked_period_s:
+            self._passed, self._passed_t = seen, now_s
+            return True
+        return False
 
     def received(self, frames: int, now_s: float) -> bool:
         """Telemetry arrived (`frames` decoded); True when the link has been silent for

@@ -157,11 +157,15 @@ class Gateway:
         stats = self.core.decoder.stats
         bad_before = stats.bad_frames
         with self.lock:
+            now = time.monotonic()
             frames = self.core.on_bytes(data) if data else []
-            if self.core.received(len(frames), time.monotonic()):
+            if self.core.received(len(frames), now):
                 self._lost(f"no telemetry for {self.cfg.rx_stall_s:.1f} s")
                 return
-        for frame, gap in frames:
+            passed = [self.core.pass_on(frame, gap, now) for frame, gap in frames]
+        for (frame, gap), publish in zip(frames, passed, strict=True):
+            if not publish:
+                continue
             self.enc_pub.put(EncoderSample(
                 stamp_ns=stamp, seq=frame.seq, mcu_time_us=frame.t_us, left_counts=frame.left,
                 right_counts=frame.right, status=frame.status, dropped=gap,
