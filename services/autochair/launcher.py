@@ -246,20 +246,19 @@ class Launcher:
             if c.notify is not None:
                 c.notify.watch.stopping(now)
         clean = True
-        order = [c for c in reversed(list(self.children.values())) if c.popen is not None]
-        for child in order:
-            if child.proc.name != "router":
+        # In waves, the reverse of the start order: a process goes once nothing still running
+        # needs it (`after`), so the hub, which every other process needs, goes last.
+        remaining = [c for c in reversed(list(self.children.values())) if c.popen is not None]
+        while remaining:
+            needed = {d for c in remaining for d in c.proc.after}
+            wave = [c for c in remaining if c.proc.name not in needed] or remaining
+            for child in wave:
                 assert child.popen is not None
                 child.popen.terminate()
-        router = self.children.get("router")
-        deadline = time.monotonic() + timeout_s
-        for child in order:
-            if child is router:
-                continue
-            clean &= self._reap(child, deadline)
-        if router is not None and router.popen is not None:
-            router.popen.terminate()
-            clean &= self._reap(router, time.monotonic() + timeout_s)
+            deadline = time.monotonic() + timeout_s
+            for child in wave:
+                clean &= self._reap(child, deadline)
+            remaining = [c for c in remaining if c not in wave]
         if self._session is not None:
             with contextlib.suppress(zenoh.ZError):
                 self._session.close()

@@ -64,6 +64,10 @@ PROCESSES: tuple[Process, ...] = (
             doc="Hokuyo SCIP 2.0 ingest: checked, stamped scans and the chair→laser transform"),
     Process("mapping", "autochair.mapping.node", "autochair-mapping",
             doc="Occupancy grid and point-cloud map from scans and odometry"),
+    Process("localization", "autochair.localization.node", "autochair-localization",
+            ("--set", "maps_dir={state_dir}/maps"),
+            doc="Scan matching on the map fused with odometry (map → odom); maps with loop "
+                "closure when started without --map"),
     Process("safety", "autochair.safety.node", "autochair-safety",
             doc="Safety monitor: slows then stops before obstacles in the laser scan "
                 "(SafetyLimit)"),
@@ -91,6 +95,19 @@ def stack_values(procs: list[Process], values: dict[str, str]) -> dict[str, str]
     monitor always requires its limit (fail closed; not left to a config file)."""
     running = {p.name for p in procs}
     return {**values, "safety_required": "true" if "safety" in running else "false"}
+
+
+def with_needs(procs: list[Process], names: set[str]) -> list[Process]:
+    """The processes of `procs` named in `names` and those they need to start (`after`,
+    transitively, e.g. the hub), in list order."""
+    by = {p.name: p for p in procs}
+    todo, keep = list(names), set()
+    while todo:
+        name = todo.pop()
+        if name in by and name not in keep:
+            keep.add(name)
+            todo.extend(by[name].after)
+    return [p for p in procs if p.name in keep]
 
 
 def selected(sim: bool) -> list[Process]:

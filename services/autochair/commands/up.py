@@ -84,12 +84,12 @@ def run(args: argparse.Namespace) -> int:
     if not args.sim and not args.lidar:
         procs = [p for p in procs if p.name != "lidar"]
     if args.only:
-        wanted = {n.strip() for n in args.only.split(",")} | {"router"}
+        wanted = {n.strip() for n in args.only.split(",")}
         unknown = wanted - {p.name for p in processes.PROCESSES}
         if unknown:
             raise CliError(f"unknown process(es): {', '.join(sorted(unknown))}; known: "
                            f"{', '.join(p.name for p in processes.PROCESSES)}")
-        procs = [p for p in procs if p.name in wanted]
+        procs = processes.with_needs(procs, wanted)
     import tempfile
 
     from autochair.launcher import wait_port

@@ -13,6 +13,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Annotated
 
 import msgspec
 
@@ -23,7 +24,8 @@ from .core import EStopCore
 
 
 class EStopConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    rate_hz: float = 10.0
+    # The state heartbeat; the gateway holds neutral when it is older than [stale] estop_s.
+    rate_hz: Annotated[float, msgspec.Meta(ge=2, le=100)] = 10.0
     # Where the latch survives a restart of this service ("" = not kept).
     state_file: str = ""
 

@@ -7,6 +7,7 @@ import random
 import sys
 import threading
 import time
+from typing import Annotated
 
 import msgspec
 import serial
@@ -17,25 +18,27 @@ from autochair_msgs import EncoderSample, EStopState, JoystickCommand, JoystickO
 
 from .core import GatewayCore, Output
 
+Positive = Annotated[float, msgspec.Meta(gt=0)]
+
 
 class GatewayConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     port: str = ""  # device (/dev/ttyACM0), pty path, or a pyserial URL (loop://, socket://...)
-    baudrate: int = 115200
+    baudrate: Annotated[int, msgspec.Meta(gt=0)] = 115200
     require_estop: bool = True  # hold neutral unless the e-stop service says "released"
-    min_v: float = 1.1  # valid joystick window, volts
-    max_v: float = 3.9
-    keepalive_hz: float = 50.0  # frames are written at least this often (firmware watchdog 200 ms)
-    rx_stall_s: float = 2.0  # no telemetry this long on an open port → reopen it
-    reconnect_min_s: float = 0.1
-    reconnect_max_s: float = 2.0
+    # The valid joystick window, volts; it must contain neutral (2.5 V).
+    min_v: Annotated[float, msgspec.Meta(ge=0.5, lt=2.5)] = 1.1
+    max_v: Annotated[float, msgspec.Meta(gt=2.5, le=4.5)] = 3.9
+    # Frames are written at least this often: well inside the firmware's 200 ms watchdog.
+    keepalive_hz: Annotated[float, msgspec.Meta(ge=10, le=1000)] = 50.0
+    rx_stall_s: Positive = 2.0  # no telemetry this long on an open port → reopen it
+    reconnect_min_s: Positive = 0.1
+    reconnect_max_s: Positive = 2.0
 
 
 class Gateway:
     def __init__(self, node: Node, cfg: GatewayConfig) -> None:
         if not cfg.port:
             raise ConfigError("[gateway] port is not set (device path, pty or pyserial URL)")
-        if not 0.5 <= cfg.min_v < 2.5 < cfg.max_v <= 4.5:
-            raise ConfigError(f"[gateway] window {cfg.min_v}–{cfg.max_v} V must contain 2.5 V")
         self.node, self.cfg = node, cfg
         stale = node.stale
         self.core = GatewayCore(stale_s=stale.joystick_s, estop_stale_s=stale.estop_s,

@@ -14,37 +14,46 @@ import sys
 import termios
 import time
 import tty
+from typing import Annotated, Literal
 
 import msgspec
 
 from autochair.backoff import Backoff
 from autochair.geometry import yaw_quaternion
 from autochair.protocol import scip
-from autochair.runtime.config import ChairGeometry, ConfigError
+from autochair.runtime.config import ChairGeometry
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import FrameTransform, Quaternion, Vector3, keys
 
 from .core import IngestPolicy, LidarClient, LidarTimeout, ScanDecoder
 
+Positive = Annotated[float, msgspec.Meta(gt=0)]
+
 
 class LidarConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     url: str = "/dev/ttyACM0"  # serial device or pty path, or tcp://HOST:PORT (UST/UTM class)
-    baudrate: int = 115200  # serial only; USB-ACM (URG-04LX) and ptys ignore it
-    command: str = "MD"  # MD (3-char values) or MS (2-char values, ranges ≤ 4.095 m)
+    baudrate: Annotated[int, msgspec.Meta(gt=0)] = 115200  # serial only; USB-ACM/ptys ignore it
+    command: Literal["MD", "MS"] = "MD"  # MD (3-char values) or MS (2-char, ranges ≤ 4.095 m)
     start_step: int = -1  # -1 = AMIN from PP
     end_step: int = -1  # -1 = AMAX from PP
-    cluster: int = 1  # steps per reported range (the device reports their minimum)
-    interval: int = 0  # scans skipped between reported scans
+    cluster: Annotated[int, msgspec.Meta(ge=1, le=99)] = 1  # steps per range (their minimum)
+    interval: Annotated[int, msgspec.Meta(ge=0, le=9)] = 0  # scans skipped between reported
     frame_id: str = "laser"
     parent_frame_id: str = "chair"  # the laser's mount in it is the [chair] section
-    reply_timeout_s: float = 1.0  # per request during the handshake
-    stall_timeout_s: float = 1.0  # no valid scan this long while streaming → reconnect
-    max_consecutive_errors: int = 20  # bad scans in a row → reconnect
-    backoff_base_s: float = 0.1  # reconnect delays: base · 2^n, capped, ± jitter
-    backoff_max_s: float = 1.0
-    backoff_jitter: float = 0.25  # fraction
-    sync_window: int = 100  # scans in the device→host clock offset min-filter
-    tf_period_s: float = 1.0  # static chair→laser transform repeat period
+    reply_timeout_s: Positive = 1.0  # per request during the handshake
+    stall_timeout_s: Positive = 1.0  # no valid scan this long while streaming → reconnect
+    max_consecutive_errors: Annotated[int, msgspec.Meta(ge=1)] = 20  # bad scans in a row
+    backoff_base_s: Positive = 0.1  # reconnect delays: base · 2^n, capped, ± jitter
+    backoff_max_s: Positive = 1.0
+    backoff_jitter: Annotated[float, msgspec.Meta(ge=0, lt=1)] = 0.25  # fraction
+    sync_window: Annotated[int, msgspec.Meta(ge=1)] = 100  # scans in the clock-offset filter
+    tf_period_s: Positive = 1.0  # static chair→laser transform repeat period
+
+    def __post_init__(self) -> None:
+        if self.url.startswith("tcp://"):
+            _, sep, port = self.url[6:].rpartition(":")
+            if not sep or not port.isdigit():
+                raise ValueError(f"url {self.url!r}: want tcp://HOST:PORT")
 
 
 def _classify(e: BaseException) -> str:
@@ -121,19 +130,6 @@ def open_transport(cfg: LidarConfig) -> FdTransport | TcpTransport:
     return FdTransport(cfg.url, cfg.baudrate)
 
 
-def check_config(cfg: LidarConfig) -> None:
-    if cfg.command not in ("MD", "MS"):
-        raise ConfigError(f"lidar.command must be MD or MS, not {cfg.command!r}")
-    if cfg.url.startswith("tcp://"):
-        _, sep, port = cfg.url[6:].rpartition(":")
-        if not sep or not port.isdigit():
-            raise ConfigError(f"lidar.url {cfg.url!r}: want tcp://HOST:PORT")
-    if not 1 <= cfg.cluster <= 99 or not 0 <= cfg.interval <= 9:
-        raise ConfigError("lidar.cluster must be 1..99 and lidar.interval 0..9")
-    if cfg.stall_timeout_s <= 0 or cfg.reply_timeout_s <= 0 or cfg.backoff_max_s <= 0:
-        raise ConfigError("lidar timeouts and backoff_max_s must be > 0")
-
-
 def mount_transform(cfg: LidarConfig, chair: ChairGeometry, stamp_ns: int) -> FrameTransform:
     """The chair→laser transform from the [chair] geometry (the one definition of the mount)."""
     return FrameTransform(
@@ -143,7 +139,6 @@ def mount_transform(cfg: LidarConfig, chair: ChairGeometry, stamp_ns: int) -> Fr
 
 
 def start(node: Node, cfg: LidarConfig) -> None:
-    check_config(cfg)
     tf = node.publisher(keys.TF_STATIC)
     node.health.thresholds.update(stall_timeout_s=cfg.stall_timeout_s,
                                   backoff_max_s=cfg.backoff_max_s)

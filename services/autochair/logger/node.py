@@ -29,8 +29,6 @@ def logged_keys() -> list[str]:
 
 
 def start(node: Node, cfg: LoggerConfig) -> None:
-    if cfg.queue_size < 1 or cfg.flush_period_s <= 0 or cfg.chunk_size_kib < 1:
-        raise ConfigError("[logger] queue_size, flush_period_s and chunk_size_kib must be > 0")
     try:
         recorder = Recorder(cfg, time.time_ns(), time.monotonic())
     except (ValueError, OSError) as e:

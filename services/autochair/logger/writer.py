@@ -17,7 +17,7 @@ import datetime
 import os
 import re
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Annotated, Any, Literal
 
 import mcap.writer
 import msgspec
@@ -35,26 +35,30 @@ _JSON = msgspec.json.Encoder()
 DEFAULT_DIR = "recordings/"
 
 
+NonNegative = Annotated[float, msgspec.Meta(ge=0)]
+
+
 class LoggerConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """[logger] section. Sizes in MiB, times in seconds."""
 
     # A directory (ends with "/" or exists as one): a new autochair-<UTC time>.mcap per run.
     # A path ending in .mcap: that file. Rotated parts get -001, -002, ... before ".mcap".
     path: str = DEFAULT_DIR
-    max_size_mib: float = 1024.0  # rotate when the file reaches this size; 0 = never
-    max_duration_s: float = 0.0  # rotate after this much receive time; 0 = never
-    flush_period_s: float = 1.0  # close the open chunk at least this often (crash loss bound)
-    chunk_size_kib: int = 1024  # ...or when it holds this much uncompressed data
-    queue_size: int = 100_000  # samples waiting for the writer thread before drops
-    compression: str = "zstd"  # zstd | lz4 | none
+    max_size_mib: NonNegative = 1024.0  # rotate when the file reaches this size; 0 = never
+    max_duration_s: NonNegative = 0.0  # rotate after this much receive time; 0 = never
+    # close the open chunk at least this often (crash loss bound)
+    flush_period_s: Annotated[float, msgspec.Meta(gt=0)] = 1.0
+    chunk_size_kib: Annotated[int, msgspec.Meta(ge=1)] = 1024  # ...or at this much data
+    queue_size: Annotated[int, msgspec.Meta(ge=1)] = 100_000  # waiting samples before drops
+    compression: Literal["zstd", "lz4", "none"] = "zstd"
     # Derived foxglove /tf (dynamic) and /pose at most this often, and /scan (their sources,
     # keys.TF, keys.ODOM and keys.SCAN, are recorded at the full rate); 0 = one per message.
-    derived_max_hz: float = 20.0
-    derived_scan_hz: float = 5.0
+    derived_max_hz: NonNegative = 20.0
+    derived_scan_hz: NonNegative = 5.0
     # Maps (keys.MAP_GRID and its /map, keys.MAP_CLOUD) recorded at most this often (by
     # receive time; the node's intake): each is the whole map (~240 kB), republished every
     # second for live viewers; 0 = every one.
-    map_period_s: float = 5.0
+    map_period_s: NonNegative = 5.0
 
 
 ZSTD_LEVEL = 9
