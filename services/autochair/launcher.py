@@ -28,6 +28,7 @@ import zenoh
 
 from autochair.backoff import Backoff
 from autochair.processes import Process, stack_values
+from autochair.runtime.client import watch_alive
 from autochair.runtime.config import chair_in
 from autochair.runtime.session import client_settings, open_session
 from autochair.runtime.watchdog import NotifyChannel
@@ -153,18 +154,17 @@ class Launcher:
         chair = chair_in({**os.environ, **self.env})  # the children's namespace, if any
         self._session = open_session(client_settings(self.hub, chair))
 
-        def on_token(sample: zenoh.Sample) -> None:
-            name = str(sample.key_expr).rsplit("/", 1)[-1]
+        def on_token(name: str, alive: bool) -> None:
             child = self.children.get(name)
             if child is None:
                 return
-            if sample.kind == zenoh.SampleKind.PUT:
+            if alive:
                 self._set(child, "up")
             elif child.state == "up":
                 # token gone: the process is hung, dying or being stopped; poll() decides
                 self._set(child, "stopping" if self._stopping else "starting")
 
-        self._session.liveliness().declare_subscriber("autochair/alive/*", on_token, history=True)
+        watch_alive(self._session, on_token)
 
     def _spawn(self, child: Child) -> None:
         if child.notify is None:

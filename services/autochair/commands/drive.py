@@ -28,10 +28,8 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import msgspec
-
     from autochair.commands.link import tool_session
-    from autochair.runtime.client import alive_services, pid_caps, subscribe
+    from autochair.runtime.client import Publisher, alive_services, pid_caps, subscribe
     from autochair_msgs import Odometry, VelocityCommand, keys
 
     if abs(args.v) > MAX_V or abs(args.w) > MAX_W:
@@ -51,8 +49,7 @@ def run(args: argparse.Namespace) -> int:
                 if not (-rev <= args.v <= fwd and abs(args.w) <= w):
                     raise CliError(f"beyond the velocity PID's caps: v within [-{rev:g}, "
                                    f"{fwd:g}] m/s and |w| ≤ {w:g} rad/s ([pid] in the config)")
-        pub = session.declare_publisher(keys.CMD_VEL.key)
-        enc = msgspec.msgpack.Encoder()
+        pub = Publisher(session, keys.CMD_VEL)
         latest: list[Odometry] = []
         lock = threading.Lock()
 
@@ -67,8 +64,8 @@ def run(args: argparse.Namespace) -> int:
         stream_start = time.time_ns()
 
         def send(v: float, w: float) -> None:
-            pub.put(enc.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,
-                                               source="cli", stream_start_ns=stream_start)))
+            pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,
+                                    source="cli", stream_start_ns=stream_start))
 
         start = time.monotonic()
         next_print = start

@@ -43,10 +43,8 @@ def _who() -> str:
 
 
 def run_estop(args: argparse.Namespace) -> int:
-    import msgspec
-
     from autochair.commands.link import tool_session
-    from autochair.runtime.client import subscribe
+    from autochair.runtime.client import Publisher, subscribe
     from autochair_msgs import EStopAssert, keys
 
     session = tool_session(args)
@@ -60,7 +58,7 @@ def run_estop(args: argparse.Namespace) -> int:
         source = f"cli:{_who()}"
         msg = EStopAssert(stamp_ns=time.time_ns(), source=source, reason=args.reason,
                           active=False)
-        pub = session.declare_publisher(keys.ESTOP_ASSERT.key)
+        pub = Publisher(session, keys.ESTOP_ASSERT, reliable=True)
 
         def pressed() -> bool:
             return bool(states) and states[-1].latched and any(
@@ -68,7 +66,7 @@ def run_estop(args: argparse.Namespace) -> int:
 
         deadline = time.monotonic() + CONFIRM_S
         while time.monotonic() < deadline and not pressed():
-            pub.put(msgspec.msgpack.encode(msg))  # repeated until confirmed: a lost sample
+            pub.put(msg)  # repeated until confirmed: a lost sample
             time.sleep(0.1)                       # must not leave the chair moving
         if not (states and states[-1].latched):
             raise CliError("no e-stop service confirmed the latch (is it running? "
@@ -80,8 +78,7 @@ def run_estop(args: argparse.Namespace) -> int:
 
 
 def _clear(session: zenoh.Session, states: list[EStopState], source: str) -> int:
-    import msgspec
-
+    from autochair.runtime.client import Publisher
     from autochair_msgs import EStopAssert, keys
 
     def cause() -> EStopCause | None:
@@ -98,10 +95,10 @@ def _clear(session: zenoh.Session, states: list[EStopState], source: str) -> int
         raise CliError(f"{source} holds no active e-stop cause (active causes: {held})")
     msg = EStopAssert(stamp_ns=time.time_ns(), source=source,
                       reason=f"cleared by hand by {_who()}", active=False)
-    pub = session.declare_publisher(keys.ESTOP_CLEAR.key)
+    pub = Publisher(session, keys.ESTOP_CLEAR, reliable=True)
     deadline = time.monotonic() + CONFIRM_S
     while time.monotonic() < deadline and (c := cause()) is not None and c.active:
-        pub.put(msgspec.msgpack.encode(msg))
+        pub.put(msg)
         time.sleep(0.1)
     c = cause()
     if c is not None and c.active:

@@ -61,10 +61,10 @@ class Bridge:
 
     def __init__(self, session: zenoh.Session) -> None:
         import foxglove
-        import msgspec
 
         from autochair.logger import foxglove as fx
         from autochair.logger.schema import Codec, to_json
+        from autochair.runtime.client import subscribe
         from autochair_msgs import keys
 
         self._deriver = fx.Deriver()
@@ -85,19 +85,14 @@ class Bridge:
                                         schema=foxglove.Schema(name=codec.name,
                                                                encoding="jsonschema",
                                                                data=codec.schema))
-            session.declare_subscriber(row.key, self._handler(
-                row.key, msgspec.msgpack.Decoder(row.type), plot, name in DERIVED_KEYS,
-                to_json))
+            subscribe(session, row, self._handler(row.key, plot, name in DERIVED_KEYS, to_json),
+                      on_error=self._bad)
 
-    def _handler(self, key: str, dec: Any, plot: Any, derive: bool, to_json: Any) -> Any:
-        import msgspec
+    def _bad(self) -> None:
+        self.errors += 1
 
-        def on(sample: zenoh.Sample) -> None:
-            try:
-                msg = dec.decode(sample.payload.to_bytes())
-            except (msgspec.DecodeError, msgspec.ValidationError):
-                self.errors += 1
-                return
+    def _handler(self, key: str, plot: Any, derive: bool, to_json: Any) -> Any:
+        def on(msg: Any) -> None:
             stamp = getattr(msg, "stamp_ns", None)
             if plot is not None:
                 plot.log(to_json(msg), log_time=stamp)

@@ -24,12 +24,10 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import msgspec
-    import zenoh
-
     from autochair import deploy
     from autochair.commands.link import tool_session
     from autochair.commands.monitor_core import MonitorState
+    from autochair.runtime.client import subscribe, watch_alive
     from autochair_msgs import keys
 
     session = tool_session(args)
@@ -37,33 +35,26 @@ def run(args: argparse.Namespace) -> int:
     lock = threading.Lock()
     bad = [0]
 
-    def handler(topic: keys.Topic[Any], apply: Any) -> Any:
-        dec = msgspec.msgpack.Decoder(topic.type)
-
-        def on(sample: zenoh.Sample) -> None:
-            try:
-                msg = dec.decode(sample.payload.to_bytes())
-            except (msgspec.DecodeError, msgspec.ValidationError):
-                bad[0] += 1  # shown in the footer: a wrong-version peer, not silence
-                return
+    def locked(apply: Any) -> Any:
+        def on(msg: Any) -> None:
             with lock:
                 apply(msg)
-
         return on
 
-    def on_alive(sample: zenoh.Sample) -> None:
-        name = str(sample.key_expr).rsplit("/", 1)[-1]
+    def on_bad() -> None:
+        bad[0] += 1  # shown in the footer: a wrong-version peer, not silence
+
+    def on_alive(name: str, alive: bool) -> None:
         with lock:
-            state.on_alive(name, sample.kind == zenoh.SampleKind.PUT)
+            state.on_alive(name, alive)
 
     now = time.monotonic
-    session.liveliness().declare_subscriber(keys.ALIVE, on_alive, history=True)
-    session.declare_subscriber(keys.HEALTH.key,
-                               handler(keys.HEALTH, lambda m: state.on_health(m, now())))
-    session.declare_subscriber(keys.ODOM_SLOW.key,
-                               handler(keys.ODOM_SLOW, lambda m: state.on_odom(m, now())))
-    session.declare_subscriber(keys.SCAN.key, handler(keys.SCAN, lambda m: state.on_scan(m, now())))
-    session.declare_subscriber(keys.LOG.key, handler(keys.LOG, state.on_log))
+    watch_alive(session, on_alive)
+    for topic, apply in ((keys.HEALTH, lambda m: state.on_health(m, now())),
+                         (keys.ODOM_SLOW, lambda m: state.on_odom(m, now())),
+                         (keys.SCAN, lambda m: state.on_scan(m, now())),
+                         (keys.LOG, state.on_log)):
+        subscribe(session, topic, locked(apply), on_error=on_bad)
     try:
         if args.once:
             time.sleep(args.wait)  # gathering window for a snapshot, not synchronisation

@@ -54,37 +54,29 @@ class DriveChainWatch:
     QUERY_S = 3.0  # the liveliness query; one that does not finish by then fails closed
 
     def __init__(self, session: zenoh.Session) -> None:
-        import zenoh
-
         from autochair.logger import replay
-        from autochair_msgs import keys
+        from autochair.runtime.client import alive_services, watch_alive
 
         self.alive: set[str] = set()
         self.unsure = ""  # why the bus could not be checked (then replay is refused)
         self.appeared = threading.Event()
         self._lock = threading.Lock()
-        expr = f"{keys.PREFIX}/alive/*"
-
-        def name(key: object) -> list[str]:
-            return replay.drive_chain_alive([str(key).rsplit("/", 1)[-1]])
 
         # Ask the hub first: once this session has a liveliness subscriber, zenoh answers a
         # query from the session's own (still filling) token cache, often empty (seen).
         t0 = time.monotonic()
-        replies = list(session.liveliness().get(expr, timeout=self.QUERY_S))
+        names = alive_services(session, self.QUERY_S)
         if time.monotonic() - t0 >= self.QUERY_S:
             self.unsure = f"the liveliness query did not finish within {self.QUERY_S:g} s"
             self.appeared.set()
-        for r in replies:
-            if r.ok is not None:
-                self._add(name(r.ok.key_expr))
+        self._add(replay.drive_chain_alive(names))
 
-        def on_token(sample: zenoh.Sample) -> None:
-            if sample.kind == zenoh.SampleKind.PUT:
-                self._add(name(sample.key_expr))
+        def on_token(service: str, alive: bool) -> None:
+            if alive:
+                self._add(replay.drive_chain_alive([service]))
 
         # Then watch, with the tokens already there (one that appeared since the query).
-        self._sub = session.liveliness().declare_subscriber(expr, on_token, history=True)
+        self._sub = watch_alive(session, on_token)
 
     def _add(self, names: list[str]) -> None:
         if names:
@@ -132,6 +124,8 @@ def run(args: argparse.Namespace) -> int:
     from autochair.commands.link import tool_session
     from autochair.logger import replay
     from autochair.logger.reader import Recording
+    from autochair.runtime.client import Publisher
+    from autochair_msgs import keys
 
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
@@ -149,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
     # token it watches is NAMESPACE/autochair/..., so the watch guards exactly where it
     # publishes.
     session = tool_session(args, chair=namespace)
-    pubs: dict[str, zenoh.Publisher] = {}
+    pubs: dict[str, Publisher] = {}
     allowed: dict[str, bool] = {}  # key → matches --keys
     watch = DriveChainWatch(session)
     stop = watch.appeared
@@ -183,11 +177,10 @@ def run(args: argparse.Namespace) -> int:
                     raise refuse()
                 pub = pubs.get(item.key)
                 if pub is None:
-                    # BLOCK: a replay must not silently drop what it was asked to publish.
-                    pub = pubs[item.key] = session.declare_publisher(
-                        item.key, express=True,
-                        congestion_control=zenoh.CongestionControl.BLOCK)
-                pub.put(item.payload)
+                    # Reliable: a replay must not silently drop what it was asked to publish.
+                    pub = pubs[item.key] = Publisher(session, keys.by_key(item.key), item.key,
+                                                     express=True, reliable=True)
+                pub.put_raw(item.payload)
                 n += 1
                 now = time.monotonic()
                 if not args.quiet and now >= next_progress:

@@ -116,14 +116,13 @@ class TeleopLink:
     """Publishes what the core decides; the link is up while the PID's token is visible."""
 
     def __init__(self, session: zenoh.Session, core: Teleop, by: str = "teleop") -> None:
-        import msgspec
-        import zenoh  # here, not at import: `autochair --help` stays fast
+        # here, not at import: `autochair --help` stays fast
+        from autochair.runtime.client import Publisher, subscribe, watch_alive
 
-        self._put_kind = zenoh.SampleKind.PUT
         self.session, self.core, self.by = session, core, by
-        self._pub = session.declare_publisher(keys.TELEOP.key, express=True)
-        self._owner_pub = session.declare_publisher(keys.CMD_OWNER.key)
-        self._estop_pub = session.declare_publisher(keys.ESTOP_ASSERT.key, express=True)
+        self._pub = Publisher(session, keys.TELEOP, express=True)
+        self._owner_pub = Publisher(session, keys.CMD_OWNER)
+        self._estop_pub = Publisher(session, keys.ESTOP_ASSERT, express=True, reliable=True)
         self.owner = False
         self._owner_t = -1e18
         self._pid_alive = False
@@ -131,20 +130,15 @@ class TeleopLink:
         self._press, self._stream_start_ns = 0, 0
         self._estops, self._estop_until, self.estop_latched = 0, -1e18, False
         self.estop_source = f"teleop:{by}"
-        dec = msgspec.msgpack.Decoder(EStopState)
+        def on_estop(st: EStopState) -> None:
+            self.estop_latched = st.latched and any(
+                c.source == self.estop_source for c in st.causes)
 
-        def on_estop(sample: zenoh.Sample) -> None:
-            with contextlib.suppress(msgspec.DecodeError, msgspec.ValidationError):
-                st = dec.decode(sample.payload.to_bytes())
-                self.estop_latched = st.latched and any(
-                    c.source == self.estop_source for c in st.causes)
+        subscribe(session, keys.ESTOP_STATE, on_estop)
+        watch_alive(session, self._on_alive, "pid")
 
-        session.declare_subscriber(keys.ESTOP_STATE.key, on_estop)
-        session.liveliness().declare_subscriber(f"{keys.PREFIX}/alive/pid", self._on_alive,
-                                                history=True)
-
-    def _on_alive(self, sample: zenoh.Sample) -> None:
-        self._pid_alive = sample.kind == self._put_kind
+    def _on_alive(self, _service: str, alive: bool) -> None:
+        self._pid_alive = alive
 
     @property
     def link_ok(self) -> bool:
@@ -156,8 +150,8 @@ class TeleopLink:
 
     def set_owner(self, teleop: bool) -> None:
         self.owner = teleop
-        self._owner_pub.put(msgspec_encode(CommandOwner(
-            stamp_ns=time.time_ns(), owner="teleop" if teleop else "autonomy", by=self.by)))
+        self._owner_pub.put(CommandOwner(
+            stamp_ns=time.time_ns(), owner="teleop" if teleop else "autonomy", by=self.by))
         self._owner_t = time.monotonic()
 
     def step(self, now: float) -> tuple[float, float] | None:
@@ -169,16 +163,16 @@ class TeleopLink:
         if now < self._estop_until and not self.estop_latched:
             # A momentary press (active=False: latched, nothing left to clear), repeated until
             # the e-stop service shows it: a lost sample must not leave the chair moving.
-            self._estop_pub.put(msgspec_encode(EStopAssert(
+            self._estop_pub.put(EStopAssert(
                 stamp_ns=time.time_ns(), source=self.estop_source, reason="teleop e-stop button",
-                active=False)))
+                active=False))
         cmd = self.core.tick(now, self.link_ok)
         if self.core.presses != self._press:  # a fresh deadman press begins a new stream
             self._press, self._stream_start_ns = self.core.presses, time.time_ns()
         if cmd is not None:
-            self._pub.put(msgspec_encode(VelocityCommand(
+            self._pub.put(VelocityCommand(
                 stamp_ns=time.time_ns(), v_mps=cmd[0], omega_radps=cmd[1], source="teleop",
-                stream_start_ns=self._stream_start_ns)))
+                stream_start_ns=self._stream_start_ns))
             self.sent += 1
         return cmd
 
@@ -199,12 +193,6 @@ class TeleopLink:
         elif key == "h":
             self.set_owner(False)
         return True
-
-
-def msgspec_encode(msg: Any) -> bytes:
-    from autochair.runtime.node import encode
-
-    return encode(msg)
 
 
 Event = str | tuple[str, float]  # a key, or a key and when it was read (monotonic s)

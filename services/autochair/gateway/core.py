@@ -24,10 +24,6 @@ class Output:
     reason: str
     clamped: bool = False
 
-    @property
-    def neutral(self) -> bool:
-        return not self.enable
-
 
 NEUTRAL_STARTUP = Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:startup")
 

@@ -2,8 +2,8 @@
 offset at which to publish each, scaled by the replay rate. Derived foxglove.* channels are
 not Zenoh keys and are skipped.
 
-A replay must never move a chair: onto a bus where a drive-chain service is alive it is refused
-(`refusal`) unless every key goes under a namespace (`target_key`), where no service listens.
+A replay must never move a chair: where a drive-chain service is alive it is refused
+(`refusal`); `autochair replay` publishes into a namespace of its own by default.
 """
 
 from __future__ import annotations
@@ -68,17 +68,3 @@ def refusal(alive: Iterable[str]) -> str:
             "commands, e-stop \"released\" states, limits, odometry or scans would act on the "
             "live chair; replay under a namespace instead (--namespace NAME publishes "
             "NAME/autochair/...), or on a bus without the drive chain")
-
-
-def check_namespace(namespace: str) -> None:
-    """ValueError unless `namespace` is a plain key prefix (chunks, no wildcards)."""
-    chunks = namespace.split("/")
-    if not namespace or any(not c or c in (".", "..") or any(ch in c for ch in "*$#?")
-                            for c in chunks):
-        raise ValueError(f"--namespace wants a plain key prefix such as replay, not "
-                         f"{namespace!r} (no wildcards, no empty chunks)")
-
-
-def target_key(key: str, namespace: str) -> str:
-    """Where a recorded key is republished: under `namespace` when one is given."""
-    return f"{namespace}/{key}" if namespace else key

@@ -90,12 +90,8 @@ class Intake:
         return every is None or every(recv_ns)
 
 
-def _compression(name: str) -> CompressionType:
-    try:
-        return {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
-                "none": CompressionType.NONE}[name]
-    except KeyError:
-        raise ValueError(f"compression must be zstd, lz4 or none, not {name!r}") from None
+_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                "none": CompressionType.NONE}
 
 
 def base_path(path: str, start_ns: int) -> Path:
@@ -157,7 +153,7 @@ class _File:
         self.stream: IO[bytes]
         self.stream, self.path = create_exclusive(path)
         self.mcap = Writer(self.stream, chunk_size=cfg.chunk_size_kib * 1024,
-                           compression=_compression(cfg.compression))
+                           compression=_COMPRESSION[cfg.compression])
         self.mcap.start(profile="", library="autochair-logger")
         self.schemas: dict[str, int] = {}
         self.channels: dict[str, int] = {}
@@ -219,7 +215,6 @@ class Recorder:
     writer thread owns it."""
 
     def __init__(self, cfg: LoggerConfig, start_ns: int, start_mono_s: float) -> None:
-        _compression(cfg.compression)
         self.cfg = cfg
         self.requested = base_path(cfg.path, start_ns)  # the configured name
         self.base = free_base(self.requested)  # never an existing recording's name
@@ -318,9 +313,6 @@ class Recorder:
     @property
     def path(self) -> Path:
         return self.files[-1]
-
-    def bytes_on_disk(self) -> int:
-        return sum(p.stat().st_size for p in self.files if p.exists())
 
     def finish(self) -> None:
         """Write the summary and indexes (a complete, seekable file) and close."""

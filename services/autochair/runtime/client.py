@@ -36,6 +36,7 @@ def open_client(connect: str | None = None, config: str | None = None,
 
 T = TypeVar("T", bound=msgspec.Struct)
 R = TypeVar("R", bound=msgspec.Struct)
+_ENCODER = msgspec.msgpack.Encoder()
 
 
 class RequestError(Exception):
@@ -59,16 +60,18 @@ def request(session: zenoh.Session, topic: Any, req: msgspec.Struct, reply: type
                        "answers it running? (`autochair status`)")
 
 
-def _decoding(topic: Any, handle: Callable[[zenoh.Sample, T], None]
-              ) -> Callable[[zenoh.Sample], None]:
+def _decoding(topic: Any, handle: Callable[[zenoh.Sample, T], None],
+              on_error: Callable[[], None] | None = None) -> Callable[[zenoh.Sample], None]:
     """A sample callback that decodes a key-table row's message and skips malformed payloads
-    (a person's tool must not die on someone else's bad sample)."""
+    (a person's tool must not die on someone else's bad sample), calling `on_error` for each."""
     decoder = msgspec.msgpack.Decoder(topic.type)
 
     def on_sample(sample: zenoh.Sample) -> None:
         try:
             msg = decoder.decode(sample.payload.to_bytes())
         except (msgspec.DecodeError, msgspec.ValidationError):
+            if on_error is not None:
+                on_error()
             return
         handle(sample, msg)
 
@@ -76,13 +79,46 @@ def _decoding(topic: Any, handle: Callable[[zenoh.Sample, T], None]
 
 
 def subscribe(session: zenoh.Session, topic: Any, on_msg: Callable[[T], None],
-              key: str | None = None) -> zenoh.Subscriber[None]:
-    """Typed subscription for people's tools; malformed payloads are skipped."""
+              key: str | None = None, on_error: Callable[[], None] | None = None
+              ) -> zenoh.Subscriber[None]:
+    """Typed subscription for people's tools; malformed payloads are skipped (`on_error`)."""
 
     def forward(_: zenoh.Sample, msg: T) -> None:
         on_msg(msg)
 
-    return session.declare_subscriber(key or topic.key, _decoding(topic, forward))
+    return session.declare_subscriber(key or topic.key, _decoding(topic, forward, on_error))
+
+
+class Publisher:
+    """A typed publisher of one key-table row for people's tools: `put` encodes."""
+
+    def __init__(self, session: zenoh.Session, topic: Any, key: str | None = None, *,
+                 express: bool = False, reliable: bool = False) -> None:
+        self._pub = session.declare_publisher(
+            key or topic.key, express=express,
+            congestion_control=(zenoh.CongestionControl.BLOCK if reliable
+                                else zenoh.CongestionControl.DROP))
+
+    def put(self, msg: msgspec.Struct) -> None:
+        self._pub.put(_ENCODER.encode(msg))
+
+    def put_raw(self, payload: bytes) -> None:
+        """An already encoded message (a replay's recorded bytes)."""
+        self._pub.put(payload)
+
+    def undeclare(self) -> None:
+        self._pub.undeclare()
+
+
+def watch_alive(session: zenoh.Session, on_change: Callable[[str, bool], None],
+                service: str = "*") -> zenoh.Subscriber[None]:
+    """`on_change(service, alive)` whenever a liveliness token of this chair's `service`
+    ("*": any) appears or vanishes, starting with those already up."""
+    def on_token(sample: zenoh.Sample) -> None:
+        on_change(str(sample.key_expr).rsplit("/", 1)[-1], sample.kind == zenoh.SampleKind.PUT)
+
+    return session.liveliness().declare_subscriber(f"{keys.PREFIX}/alive/{service}", on_token,
+                                                   history=True)
 
 
 def alive_services(session: zenoh.Session, timeout_s: float = 1.0) -> set[str]:

@@ -19,6 +19,7 @@ import zenoh
 
 from autochair_msgs import Health, LogEvent, keys
 
+from . import client
 from .config import (
     ChairGeometry,
     ConfigError,
@@ -156,16 +157,14 @@ class Node:
     def watch_alive(self, service: str, on_change: Callable[[bool], None]) -> None:
         """`on_change(alive)` when `service`'s liveliness token appears or vanishes. A killed
         process's token vanishes within milliseconds, far sooner than any heartbeat."""
-        def on_token(sample: zenoh.Sample) -> None:
+        def on_token(_service: str, alive: bool) -> None:
             token = self.liveness.enter(f"token {service}", time.monotonic())
             try:
-                on_change(sample.kind == zenoh.SampleKind.PUT)
+                on_change(alive)
             finally:
                 self.liveness.leave(token)
 
-        sub = self.session.liveliness().declare_subscriber(f"{keys.PREFIX}/alive/{service}",
-                                                           on_token)
-        self._closers.append(sub.undeclare)
+        self._closers.append(client.watch_alive(self.session, on_token, service).undeclare)
 
     def record_raw(self, key_exprs: list[str], on_sample: Callable[[str, bytes], None]) -> None:
         """Undecoded samples of `key_exprs` (the logger's intake): `on_sample(key, payload)`
