@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 COMMANDS = ("up", "drive", "status", "estop", "deploy", "certs", "monitor", "teleop", "foxglove",
@@ -21,6 +22,11 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        # `autochair info FILE | head`: the reader has gone; no traceback for that, and none
+        # from the interpreter flushing stdout at exit either.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except CliError as e:
         print(f"autochair {args.command}: error: {e}", file=sys.stderr)
         return 2
