@@ -5,7 +5,8 @@ from __future__ import annotations
 import importlib
 import sys
 
-BENCHES = ("chain", "lidar_decode", "logger", "control_eval", "cpu")
+BENCHES = ("chain", "lidar_decode", "logger", "control_eval", "cpu", "tune",
+           "control_stack", "nav_eval", "loc_eval")
 
 
 def main(argv: list[str]) -> int:

@@ -6,9 +6,14 @@ ControlCore (stepped at its own configured rate, 50 Hz, like the node) → Veloc
 joystick volts → ChairModel. Comfort is measured from the odometry, not from the commands:
 v and ω are smoothed with a centred moving average (0.1 s), then a, jerk and ω̇ are central
 differences over ±0.05 s (odometry velocities are quantised: 1 count ≈ 31 µm, so raw 5 ms
-differences would report noise, not motion). The commanded (limiter) peaks are reported too.
+differences would report noise, not motion). The same peaks at the chair itself, from the
+simulator's ground truth (true v and ω, 5 ms exact; smoothed 50 ms for the jerk), are the
+goal's measure ("truth_*"); the commanded (limiter) peaks are reported too.
 
-    .venv/bin/python -m bench.control_eval [--quick]
+The velocity PID is configured as the [pid] section (tuned gains and feed-forward model);
+`--pid thesis` runs the thesis's ZN gains without a model for comparison.
+
+    .venv/bin/python -m bench.control_eval [--quick] [--pid thesis]
 """
 
 from __future__ import annotations
@@ -21,12 +26,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
 from autochair.geometry import wrap_angle as wrap
 from autochair.odometry.core import OdometryCore
-from autochair.pid.core import Command, VelocityPidCore
+from autochair.pid.core import Command, PidConfig, VelocityPidCore, make_core
 from autochair.sim.chair.model import ChairModel
 from autochair_msgs import GoalRequest, Pose2D
 
@@ -108,13 +114,66 @@ def trapezoid_time(dist: float, vmax: float, amax: float) -> float:
     return 2.0 * math.sqrt(dist / amax)
 
 
+def make_pid(which: str) -> VelocityPidCore:
+    """No e-stop or safety monitor in the lockstep loop."""
+    if which == "thesis":
+        return VelocityPidCore(require_estop=False)
+    pcfg = msgspec.structs.replace(PidConfig(), require_safety_limit=False, require_estop=False)
+    return make_core(pcfg)
+
+
+def truth_peaks(v: np.ndarray[Any, Any], w: np.ndarray[Any, Any]) -> tuple[float, float, float]:
+    """|a|, |jerk|, |ω̇| peaks of the chair's true velocities (exact 5 ms samples)."""
+    acc = np.diff(v) / DT
+    jerk = np.diff(smooth(acc, round(0.05 / DT))) / DT
+    wdot = np.diff(w) / DT
+    return (float(np.max(np.abs(acc))), float(np.max(np.abs(jerk))),
+            float(np.max(np.abs(wdot))))
+
+
+def scurve_time(dist: float, vmax: float, amax: float, jmax: float) -> float:
+    """Rest-to-rest time over `dist` with |v| ≤ vmax, |a| ≤ amax, |jerk| ≤ jmax (S-curve)."""
+    if dist <= 0:
+        return 0.0
+
+    def t_acc(vp: float) -> float:  # time from rest to vp (and back): jerk-limited ramp
+        return vp / amax + amax / jmax if vp >= amax * amax / jmax else 2.0 * math.sqrt(vp / jmax)
+
+    if vmax * t_acc(vmax) <= dist:
+        return 2.0 * t_acc(vmax) + (dist - vmax * t_acc(vmax)) / vmax
+    lo, hi = 0.0, vmax
+    for _ in range(60):  # the distance vp·t_acc(vp) grows with vp: bisection
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mid * t_acc(mid) < dist else (lo, mid)
+    return 2.0 * t_acc(lo)
+
+
+def turn_drive_turn_time(start: tuple[float, float, float], goal: tuple[float, float, float],
+                         cfg: ControlConfig) -> float:
+    """A reference for a chair that cannot move sideways: turn in place to face the goal,
+    drive straight, turn to the goal yaw (each a rest-to-rest S-curve at the comfort limits).
+    Not a strict bound (blending turns into the drive can be faster), but the trapezoid bound
+    ignores that a goal beside the chair needs turning at all."""
+    def turn(a: float) -> float:
+        return scurve_time(abs(wrap(a)), cfg.omega_max_radps, cfg.omega_acc_max_radps2,
+                           cfg.omega_jerk_max_radps3)
+
+    (sx, sy, syaw), (gx, gy, gyaw) = start, goal
+    d = math.hypot(gx - sx, gy - sy)
+    if d < 0.05:
+        return turn(gyaw - syaw)
+    heading = math.atan2(gy - sy, gx - sx)
+    return turn(heading - syaw) + scurve_time(d, cfg.vmax_mps, cfg.a_max_mps2,
+                                              cfg.jerk_max_mps3) + turn(gyaw - heading)
+
+
 def run_case(start: tuple[float, float, float], goal: tuple[float, float, float],
-             cfg: ControlConfig) -> dict[str, Any]:
+             cfg: ControlConfig, pid_kind: str = "tuned") -> dict[str, Any]:
     model = ChairModel()
     model.x, model.y, model.yaw = start
     odom = OdometryCore()
     odom.reset(*start)
-    pid = VelocityPidCore(require_estop=False)  # no e-stop service in the lockstep loop
+    pid = make_pid(pid_kind)
     core = ControlCore(cfg)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
     volts = (2.5, 2.5)
@@ -139,8 +198,8 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
         p = pid.update(st.v, st.omega, DT, t, round(t * 1e9))
         volts = (p.longitudinal_v, p.angular_v)
         rows.append((t, st.x, st.y, st.yaw, st.v, st.omega, st.distance,
-                     model.x, model.y, model.yaw))
-        if t_arrive is None and core.state != "active":
+                     model.x, model.y, model.yaw, model.v, model.omega))
+        if t_arrive is None and not getattr(core, "active", core.state == "active"):
             t_arrive = t
         if (t_arrive is not None and t - t_arrive >= SETTLE_S) or t >= TIMEOUT_S:
             break
@@ -161,6 +220,10 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
     bound = max(trapezoid_time(d_straight, cfg.vmax_mps, cfg.a_max_mps2),
                 trapezoid_time(abs(wrap(gyaw - syaw)), cfg.omega_max_radps,
                                cfg.omega_acc_max_radps2))
+    ta, tj, tw = truth_peaks(a[:, 10], a[:, 11])
+    jbound = max(scurve_time(d_straight, cfg.vmax_mps, cfg.a_max_mps2, cfg.jerk_max_mps3),
+                 scurve_time(abs(wrap(gyaw - syaw)), cfg.omega_max_radps,
+                             cfg.omega_acc_max_radps2, cfg.omega_jerk_max_radps3))
     cmd = np.array(cmds)
     cmd_a = np.diff(cmd[:, 0]) * cfg.rate_hz
     cmd_wd = np.diff(cmd[:, 1]) * cfg.rate_hz
@@ -172,6 +235,11 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
         "time_s": round(t_arrive if t_arrive is not None else TIMEOUT_S, 3),
         "trapezoid_bound_s": round(bound, 3),
         "time_ratio": round((t_arrive or TIMEOUT_S) / bound, 2) if bound > 0 else None,
+        "jerk_bound_s": round(jbound, 3),
+        "time_ratio_jerk": round((t_arrive or TIMEOUT_S) / jbound, 2) if jbound > 0 else None,
+        "tdt_ref_s": round(turn_drive_turn_time(start, goal, cfg), 3),
+        "time_ratio_tdt": round((t_arrive or TIMEOUT_S) / turn_drive_turn_time(start, goal, cfg),
+                                2),
         "pos_error_m": round(math.hypot(gx - end[1], gy - end[2]), 4),
         "yaw_error_deg": round(math.degrees(abs(wrap(gyaw - end[3]))), 2),
         "true_pos_error_m": round(math.hypot(gx - end[7], gy - end[8]), 4),
@@ -181,6 +249,9 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
         "peak_jerk_mps3": round(float(np.max(np.abs(jerk))), 3),
         "peak_omega_radps": round(float(np.max(np.abs(w))), 3),
         "peak_omega_dot_radps2": round(float(np.max(np.abs(wdot))), 3),
+        "truth_peak_a_mps2": round(ta, 3),
+        "truth_peak_jerk_mps3": round(tj, 3),
+        "truth_peak_omega_dot_radps2": round(tw, 3),
         "cmd_peak_a_mps2": round(float(np.max(np.abs(cmd_a))), 3),
         "cmd_peak_jerk_mps3": round(float(np.max(np.abs(np.diff(cmd_a)) * cfg.rate_hz)), 3),
         "cmd_peak_omega_dot_radps2": round(float(np.max(np.abs(cmd_wd))), 3),
@@ -191,6 +262,9 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="first 6 cases only")
+    ap.add_argument("--no-save", action="store_true", help="do not write the results file")
+    ap.add_argument("--pid", choices=("tuned", "thesis"), default="tuned",
+                    help="velocity PID: [pid] as configured (default) or the thesis's ZN")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [control] setting")
     args = ap.parse_args(argv)
@@ -201,14 +275,16 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     t0 = time.perf_counter()
     for name, start, goal in cases:
-        r = run_case(start, goal, cfg)
+        r = run_case(start, goal, cfg, args.pid)
         r.update(name=name, start=start, goal=goal)
         results.append(r)
         print(f"{name:32s} {r['state']:8s} t={r['time_s']:6.2f}s x{r['time_ratio']:<5} "
+              f"xj{r['time_ratio_jerk']:<5} xtdt{r['time_ratio_tdt']:<5} "
               f"err={r['pos_error_m'] * 100:4.1f}cm/{r['yaw_error_deg']:4.1f}° "
               f"a={r['peak_a_mps2']:.2f} j={r['peak_jerk_mps3']:.2f} "
               f"ω={r['peak_omega_radps']:.2f} ω̇={r['peak_omega_dot_radps2']:.2f} "
-              f"rev={r['final_reversals']}")
+              f"rev={r['final_reversals']} truth a={r['truth_peak_a_mps2']:.2f} "
+              f"j={r['truth_peak_jerk_mps3']:.2f} ω̇={r['truth_peak_omega_dot_radps2']:.2f}")
     wall = time.perf_counter() - t0
     sim_s = sum(r["time_s"] + SETTLE_S for r in results)
     summary = {
@@ -220,11 +296,19 @@ def main(argv: list[str] | None = None) -> int:
         "max_peak_jerk_mps3": max(r["peak_jerk_mps3"] for r in results),
         "max_peak_omega_radps": max(r["peak_omega_radps"] for r in results),
         "max_peak_omega_dot_radps2": max(r["peak_omega_dot_radps2"] for r in results),
+        "max_truth_a_mps2": max(r["truth_peak_a_mps2"] for r in results),
+        "max_truth_jerk_mps3": max(r["truth_peak_jerk_mps3"] for r in results),
+        "max_truth_omega_dot_radps2": max(r["truth_peak_omega_dot_radps2"] for r in results),
+        "max_time_ratio": max(r["time_ratio"] for r in results),
         "max_cmd_a_mps2": max(r["cmd_peak_a_mps2"] for r in results),
         "max_cmd_jerk_mps3": max(r["cmd_peak_jerk_mps3"] for r in results),
         "max_cmd_omega_dot_radps2": max(r["cmd_peak_omega_dot_radps2"] for r in results),
         "max_final_reversals": max(r["final_reversals"] for r in results),
         "median_time_ratio": statistics.median(r["time_ratio"] for r in results),
+        "median_time_ratio_jerk": statistics.median(r["time_ratio_jerk"] for r in results),
+        "max_time_ratio_jerk": max(r["time_ratio_jerk"] for r in results),
+        "median_time_ratio_tdt": statistics.median(r["time_ratio_tdt"] for r in results),
+        "max_time_ratio_tdt": max(r["time_ratio_tdt"] for r in results),
         "max_pos_error_m": max(r["pos_error_m"] for r in results),
         "max_yaw_error_deg": max(r["yaw_error_deg"] for r in results),
         "sim_time_s": round(sim_s, 1),
@@ -232,8 +316,11 @@ def main(argv: list[str] | None = None) -> int:
         "speedup_vs_real_time": round(sim_s / wall, 1),
     }
     print(json.dumps(summary, indent=1))
+    if args.no_save:
+        return 0
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({"config": {f: getattr(cfg, f) for f in cfg.__struct_fields__},
+    RESULTS.write_text(json.dumps({"pid": args.pid,
+                                   "config": {f: getattr(cfg, f) for f in cfg.__struct_fields__},
                                    "summary": summary, "runs": results}, indent=1) + "\n")
     return 0
 

@@ -79,7 +79,7 @@ def drive(start: tuple[float, float, float], goal: tuple[float, float, float],
         omegas.append((math.hypot(goal[0] - x, goal[1] - y), w))
         t += DT
         k += 1
-        if core.state != "active" and arrived_t < 0:
+        if not core.active and arrived_t < 0:
             arrived_t = t
         if arrived_t >= 0 and t - arrived_t > 1.0:
             break
@@ -112,6 +112,9 @@ def test_converges_from_a_grid_of_start_poses(goal: tuple[float, float, float]) 
     bearing = math.atan2(goal[1], goal[0])
     s1, s2 = bearing, wrap(goal[2] - bearing)
     forced = abs(s1) > 0.02 and abs(s2) > 0.02 and (s1 > 0) != (s2 > 0)
+    # MPEPC (forward only) may turn in place first and then drive the law's curve, whose
+    # first bend goes the other way, when the goal is within 1 m (changed with issue 12).
+    forced = forced or math.hypot(goal[0], goal[1]) <= 1.0
     assert r["rev"] <= (1 if forced else 0), f"ω oscillates on the final approach: {r}"
 
 
@@ -131,7 +134,7 @@ def test_straight_goal_does_not_overshoot() -> None:
         core.on_odom(OdomSample(0, 0, 0, 0, 0, 0.0))
         assert core.set_goal(GoalRequest(waypoints=[Pose2D(d, 0, 0)]), 0.0).ok
         t, peak = 0.0, 0.0
-        while core.state == "active" and t < 30:
+        while core.active and t < 30:
             core.on_odom(OdomSample(x, 0, 0, v, 0, t))
             out = core.step(t)
             v = out[0] if out else 0.0
@@ -241,7 +244,7 @@ def test_stale_odometry_aborts_and_brakes_within_limits() -> None:
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
     t, vs = 0.0, []
     while t < 2.0:  # drive with fresh odometry
-        core.on_odom(OdomSample(0.5 * t, 0, 0, 0.0, 0, t))
+        core.on_odom(OdomSample(0.5 * t, 0, 0, 0.5, 0, t))
         out = core.step(t)
         assert out is not None
         vs.append(out[0])
@@ -283,7 +286,7 @@ def test_waypoints_are_passed_without_stopping_and_status_counts_down() -> None:
     x = y = yaw = v = w = 0.0
     t = 0.0
     speeds_mid, dist = [], []
-    while core.state == "active" and t < 60:
+    while core.active and t < 60:
         core.on_odom(OdomSample(x, y, yaw, v, w, t))
         out = core.step(t)
         assert out is not None
@@ -320,7 +323,7 @@ def driving(cfg: ControlConfig | None = None, until: float = 2.0) -> tuple[Contr
         x += out[0] * 0.02
         core.on_odom(OdomSample(x, 0, 0, out[0], 0, t))
         t += 0.02
-    assert core.state == "active"
+    assert core.active
     return core, t
 
 
@@ -337,7 +340,7 @@ def test_estop_latch_aborts_the_goal_and_refuses_new_ones_until_released() -> No
 def test_owner_change_aborts_the_goal() -> None:
     core, t = driving()
     core.on_owner("autonomy", t)
-    assert core.state == "active"  # positive control: a repeated claim changes nothing
+    assert core.active  # positive control: a repeated claim changes nothing
     core.on_owner("teleop", t)
     assert core.state == "aborted" and "teleop" in core.reason
     assert "hand it back" in core.set_goal(GoalRequest(waypoints=[Pose2D(1, 0, 0)]), t).error
@@ -358,7 +361,7 @@ def test_a_chair_that_does_not_follow_aborts_the_goal() -> None:
     core = fresh_core(ControlConfig(follow_timeout_s=2.0))
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
     t = 0.0
-    while core.state == "active" and t < 10:
+    while core.active and t < 10:
         core.step(t)
         core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))  # the chair stays at rest
         t += 0.02
@@ -370,7 +373,7 @@ def test_a_goal_without_progress_aborts() -> None:
     core = fresh_core(ControlConfig(no_progress_s=3.0))
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
     t = 0.0
-    while core.state == "active" and t < 20:
+    while core.active and t < 20:
         out = core.step(t) or (0.0, 0.0)
         # the chair moves (so it "follows") but circles instead of approaching
         core.on_odom(OdomSample(0.1 * math.sin(t), 0.1 * math.cos(t), t, out[0], 0.3, t))
@@ -385,29 +388,25 @@ def test_goals_beyond_the_maximum_distance_are_refused() -> None:
     assert not reply.ok and "waypoint 1 is 11.2 m away" in reply.error
 
 
-def test_no_reverse_when_blind_reversing_is_not_allowed() -> None:
+def test_mpepc_drives_forward_only_even_to_a_goal_just_behind() -> None:
+    # (Replaces the reverse-approach test: MPEPC made the reverse heuristic unnecessary.)
     core = fresh_core()
-    core.on_limit(0.0, 1.0)  # the monitor: nothing senses behind
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(-1, 0, 0)]), 0.0).ok
-
-    def min_v(c: ControlCore) -> float:
-        vs = []
-        for k in range(90):
-            c.on_odom(OdomSample(0, 0, 0, 0, 0, k * 0.02))
-            vs.append((c.step(k * 0.02) or (0.0, 0.0))[0])
-        return min(vs)
-
-    assert min_v(core) >= 0.0
-    positive = fresh_core()  # positive control: the same goal is reversed to when allowed
-    assert positive.set_goal(GoalRequest(waypoints=[Pose2D(-1, 0, 0)]), 0.0).ok
-    assert min_v(positive) < -0.05
+    vs, ws = [], []
+    for k in range(150):
+        core.on_odom(OdomSample(0, 0, 0, 0, 0, k * 0.02))
+        v, w = core.step(k * 0.02) or (0.0, 0.0)
+        vs.append(v)
+        ws.append(w)
+    assert max(abs(w) for w in ws) > 0.1  # positive control: it does manoeuvre
+    assert min(vs) >= 0.0
 
 
 def test_turns_are_planned_within_the_monitors_turn_rate_bound() -> None:
     def peak_omega(cap: float | None) -> float:
         core = fresh_core()
         if cap is not None:
-            core.on_limit(0.0, cap)
+            core.on_limit(cap)
         assert core.set_goal(GoalRequest(waypoints=[Pose2D(0, 0, math.pi / 2)]), 0.0).ok
         peak = 0.0
         for k in range(200):

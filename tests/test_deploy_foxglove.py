@@ -39,7 +39,7 @@ def test_bridge_serves_pose_tf_scan_and_plots_to_a_foxglove_client() -> None:
             chair.put(keys.ODOM.key, encode(Odometry(stamp_ns=t, x_m=1.5, y_m=2.0, yaw_rad=0.5,
                                                      v_mps=0.25, omega_radps=0.1)))
             chair.put(keys.TF.key, encode(FrameTransform(
-                stamp_ns=t, parent_frame_id="world", child_frame_id="chair",
+                stamp_ns=t, parent_frame_id="odom", child_frame_id="chair",
                 translation=Vector3(1.5, 2.0, 0.0), rotation=Quaternion())))
             chair.put(keys.SCAN.key, encode(LaserScan(
                 stamp_ns=t, frame_id="laser", angle_min_rad=-1.0, angle_increment_rad=0.5,
@@ -65,7 +65,7 @@ def test_bridge_serves_pose_tf_scan_and_plots_to_a_foxglove_client() -> None:
     assert ch["/tf"]["schemaName"] == "foxglove.FrameTransforms"
     assert ch["autochair/odom"] == {"encoding": "json", "schemaName": "autochair_msgs.Odometry"}
     assert first["/pose"]["pose"]["position"]["x"] == 1.5
-    assert first["/pose"]["frame_id"] == "world"
+    assert first["/pose"]["frame_id"] == "odom"  # REP-105
     assert first["/scan"]["ranges"] == [1.0, 0.0, 2.5]  # NaN beam drawn at the sensor
     assert first["/tf"]["transforms"][0]["child_frame_id"] == "chair"
     assert first["autochair/odom"]["v_mps"] == 0.25

@@ -19,7 +19,7 @@ T0 = 1_763_700_000_000_000_000
 
 
 def tf(stamp: int, child: str = "chair") -> FrameTransform:
-    return FrameTransform(stamp_ns=stamp, parent_frame_id="world", child_frame_id=child,
+    return FrameTransform(stamp_ns=stamp, parent_frame_id="odom", child_frame_id=child,
                           translation=Vector3(1.0, 2.0, 0.0), rotation=Quaternion(0, 0, 0, 1))
 
 

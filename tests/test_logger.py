@@ -100,7 +100,7 @@ def test_derived_foxglove_messages(tmp_path: Path) -> None:
     assert set(by_topic) == set(foxglove.DERIVED)
     tfs = [t["transforms"][0] for t in by_topic["/tf"]]  # type: ignore[index]
     assert {(t["parent_frame_id"], t["child_frame_id"]) for t in tfs} == {
-        ("world", "chair"), ("chair", "laser")}
+        ("odom", "chair"), ("chair", "laser")}
     laser = next(t for t in tfs if t["child_frame_id"] == "laser")
     assert laser["translation"] == {"x": 0.8636, "y": 0.2032, "z": 0.3937}
     assert laser["timestamp"] == {"sec": T0 // 10**9, "nsec": T0 % 10**9}

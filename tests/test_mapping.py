@@ -75,7 +75,7 @@ def test_free_space_in_the_hallway_is_free() -> None:
 
 def test_grid_message_and_unknown_cells() -> None:
     mapper, _ = build_map(0.1)
-    msg = mapper.to_msg(1, "world")
+    msg = mapper.to_msg(1, "odom")
     data = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.width)
     assert (msg.width, msg.height) == (300, 120)
     assert data[0, 0] == 255  # far corner never observed

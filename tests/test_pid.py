@@ -8,7 +8,16 @@ from typing import Any
 
 import pytest
 
-from autochair.pid.core import PID, Caps, Command, VelocityPidCore, Verdict, effort_to_volts
+from autochair.pid.core import (
+    PID,
+    Caps,
+    Command,
+    Feedforward,
+    VelocityPidCore,
+    Verdict,
+    effort_to_volts,
+)
+from autochair.tune.core import ChainModel, Probe, ProbeKind, ProbeState
 
 
 def test_proportional_and_integral() -> None:
@@ -263,3 +272,61 @@ def test_non_finite_measurement_does_not_poison_the_integrators() -> None:
     assert math.isfinite(core.v_pid.integral) and core.v_pid.integral == 0.0
     out = core.update(0.0, 0.0, float("nan"), 1.005, ns(1.005))
     assert (out.longitudinal_v, out.angular_v) == (2.5, 2.5)
+
+
+# --- feed-forward, saturation, tuning probes (autochair tune) ---------------------------------
+
+MODEL = ChainModel(1.85, 0.05, 0.36, 0.36, 0.37)
+
+
+def test_saturation_is_decided_in_the_core() -> None:
+    core = core_(v_gains=(5.0, 0.0, 0.0))
+    drive(core, 1.0, 0.0, 0.0)
+    out = core.update(0.0, 0.0, 0.005, 0.005, ns(0.005))
+    assert out.saturated and out.longitudinal_v == pytest.approx(3.9)
+    gentle = core_(v_gains=(0.1, 0.0, 0.0))  # positive control: far from the window's edge
+    drive(gentle, 1.0, 0.0, 0.0)
+    assert not gentle.update(0.0, 0.0, 0.005, 0.005, ns(0.005)).saturated
+
+
+def test_feedforward_holds_the_model_effort_and_feedback_only_trims() -> None:
+    """On a chair that is exactly the model, the feed-forward alone holds the setpoint: the
+    feedback sees no error (its reference is the model's own response)."""
+    core = core_(v_gains=(0.5, 0.7, 0.1), v_model=MODEL)
+    ff = Feedforward(MODEL, core.prefilter_s)  # a twin: the "chair" is the model itself
+    y = 0.0
+    out = None
+    for i in range(1, 1200):  # 6 s at 200 Hz
+        t = i * 0.005
+        core.set_estop(False, t, ns(t))
+        drive(core, 0.5, 0.0, t)
+        out = core.update(y, 0.0, 0.005, t, ns(t))
+        y = ff.reference(out.v_effort, 0.005)
+    assert out is not None and out.active
+    assert y == pytest.approx(0.5, abs=1e-3)
+    assert out.v_effort == pytest.approx(MODEL.effort_for(0.5), abs=1e-3)
+    assert abs(core.v_pid.integral) < 1e-3  # the integrator had nothing to do
+
+
+def test_without_a_model_the_loop_is_the_thesis_pid() -> None:
+    plain, modelled = core_(), core_(v_model=MODEL)
+    for core in (plain, modelled):
+        drive(core, 0.5, 0.0, 0.0)
+    a = plain.update(0.0, 0.0, 0.005, 0.005, ns(0.005)).v_effort
+    b = modelled.update(0.0, 0.0, 0.005, 0.005, ns(0.005)).v_effort
+    assert a == pytest.approx(0.9 * 0.5 + 1.03 * 0.5 * 0.005)  # Kp·e + Ki·e·dt
+    assert b != pytest.approx(a)  # positive control: the model changes the first output
+
+
+def test_a_stale_stream_aborts_a_probe_and_stops() -> None:
+    core = driving_core()
+    assert core.start_probe(Probe(ProbeKind.RELAY, "longitudinal", 0.2), 1.0) == ""
+    out = core.update(0.5, 0.0, 0.005, 1.005, ns(1.005))
+    assert out.active and out.probe == "relay longitudinal"
+    for i in range(2, 100):  # e-stop and odometry fresh, no command for 0.5 s
+        t = 1.0 + i * 0.005
+        core.set_estop(False, t, ns(t))
+        out = core.update(0.5, 0.0, 0.005, t, ns(t))
+    assert not out.active and out.longitudinal_v == 2.5
+    assert core.probe is not None and core.probe.is_(ProbeState.ABORTED)
+    assert "stale" in core.probe.reason

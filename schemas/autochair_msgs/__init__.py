@@ -8,11 +8,20 @@ from .drive import (
     JoystickCommand,
     JoystickOutput,
     Odometry,
+    PidProbeReply,
+    PidProbeRequest,
     PidStatus,
     VelocityCommand,
 )
 from .lidar import LaserScan, OccupancyGrid, PointCloud
-from .nav import GoalReply, GoalRequest, GoalStatus, Pose2D
+from .localization import (
+    LocalizedPose,
+    LocalizeReply,
+    LocalizeRequest,
+    MapSaveReply,
+    MapSaveRequest,
+)
+from .nav import GoalReply, GoalRequest, GoalStatus, NavPlan, Pose2D
 from .safety import (
     EStopAssert,
     EStopCause,
@@ -40,9 +49,17 @@ __all__ = [
     "JoystickCommand",
     "JoystickOutput",
     "LaserScan",
+    "LocalizeReply",
+    "LocalizeRequest",
+    "LocalizedPose",
     "LogEvent",
+    "MapSaveReply",
+    "MapSaveRequest",
+    "NavPlan",
     "OccupancyGrid",
     "Odometry",
+    "PidProbeReply",
+    "PidProbeRequest",
     "PidStatus",
     "PointCloud",
     "Pose2D",

@@ -61,7 +61,7 @@ class VelocityCommand(msgspec.Struct, kw_only=True, frozen=True):
 
 
 class Odometry(msgspec.Struct, kw_only=True, frozen=True):
-    """Pose of the chair's drive-axle centre in `world`, from encoders alone."""
+    """Pose of the chair's drive-axle centre in `odom` (REP-105), from encoders alone."""
 
     stamp_ns: int
     x_m: float
@@ -76,7 +76,7 @@ class Odometry(msgspec.Struct, kw_only=True, frozen=True):
     # restart) or a chair MCU restart (its neutral boot) means the chain stopped: a stop.
     mcu_restarts: int = 0  # chair MCU restarts seen
     link_epoch: int = 0  # EncoderSample.link_epoch of this sample
-    frame_id: str = "world"
+    frame_id: str = "odom"
     child_frame_id: str = "chair"
 
 
@@ -122,3 +122,30 @@ class CommandOwner(msgspec.Struct, kw_only=True, frozen=True):
     stamp_ns: int
     owner: str  # "autonomy" | "teleop"
     by: str = ""  # who asked (e.g. the laptop's name), for the log
+
+
+class PidProbeRequest(msgspec.Struct, kw_only=True, frozen=True):
+    """A tuning probe of one velocity loop (autochair tune), run inside the PID so every gate
+    of the PID still applies. action "start": open-loop probe around the operating point the
+    loop holds now (a command stream must be driving); "get": its state and trace; "stop"."""
+
+    action: str  # "start" | "get" | "stop"
+    kind: str = "relay"  # "relay" (Åström–Hägglund, with hysteresis) | "step"
+    axis: str = "longitudinal"  # "longitudinal" | "angular"
+    amplitude: float = 0.2  # relay d or step Δ, effort units (≤ 0.5)
+    hysteresis: float = 0.005  # relay ε, m/s or rad/s
+    duration_s: float = 30.0
+    cycles: int = 8  # relay periods wanted
+    speed_bound: float = 1.0  # |measured| above this aborts the probe and stops the chair
+
+
+class PidProbeReply(msgspec.Struct, kw_only=True, frozen=True):
+    ok: bool
+    error: str = ""
+    state: str = ""  # "running" | "done" | "aborted" | "" (no probe)
+    reason: str = ""
+    setpoint: float = 0.0
+    bias: float = 0.0  # the effort that held the setpoint
+    t_s: list[float] = []  # the trace, from the probe's start (only when not running)
+    measured: list[float] = []
+    effort: list[float] = []

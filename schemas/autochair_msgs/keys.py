@@ -20,11 +20,20 @@ from .drive import (
     JoystickCommand,
     JoystickOutput,
     Odometry,
+    PidProbeReply,
+    PidProbeRequest,
     PidStatus,
     VelocityCommand,
 )
 from .lidar import LaserScan, OccupancyGrid, PointCloud
-from .nav import GoalReply, GoalRequest, GoalStatus
+from .localization import (
+    LocalizedPose,
+    LocalizeReply,
+    LocalizeRequest,
+    MapSaveReply,
+    MapSaveRequest,
+)
+from .nav import GoalReply, GoalRequest, GoalStatus, NavPlan
 from .safety import EStopAssert, EStopRelease, EStopReply, EStopState, SafetyLimit
 from .sim import SimFault, SimFaultReply
 
@@ -72,11 +81,16 @@ ODOM_SLOW = Topic("autochair/odom/slow", Odometry, 50, False,
                   "The same odometry decimated to 50 Hz for consumers that need no more "
                   "(safety, control, tools); not recorded: autochair/odom is, at full rate")
 TF = Topic("autochair/tf", FrameTransform, 20, True,
-           "Dynamic transform world → chair (odometry; the pose of ODOM, decimated)")
+           "Dynamic transforms (REP-105): odom → chair (odometry; the pose of ODOM, "
+           "decimated) and map → odom (localization)")
 TF_STATIC = Topic("autochair/tf_static", FrameTransform, 1, True,
                   "Static transforms, e.g. chair → laser, repeated for late joiners")
 PID_STATUS = Topic("autochair/pid/status", PidStatus, 200, True,
                    "Velocity loops: desired, measured, effort (velocity PID)")
+PID_PROBE = Topic("autochair/pid/probe", PidProbeRequest, None, False,
+                  "Tuning probe of a velocity loop, run inside the PID under all its gates "
+                  "(query; reply PidProbeReply; autochair tune)", kind="query",
+                  reply=PidProbeReply)
 SIM_TRUTH = Topic("autochair/sim/truth", GroundTruth, 100, True,
                   "Simulator ground truth (simulator only)")
 SIM_FAULT = Topic("autochair/sim/fault", SimFault, None, False,
@@ -93,12 +107,24 @@ GOAL_STATUS = Topic("autochair/goal/status", GoalStatus, 5, True, "Goal progress
 GOAL_GET = Topic("autochair/goal/get", Empty, None, False,
                  "Current goal status (query, empty request; reply GoalStatus)", kind="query",
                  reply=GoalStatus)
+NAV_PLAN = Topic("autochair/nav/plan", NavPlan, 2, True,
+                 "MPEPC plan: target, predicted path, footprint, people (control)")
 
 # --- lidar and map -------------------------------------------------------------------------
 SCAN = Topic("autochair/lidar/scan", LaserScan, 10, True, "Checked laser scans (lidar ingest)")
 MAP_GRID = Topic("autochair/map/grid", OccupancyGrid, 1, True, "Occupancy grid (mapping)")
 MAP_CLOUD = Topic("autochair/map/cloud", PointCloud, 1, True,
-                  "Accumulated world-frame points (mapping)")
+                  "Accumulated odom-frame points (mapping)")
+LOC_POSE = Topic("autochair/localization/pose", LocalizedPose, 10, True,
+                 "Chair pose in `map` with covariance, quality and state (localization)")
+LOC_MAP = Topic("autochair/localization/map", OccupancyGrid, 0.2, True,
+                "The map localization uses or builds, in `map` (localization)")
+LOC_SET_POSE = Topic("autochair/localization/set_pose", LocalizeRequest, None, False,
+                     "Set the pose on the map, or search it (query; reply LocalizeReply)",
+                     kind="query", reply=LocalizeReply)
+MAP_SAVE = Topic("autochair/map/save", MapSaveRequest, None, False,
+                 "Save the map as PGM + YAML (query; reply MapSaveReply)", kind="query",
+                 reply=MapSaveReply)
 
 # --- safety --------------------------------------------------------------------------------
 ESTOP_ASSERT = Topic("autochair/estop/assert", EStopAssert, None, True,

@@ -6,7 +6,8 @@ import msgspec
 
 
 class Pose2D(msgspec.Struct, frozen=True):
-    """A pose in `world`: metres and radians."""
+    """A pose in `odom` (REP-105: the odometry origin, where the chair started): metres and
+    radians."""
 
     x_m: float
     y_m: float
@@ -31,9 +32,36 @@ class GoalReply(msgspec.Struct, kw_only=True):
 class GoalStatus(msgspec.Struct, kw_only=True):
     stamp_ns: int
     goal_id: int
-    state: str  # "idle" | "active" | "arrived" | "aborted" | "cancelled"
+    # "idle" | "planning" | "driving" | "blocked" | "arrived" | "aborted" | "cancelled"
+    # (planning, driving and blocked: the goal is active; blocked and aborted say why in reason)
+    state: str
     waypoint_index: int = 0
     waypoint_count: int = 0
     distance_left_m: float = 0.0
     eta_s: float = 0.0
     reason: str = ""
+
+
+class NavPlan(msgspec.Struct, kw_only=True):
+    """MPEPC's latest plan (control), in `frame_id` (the map's): the law's target and speed,
+    the predicted path of the drive-axle centre, the chair's footprint outline where it is now
+    (a closed polygon) and the people it plans around. Metres and radians."""
+
+    stamp_ns: int
+    frame_id: str
+    goal_id: int
+    state: str  # the goal's state (GoalStatus.state)
+    target_x_m: float
+    target_y_m: float
+    target_yaw_rad: float
+    vmax_mps: float
+    path_x_m: list[float]
+    path_y_m: list[float]
+    path_yaw_rad: list[float]
+    footprint_xy_m: list[float]  # x0, y0, x1, y1, ... (corners, in order)
+    people_xyr_m: list[float] = []  # x, y, radius per person
+    cost: float = 0.0
+    progress_m: float = 0.0  # φ(now) − φ(end of the prediction)
+    survival: float = 1.0
+    min_clearance_m: float = 0.0
+    plan_ms: float = 0.0  # the planning cycle's wall time

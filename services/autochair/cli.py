@@ -9,7 +9,8 @@ import os
 import sys
 
 COMMANDS = ("up", "drive", "status", "estop", "deploy", "certs", "monitor", "teleop", "foxglove",
-            "record", "replay", "info", "report", "goal", "cancel", "health")
+            "record", "replay", "info", "report", "goal", "cancel", "health", "map", "localize",
+            "tune")
 
 
 def main(argv: list[str] | None = None) -> int:

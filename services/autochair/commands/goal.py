@@ -106,9 +106,24 @@ def run(args: argparse.Namespace) -> int:
         session.close()
 
 
+ACTIVE_STATES = ("planning", "driving", "blocked")  # the control service's goal states
+
+
+def status_line(s: Any) -> str:
+    """One progress line: the state, then distance and ETA, or what blocks the chair."""
+    if s.state == "planning":
+        return "planning"
+    where = (f"waypoint {s.waypoint_index + 1}/{s.waypoint_count}  "
+             f"{s.distance_left_m:6.2f} m left")
+    if s.state == "blocked":
+        return f"BLOCKED  {where}  {s.reason}"
+    return f"driving  {where}  ETA {s.eta_s:5.1f} s"
+
+
 def _follow(goal_id: int, status: list[Any], cond: threading.Condition) -> int:
     tty = sys.stdout.isatty()
     last_print = 0.0
+    shown = ""
     last_seen = time.monotonic()
     while True:
         with cond:
@@ -122,12 +137,12 @@ def _follow(goal_id: int, status: list[Any], cond: threading.Condition) -> int:
             continue
         last_seen = now
         s = mine[-1]
-        if s.state == "active":
-            if tty or now - last_print >= 1.0:
-                line = (f"waypoint {s.waypoint_index + 1}/{s.waypoint_count}  "
-                        f"{s.distance_left_m:6.2f} m left  ETA {s.eta_s:5.1f} s")
-                print(("\r" + line) if tty else line, end="" if tty else "\n", flush=True)
-                last_print = now
+        if s.state in ACTIVE_STATES:
+            if tty or now - last_print >= 1.0 or s.state != shown:
+                line = status_line(s)
+                print(("\r" + line.ljust(100)) if tty else line, end="" if tty else "\n",
+                      flush=True)
+                last_print, shown = now, s.state
             continue
         if tty:
             print()

@@ -1,6 +1,9 @@
 """`autochair report FILE [--out DIR]`: PNG figures of a recorded run — velocity step
 responses desired vs measured with rise time and overshoot (thesis Fig. 8.1), the trajectory
-over the map (Fig. 8.2), and time series of acceleration, jerk and turn rate."""
+over the map (Fig. 8.2), and time series of acceleration, jerk and turn rate.
+
+`autochair report --tune tune.json`: the 0.5 step responses before (the thesis's ZN PID) and
+after (the gains and feed-forward model `autochair tune` found), per axis."""
 
 from __future__ import annotations
 
@@ -16,7 +19,9 @@ def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "report", help="PNG figures of a recorded run (step responses, trajectory, a/jerk/ω)",
         description=__doc__)
-    p.add_argument("file", help="an .mcap recording")
+    p.add_argument("file", help="an .mcap recording, or with --tune the tune result (.json)")
+    p.add_argument("--tune", action="store_true",
+                   help="FILE is `autochair tune`'s JSON: plot its step responses")
     p.add_argument("--out", help="output directory (default: FILE without .mcap + _report)")
     p.set_defaults(func=run)
 
@@ -51,6 +56,9 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"no such recording: {src}")
     out = Path(args.out) if args.out else src.with_name(src.stem + "_report")
     out.mkdir(parents=True, exist_ok=True)
+    if args.tune:
+        print(tune_figure(src, out / "tune_steps.png"))
+        return 0
     data = load(str(src))
     written = []
     if data[keys.PID_STATUS.key]:
@@ -91,6 +99,39 @@ def step_figure(status: list[Any], path: Path) -> Path:
         ax.legend(loc="upper right")
     axes[1].set_xlabel("time (s)")
     fig.suptitle("Velocity step responses (desired vs measured; 10–90 % rise time)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def tune_figure(src: Path, path: Path) -> Path:
+    """Before/after 0.5 steps from `autochair tune`'s result, one panel per axis."""
+    import json
+
+    import matplotlib.pyplot as plt
+
+    try:
+        result = json.loads(src.read_text())
+        axes_data = {a: result[a]["step_before_after"] for a in result}
+    except (ValueError, KeyError, TypeError) as e:
+        raise CliError(f"{src}: not an `autochair tune` result ({e})") from None
+    fig, axes = plt.subplots(len(axes_data), 1, figsize=(10, 3.5 * len(axes_data)),
+                             squeeze=False)
+    for ax, (axis, runs) in zip(axes[:, 0], axes_data.items(), strict=True):
+        for name, style in (("before", "C3"), ("after", "C0")):
+            r = runs[name]
+            settle = r["settle_5pct_s"]
+            ax.plot(r["t"], r["y"], style, label=f"{name}: overshoot {r['overshoot_pct']:.0f} %,"
+                    f" ±5 % in {'—' if settle is None else f'{settle:.2f} s'}")
+        ax.axhline(0.5, color="k", ls="--", lw=1)
+        for band in (0.475, 0.525):
+            ax.axhline(band, color="0.6", ls=":", lw=1)
+        ax.set_ylabel(f"{axis} ({'m/s' if axis == 'longitudinal' else 'rad/s'})")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="lower right")
+    axes[-1, 0].set_xlabel("time after the step (s)")
+    fig.suptitle("0.5 step, simulated chair: thesis ZN PID (before) vs tuned + feed-forward")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -1,11 +1,15 @@
-"""Goal manager: waypoints → Park–Kuipers law → comfort limiter → (v, ω). PURE, time passed in.
+"""Goal manager: waypoints → MPEPC → Park–Kuipers law → comfort limiter → (v, ω). PURE.
 
-Waypoints are driven in order; intermediate ones are passed through without stopping (switch to
-the next once within `pass_radius_m`, no slowdown towards them); the last one is approached with
-the paper's slowdown, then, inside the capture radius, the chair turns in place to the goal yaw
-(see law.py). Additions for the final goal (reasons at the ControlConfig fields and in README):
-reverse for goals close behind, a pre-turn in place for goals far off the heading, and a
-straight final (no steering, braking curve only) once the chair points at the goal. Stale
+Time is passed in. Each waypoint is validated against the navigation function (nav/field.py:
+footprint at the goal pose, a path the chair fits through) and refused with a reason. At
+`plan_rate_hz` MPEPC (nav/mpepc.py) chooses the law's target and speed; the law drives to it at
+`rate_hz`. Once MPEPC takes the goal itself (its prediction is clear and ends on it) the final
+approach is the law's own: the paper's slowdown, a straight final (no steering, braking curve
+only) once the chair points at the goal, then an in-place turn to the goal yaw inside the
+capture radius (law.py). Intermediate waypoints are passed through within `pass_radius_m`.
+States: planning → driving ⇄ blocked → arrived | aborted (reason) | cancelled. Blocked: the
+best plan makes no progress; the chair waits, the path is replanned on the newest map after
+`blocked_wait_s`, and the goal is aborted with what blocks it after `blocked_abort_s`. Stale
 odometry aborts the goal and brakes through the limiter.
 """
 
@@ -19,12 +23,19 @@ from dataclasses import dataclass
 import msgspec
 
 from autochair.geometry import wrap_angle as wrap
+from autochair.nav.field import CostToGo, Footprint, NavField
+from autochair.nav.mpepc import ALIGNED_RAD, LawParams, MpepcParams, Person, Plan
+from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error
 from autochair_msgs import GoalReply, GoalRequest, Pose2D
 
-from .law import Gains, align_omega, braking_speed, egocentric, park_kuipers
+from .law import Gains, align_omega, braking_speed, park_kuipers
 from .limits import ComfortLimiter, ComfortLimits
 
-IDLE, ACTIVE, ARRIVED, ABORTED, CANCELLED = "idle", "active", "arrived", "aborted", "cancelled"
+IDLE, ARRIVED, ABORTED, CANCELLED = "idle", "arrived", "aborted", "cancelled"
+PLANNING, DRIVING, BLOCKED = "planning", "driving", "blocked"
+IN_PLACE_R_M = MpepcParams().in_place_r_m
+LINEUP_M, LINEUP_RAD = 0.2, 0.3  # a line-up pose before a door counts as reached within these
+ACTIVE_STATES = (PLANNING, DRIVING, BLOCKED)
 
 
 class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -46,13 +57,14 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     omega_max_radps: float = 0.9
     omega_acc_max_radps2: float = 2.8
     omega_jerk_max_radps3: float = 7.7
-    # The limiter plans at this fraction of the limits above: the drive chain (PID, chair
-    # controller) overshoots smooth ramps, and the limits are for the chair, not the command.
-    chain_margin: float = 0.6
-    # The same for the turn axis (ω, ω̇, ω̈): the angular chain overshoots less (measured).
-    chain_margin_omega: float = 0.6
+    # (The limiter plans at the full limits above: the velocity PID's feed-forward from the
+    # identified drive chain makes the chair follow the command delayed, not overshot, so the
+    # chair itself stays within them; measured at the chair, bench/control_eval.py and
+    # bench/control_stack.py.)
     # beyond the paper
-    predict_s: float = 0.7  # drive-chain lag compensated by predicting the pose; 0 = off
+    # Pose predicted this far ahead (0 = off): the identified drive chain's lag as the PID's
+    # feed-forward leaves it, θ + 2·prefilter_s ([pid] v_model, prefilter_s: 0.38 + 0.30).
+    predict_s: float = 0.68
     omega_floor_radps: float = 0.5  # min |ω| on tight curves (law.py); 0 = the paper's v(κ)
     # v ≤ rate·r near the goal: the paper's slowdown (vmax/r_thresh = 1/s) gives a heading loop
     # faster than the comfort-limited turn rate can follow (it oscillated); ≥ 1 = the paper's.
@@ -63,14 +75,10 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # onto the along-track distance; the in-place turn then fixes the yaw. The law's κ ~ 1/r
     # otherwise needs v ≤ c·r (an exponential crawl) to stay stable. 0 = off.
     straight_radius_m: float = 1.5
-    # Reverse: a final goal within this distance behind the chair is approached backwards
-    # when that is cheaper (distance/speed + turning) — the law on the mirrored chair. 0 = off.
-    reverse_max_m: float = 2.5
-    reverse_vmax_mps: float = 0.5  # backwards speed cap (the laser cannot see behind)
-    # Pre-turn: a goal starting more than this far off the chair's (chosen) heading is first
-    # faced by turning in place; the law, moving forward only, would drive a loop, and its
-    # heading overshoot is an ω reversal near the goal. π = off.
-    pre_turn_min_rad: float = 1.0
+    # MPEPC (nav/mpepc.py; its cost weights are the paper's, in MpepcParams)
+    plan_rate_hz: float = 2.0  # target and speed re-chosen this often (≥ 1; the paper: 1)
+    blocked_wait_s: float = 3.0  # blocked: wait this long, then replan on the newest map
+    blocked_abort_s: float = 12.0  # still blocked this long: abort, saying what blocks
     pass_radius_m: float = 0.4  # intermediate waypoint counts as passed within this distance
     capture_fraction: float = 0.5  # stop translating at this fraction of the position tolerance
     align_gain_1ps: float = 1.5  # linear tail of the in-place turn
@@ -92,30 +100,34 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
                      "a_max_mps2", "jerk_max_mps3", "omega_max_radps", "omega_acc_max_radps2",
                      "omega_jerk_max_radps3", "pass_radius_m", "align_gain_1ps",
                      "approach_rate_1ps", "max_goal_distance_m", "follow_timeout_s",
-                     "no_progress_s"):
+                     "no_progress_s", "plan_rate_hz", "blocked_wait_s", "blocked_abort_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, not {value}")
-        for name in ("capture_fraction", "align_brake_fraction", "brake_fraction",
-                     "chain_margin", "chain_margin_omega"):
+        for name in ("capture_fraction", "align_brake_fraction", "brake_fraction"):
             if not 0 < getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in (0, 1]")
-        for name in ("straight_radius_m", "reverse_max_m", "reverse_vmax_mps",
-                     "pre_turn_min_rad"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be >= 0, not {value}")
+        if not (math.isfinite(self.straight_radius_m) and self.straight_radius_m >= 0):
+            raise ValueError(f"straight_radius_m must be >= 0, not {self.straight_radius_m}")
 
     @property
     def gains(self) -> Gains:
         return Gains(self.k1, self.k2, self.beta, self.lam, self.vmax_mps, self.r_thresh_m)
 
+    def law(self, capture_m: float) -> LawParams:
+        """What MPEPC predicts with: the law and the limiter's planning limits."""
+        lim = self.limits
+        return LawParams(self.k1, self.k2, self.beta, self.lam, self.vmax_mps, self.r_thresh_m,
+                         self.omega_floor_radps, lim.a_max_mps2, lim.omega_max_radps,
+                         lim.omega_acc_max_radps2,
+                         self.align_brake_fraction * lim.omega_acc_max_radps2,
+                         self.align_gain_1ps, capture_m)
+
     @property
     def limits(self) -> ComfortLimits:
-        m, mw = self.chain_margin, self.chain_margin_omega
-        return ComfortLimits(self.vmax_mps, m * self.a_max_mps2, m * self.jerk_max_mps3,
-                             mw * self.omega_max_radps, mw * self.omega_acc_max_radps2,
-                             mw * self.omega_jerk_max_radps3)
+        return ComfortLimits(self.vmax_mps, self.a_max_mps2, self.jerk_max_mps3,
+                             self.omega_max_radps, self.omega_acc_max_radps2,
+                             self.omega_jerk_max_radps3)
 
 
 @dataclass(frozen=True)
@@ -165,8 +177,10 @@ def validate(req: GoalRequest, cfg: ControlConfig, x: float = 0.0, y: float = 0.
 
 
 class ControlCore:
-    def __init__(self, cfg: ControlConfig | None = None, odom_timeout_s: float = 0.3) -> None:
-        """`odom_timeout_s`: older odometry aborts the goal ([stale] odometry_s in the node)."""
+    def __init__(self, cfg: ControlConfig | None = None, odom_timeout_s: float = 0.3,
+                 footprint: Footprint | None = None) -> None:
+        """`odom_timeout_s`: older odometry aborts the goal ([stale] odometry_s in the node);
+        `footprint`: the chair's body ([chair] section)."""
         self.cfg = cfg or ControlConfig()
         self.cfg.check()
         if not odom_timeout_s > 0:
@@ -184,13 +198,25 @@ class ControlCore:
         self.vmax = self.cfg.vmax_mps
         self.aligning = False
         self.straight = False  # straight final engaged (see ControlConfig.straight_radius_m)
-        self.reverse: bool | None = None  # direction for the final goal, chosen once
-        self.pre_turn = False  # turning in place to face the goal first
         self.odom: OdomSample | None = None
         # What the node learns from the rest of the stack (see the on_* methods).
         self.estop_latched = False
         self.owner = "autonomy"
-        self.reverse_allowed = True  # False while the safety monitor forbids blind reversing
+        # Navigation (nav/): the map's field (None: free space around the goal), the costs-to-go
+        # to the waypoint planned to, MPEPC's last plan, moving people.
+        self.footprint = footprint or Footprint()
+        self.field: NavField | None = None
+        self._free: NavField | None = None
+        self.ctg: CostToGo | None = None
+        self._ctg_key: tuple[int, int] = (0, -1)  # (id of its field, waypoint index)
+        self.plan: Plan | None = None
+        self.lineups = 0  # line-up poses before doors, inserted ahead of the goal's waypoints
+        self.final = False  # MPEPC took the goal itself: the law's own final approach
+        self.people: list[Person] = []
+        self.inline_planning = True  # plan inside step(); the node plans in a thread instead
+        self._plan_t = -math.inf
+        self._blocked_since: float | None = None
+        self._replanned = False
         self._still_since: float | None = None  # commanded to move, measured at rest, since
         self._best_left = math.inf  # least remaining cost seen, and when
         self._best_t = 0.0
@@ -199,7 +225,15 @@ class ControlCore:
         self.counters: dict[str, int] = {}
         self._history: deque[tuple[float, float, float]] = deque()  # (dt, v, ω) sent
 
+    @property
+    def active(self) -> bool:
+        return self.state in ACTIVE_STATES
+
     # --- inputs -----------------------------------------------------------------------------
+    def on_field(self, fld: NavField) -> None:
+        """A new navigation field (the map changed): costs-to-go are recomputed next cycle."""
+        self.field = fld
+
     def on_odom(self, odom: OdomSample) -> None:
         if not all(math.isfinite(c) for c in (odom.x, odom.y, odom.yaw, odom.v, odom.omega)):
             self._count("rejected_odom")
@@ -208,19 +242,18 @@ class ControlCore:
 
     def on_estop(self, latched: bool, now: float) -> None:
         self.estop_latched = latched
-        if latched and self.state == ACTIVE:
+        if latched and self.active:
             self._stopped(ABORTED, "e-stop latched", now)
 
     def on_owner(self, owner: str, now: float) -> None:
         self.owner = owner
-        if owner != "autonomy" and self.state == ACTIVE:
+        if owner != "autonomy" and self.active:
             self._stopped(ABORTED, f"drive handed to {owner}", now)
 
-    def on_limit(self, v_rev_autonomy: float, omega_max: float) -> None:
-        """The safety monitor's bounds: no reverse approach when autonomy may not reverse
-        (nothing senses behind), and turns planned within its |ω| bound (the unseen swing of
-        the footprint, obstacles): the limiter then keeps the path and slows v with ω."""
-        self.reverse_allowed = v_rev_autonomy > 0.0
+    def on_limit(self, omega_max: float) -> None:
+        """The safety monitor's bound: turns planned within its |ω| bound (the unseen swing of
+        the footprint, obstacles): the limiter then keeps the path and slows v with ω. (MPEPC
+        drives forward only, so the monitor's reverse bound needs no handling here.)"""
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
 
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
@@ -232,28 +265,64 @@ class ControlCore:
             error = "the e-stop is latched: release it first (autochair release)"
         if not error and self.owner != "autonomy":
             error = f"the drive is handed to {self.owner}: hand it back first"
+        fld: NavField | None = None
+        ctg: CostToGo | None = None
+        if not error:
+            assert o is not None
+            fld = self._field_for(o, req.waypoints)
+            error, ctg = self._check_route(fld, o, req.waypoints, req.tolerance_m)
         if error:
             self._count("rejected_goals")
             return GoalReply(ok=False, error=error)
-        assert o is not None
-        if self.state != ACTIVE:
+        assert o is not None and fld is not None
+        if not self.active:
             # Start from what the chair does now (at rest, or teleop), never from what an
             # earlier goal last commanded: nothing lunges.
             self.limiter.reset(o.v, o.omega)
         self.goal_id += 1
         self.waypoints = [Pose2D(p.x_m, p.y_m, wrap(p.yaw_rad)) for p in req.waypoints]
+        assert ctg is not None
+        lineups = [Pose2D(*a) for a in fld.door_approaches(ctg, o.x, o.y)]
+        self.waypoints[:0] = lineups  # (first leg only)
+        self.lineups = len(lineups)
+        if lineups:
+            ctg = None  # the first waypoint is a line-up pose now: recomputed next cycle
         self.index = 0
         self.tol_m, self.tol_rad = req.tolerance_m, req.tolerance_rad
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
-        self.aligning = self.straight = False
-        self.reverse, self.pre_turn = None, False
-        self.state, self.reason = ACTIVE, ""
+        self.aligning = self.straight = self.final = False
+        self.ctg, self._ctg_key, self.plan = ctg, (id(fld), 0), None
+        self._plan_t, self._blocked_since = -math.inf, None
+        self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
         self._count("goals")
         return GoalReply(ok=True, goal_id=self.goal_id)
 
+    def _field_for(self, o: OdomSample, waypoints: list[Pose2D]) -> NavField:
+        if self.field is not None:
+            return self.field
+        pts = [(o.x, o.y)] + [(p.x_m, p.y_m) for p in waypoints]
+        self._free = free_field(pts, self.footprint)
+        return self._free
+
+    def _check_route(self, fld: NavField, o: OdomSample, waypoints: list[Pose2D],
+                     tolerance_m: float) -> tuple[str, CostToGo | None]:
+        """'' and the costs-to-go to the first waypoint, or why the chair cannot get there:
+        a waypoint where its footprint does not fit — clear of obstacles by the position
+        tolerance plus the planner's contact margin, so that wherever within the tolerance
+        the chair stops it touches nothing — or no path to the first one."""
+        margin = MpepcParams().contact_m
+        for i, p in enumerate(waypoints):
+            err = fld.check_goal(p.x_m, p.y_m, p.yaw_rad, tolerance_m + margin)
+            if err:
+                return (f"waypoint {i}: {err}" if len(waypoints) > 1 else err), None
+        first = waypoints[0]
+        ctg = fld.cost_to_go(first.x_m, first.y_m)
+        goal = (first.x_m, first.y_m, first.yaw_rad)
+        return path_error(fld, ctg, (o.x, o.y, o.yaw), goal), ctg
+
     def cancel(self, now: float) -> GoalReply:
-        if self.state != ACTIVE:
+        if not self.active:
             return GoalReply(ok=True, goal_id=0, error="no active goal")
         self._end(CANCELLED, "cancelled by request", now)
         return GoalReply(ok=True, goal_id=self.goal_id)
@@ -264,16 +333,21 @@ class ControlCore:
         dt = 0.0 if self._last_t is None else min(max(now - self._last_t, 0.0), 0.1)
         self._last_t = now
         v_des = w_des = 0.0
-        if self.state == ACTIVE:
+        if self.active:
             if self.odom is None or now - self.odom.t > self.odom_timeout_s:
                 age = math.inf if self.odom is None else now - self.odom.t
                 self._count("stale_odom_aborts")
                 self._end(ABORTED, f"stale odometry ({age:.2f} s > "
                           f"{self.odom_timeout_s} s)", now)
             else:
-                v_des, w_des = self._desired(self._predicted(self.odom), now)
-                self._watch_progress(self.odom, now)
-        if self.state != ACTIVE and self.limiter.at_rest \
+                if self.inline_planning:
+                    req = self.plan_request(now)
+                    if req is not None:
+                        self.on_plan(compute(req), now)
+                if self.active:
+                    v_des, w_des = self._desired(self._predicted(self.odom), now)
+                    self._watch_progress(self.odom, now)
+        if not self.active and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
             return None
         v, w = self.limiter.step(v_des, w_des, dt)
@@ -281,9 +355,60 @@ class ControlCore:
         while len(self._history) > 1 and sum(h[0] for h in self._history) > \
                 self.cfg.predict_s + dt:
             self._history.popleft()
-        if self.state != ACTIVE and not self.limiter.at_rest:
+        if not self.active and not self.limiter.at_rest:
             self._ended_t = now  # the zero burst starts once braked to rest
         return v, w
+
+    # --- planning (MPEPC) -------------------------------------------------------------------
+    def plan_request(self, now: float) -> PlanRequest | None:
+        """A snapshot for one planning cycle when one is due, else None (see nav/planner.py)."""
+        o = self.odom
+        if not self.active or o is None or now - self._plan_t < 1.0 / self.cfg.plan_rate_hz:
+            return None
+        self._plan_t = now
+        p = self._predicted(o)
+        wp = self.waypoints[self.index]
+        fld = self._field_for(o, self.waypoints) if self.field is None else self.field
+        ctg = self.ctg if self._ctg_key == (id(fld), self.index) else None
+        prev = None if self.plan is None else (*self.plan.target, self.plan.vmax_mps)
+        return PlanRequest(self.goal_id, self.index, (p.x, p.y, p.yaw), self.limiter.v.value,
+                           self.limiter.w.value, (wp.x_m, wp.y_m, wp.yaw_rad), fld, ctg, prev,
+                           self.cfg.law(self.tol_m * self.cfg.capture_fraction),
+                           list(self.people))
+
+    def on_plan(self, res: PlanResult, now: float) -> None:
+        """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""
+        if res.goal_id != self.goal_id or res.index != self.index or not self.active:
+            return
+        self.ctg, self._ctg_key = res.ctg, (id(res.field), res.index)
+        if res.error or res.plan is None:
+            # The map closed the way: blocked (at rest) while the path is recomputed each
+            # cycle on the newest map, aborted if it stays closed.
+            self.ctg, self.plan, self.final = None, None, False
+            self._blocked(res.error, now)
+            return
+        plan = self.plan = res.plan
+        if plan.is_goal and self.index == len(self.waypoints) - 1:
+            self.final = True
+        elif self.final and plan.goal_clearance_m < 0.02:
+            self.final = self.straight = self.aligning = False  # something stepped in
+        if not res.blocked_by or self.final:
+            self.state, self.reason, self._blocked_since = DRIVING, "", None
+            return
+        self._blocked(f"blocked by {res.blocked_by}", now)
+
+    def _blocked(self, why: str, now: float) -> None:
+        """Wait at rest; replan on the newest map after `blocked_wait_s`; abort, saying why,
+        after `blocked_abort_s`."""
+        if self._blocked_since is None:
+            self._blocked_since, self._replanned = now, False
+            self._count("blocked")
+        self.state, self.reason = BLOCKED, why
+        waited = now - self._blocked_since
+        if waited >= self.cfg.blocked_abort_s:
+            self._stopped(ABORTED, f"{why} (for {waited:.0f} s)", now)
+        elif waited >= self.cfg.blocked_wait_s and not self._replanned:
+            self._replanned, self._ctg_key = True, (0, -1)  # next cycle: a new path
 
     def _watch_progress(self, o: OdomSample, now: float) -> None:
         """Abort a goal the chair does not follow, or that makes no progress."""
@@ -331,77 +456,65 @@ class ControlCore:
         cfg = self.cfg
         while self.index < len(self.waypoints) - 1:
             wp = self.waypoints[self.index]
-            if math.hypot(wp.x_m - o.x, wp.y_m - o.y) > cfg.pass_radius_m:
-                out = park_kuipers(o.x, o.y, o.yaw, wp.x_m, wp.y_m, wp.yaw_rad, self.gains,
-                                   self.vmax, slowdown=False,
-                                   omega_floor=cfg.omega_floor_radps)
-                return out.v_mps, out.omega_radps
-            self.index += 1
+            d = math.hypot(wp.x_m - o.x, wp.y_m - o.y)
+            if self.index < self.lineups:  # lined up: close to it and facing the door
+                if d > LINEUP_M or abs(wrap(wp.yaw_rad - o.yaw)) > LINEUP_RAD:
+                    return self._follow_plan(o)
+            elif d > cfg.pass_radius_m:
+                return self._follow_plan(o)
+            self.index += 1  # passed: plan to the next one at once
+            self.plan, self.ctg, self._plan_t = None, None, -math.inf
+        if not self.final:
+            return self._follow_plan(o)
         goal = self.waypoints[-1]
         r = math.hypot(goal.x_m - o.x, goal.y_m - o.y)
-        flip = 0.0
-        if self.reverse is None:
-            self.reverse = self._choose_reverse(o, goal, r)
-            flip = math.pi if self.reverse else 0.0
-            delta = egocentric(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m, goal.yaw_rad)[2]
-            self.pre_turn = abs(o.v) < 0.1 and abs(delta) > cfg.pre_turn_min_rad
-        flip = math.pi if self.reverse else 0.0  # reverse = the law on the mirrored chair
-        sign = -1.0 if self.reverse else 1.0
-        vmax = min(self.vmax, cfg.reverse_vmax_mps) if self.reverse else self.vmax
         capture = self.tol_m * cfg.capture_fraction
         if r <= capture:
             self.aligning = True
         elif r > self.tol_m:
             self.aligning = False  # drifted out: approach again
-        if self.pre_turn and not self.aligning:
-            delta = egocentric(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m, goal.yaw_rad)[2]
-            if r * abs(math.sin(delta)) > 0.5 * capture or abs(delta) > math.pi / 2:
-                lim = self.limiter.lim
-                return 0.0, align_omega(-delta, lim.omega_max_radps, cfg.align_brake_fraction
-                                        * lim.omega_acc_max_radps2, cfg.align_gain_1ps)
-            self.pre_turn = False  # facing it: drive (straight final or the law)
-        if not self.aligning:
-            out = park_kuipers(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m,
-                               wrap(goal.yaw_rad + flip), self.gains, vmax,
-                               omega_floor=cfg.omega_floor_radps)
-            along = r * math.cos(out.delta_rad)
-            lateral = abs(r * math.sin(out.delta_rad))
-            if not self.straight and r <= cfg.straight_radius_m and along > 0.0 \
-                    and lateral <= capture:
-                self.straight = True
-            elif self.straight and lateral > self.tol_m:
-                self.straight = False  # pushed off the line: steer again
-            if self.straight and along <= capture:
-                self.aligning = True  # stopped beside the goal, within tolerance
-                return self._align(goal, o, now)
-            dist = along if self.straight else r
-            # Braking curve, evaluated where the chair will be once the limiter has swung its
-            # acceleration round to braking (it may still be accelerating now).
-            f = cfg.brake_fraction
-            ax = self.limiter.v
-            swing = max(sign * ax.rate + f * ax.amax, 0.0) / ax.jmax
-            r_eff = dist - max(sign * ax.value, 0.0) * swing
-            v = braking_speed(r_eff, f * ax.amax, f * ax.jmax)
-            if self.straight:  # no steering, so no slowdown needed: the braking curve alone
-                return sign * min(vmax, v), 0.0
-            v = min(v, out.v_mps, cfg.approach_rate_1ps * r)
-            return sign * v, out.kappa_1pm * v
-        return self._align(goal, o, now)
+        if self.aligning:
+            return self._align(goal, o, now)
+        out = park_kuipers(o.x, o.y, o.yaw, goal.x_m, goal.y_m, goal.yaw_rad, self.gains,
+                           self.vmax, omega_floor=cfg.omega_floor_radps)
+        along = r * math.cos(out.delta_rad)
+        lateral = abs(r * math.sin(out.delta_rad))
+        if not self.straight and r <= cfg.straight_radius_m and along > 0.0 \
+                and lateral <= capture:
+            self.straight = True
+        elif self.straight and lateral > self.tol_m:
+            self.straight = False  # pushed off the line: steer again
+        if self.straight and along <= capture:
+            self.aligning = True  # stopped beside the goal, within tolerance
+            return self._align(goal, o, now)
+        dist = along if self.straight else r
+        # Braking curve, evaluated where the chair will be once the limiter has swung its
+        # acceleration round to braking (it may still be accelerating now).
+        f = cfg.brake_fraction
+        ax = self.limiter.v
+        swing = max(ax.rate + f * ax.amax, 0.0) / ax.jmax
+        r_eff = dist - max(ax.value, 0.0) * swing
+        v = braking_speed(r_eff, f * ax.amax, f * ax.jmax)
+        if self.straight:  # no steering, so no slowdown needed: the braking curve alone
+            return min(self.vmax, v), 0.0
+        v = min(v, out.v_mps, cfg.approach_rate_1ps * r)
+        return v, out.kappa_1pm * v
 
-    def _choose_reverse(self, o: OdomSample, goal: Pose2D, r: float) -> bool:
-        """Backwards if the goal is close behind and that is cheaper: distance at each
-        direction's speed plus the turning the law has to do (|θ| + |δ| at the floor rate)."""
-        cfg = self.cfg
-        if r > cfg.reverse_max_m or cfg.reverse_vmax_mps <= 0.0 or abs(o.v) > 0.1 \
-                or not self.reverse_allowed:
-            return False  # never reverse out of motion (a stop and a direction change)
-
-        def cost(flip: float, vmax: float) -> float:
-            _, theta, delta = egocentric(o.x, o.y, wrap(o.yaw + flip), goal.x_m, goal.y_m,
-                                         wrap(goal.yaw_rad + flip))
-            return r / vmax + (abs(theta) + abs(delta)) / cfg.omega_floor_radps
-
-        return cost(math.pi, min(self.vmax, cfg.reverse_vmax_mps)) < cost(0.0, self.vmax)
+    def _follow_plan(self, o: OdomSample) -> tuple[float, float]:
+        """The law towards MPEPC's target at its speed; at rest while planning or blocked."""
+        p = self.plan
+        if p is None or self.state == BLOCKED:
+            return 0.0, 0.0
+        tx, ty, tyaw = p.target
+        turn = p.z[0] < IN_PLACE_R_M and abs(wrap(tyaw - o.yaw)) >= 2 * ALIGNED_RAD
+        if turn or math.hypot(tx - o.x, ty - o.y) < self.tol_m * self.cfg.capture_fraction:
+            lim = self.limiter.lim
+            return 0.0, align_omega(wrap(tyaw - o.yaw), lim.omega_max_radps,
+                                    self.cfg.align_brake_fraction * lim.omega_acc_max_radps2,
+                                    self.cfg.align_gain_1ps)
+        out = park_kuipers(o.x, o.y, o.yaw, tx, ty, tyaw, self.gains, min(p.vmax_mps, self.vmax),
+                           omega_floor=self.cfg.omega_floor_radps)
+        return out.v_mps, out.omega_radps
 
     def _align(self, goal: Pose2D, o: OdomSample, now: float) -> tuple[float, float]:
         cfg = self.cfg
@@ -434,13 +547,18 @@ class ControlCore:
     def status(self) -> Status:
         dist = eta = 0.0
         o = self.odom
-        if self.waypoints and o is not None and self.state == ACTIVE:
+        if self.waypoints and o is not None and self.active:
             wps = self.waypoints[self.index:]
-            dist = math.hypot(wps[0].x_m - o.x, wps[0].y_m - o.y) + sum(
+            first = math.hypot(wps[0].x_m - o.x, wps[0].y_m - o.y)
+            fld = self.field or self._free
+            if self.ctg is not None and fld is not None and first > self.tol_m:
+                # along the path, not as the crow flies (ctg is built for this waypoint)
+                first = max(first, min(fld.start_cost(self.ctg, o.x, o.y), 1e3))
+            dist = first + sum(
                 math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) for a, b in itertools.pairwise(wps))
             eta = self.eta(dist, wrap(self.waypoints[-1].yaw_rad - o.yaw))
-        return Status(self.goal_id, self.state, self.index, len(self.waypoints), dist, eta,
-                      self.reason)
+        return Status(self.goal_id, self.state, max(self.index - self.lineups, 0),
+                      len(self.waypoints) - self.lineups, dist, eta, self.reason)
 
     def eta(self, dist: float, yaw_error: float) -> float:
         """Rough time left from the law's own speed profile: cruise at vmax, then the

@@ -1,7 +1,13 @@
-"""Control-law node: goals in (Zenoh queries), smooth (v, ω) out while a goal is active.
+"""Control node: goals in (Zenoh queries), MPEPC-planned smooth (v, ω) out while a goal is active.
 
 Publishes keys.CMD_VEL at `rate_hz` only while a goal is active and while braking after it (then
 `stop_burst_s` of zeros); when idle it publishes nothing, so the CLI or teleop can drive.
+
+MPEPC runs inside this service (nav/; the decision and its reasons are in README "Navigation"):
+the goal's state machine, the pose prediction and the limiter it plans from are the core's, and
+one process means no goal handshake between two. The planning cycle (tens of ms) runs on its
+own thread outside the core's lock, so the 50 Hz law is never held up by it; the navigation
+field is rebuilt on a third thread when the mapping service's grid changes.
 """
 
 from __future__ import annotations
@@ -10,115 +16,191 @@ import sys
 import threading
 import time
 
+import numpy as np
+
+from autochair.nav.field import Footprint, GridMap, NavField, place
+from autochair.nav.planner import PlanRequest, PlanResult, compute
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import (
     CommandOwner,
-    Empty,
     EStopState,
     GoalReply,
     GoalRequest,
     GoalStatus,
+    NavPlan,
+    OccupancyGrid,
     Odometry,
     SafetyLimit,
     VelocityCommand,
     keys,
 )
 
-from .core import ControlConfig, ControlCore, OdomSample
+from .core import ABORTED, CANCELLED, ControlConfig, ControlCore, OdomSample
 
 
-def start(node: Node, cfg: ControlConfig) -> None:
-    try:  # the odometry watchdog is one of the chain's thresholds, set in [stale] only
-        core = ControlCore(cfg, odom_timeout_s=node.stale.odometry_s)
-    except ValueError as e:
-        raise ConfigError(f"[control] {e}") from None
-    node.health.thresholds.update(odometry_s=node.stale.odometry_s, rate_hz=cfg.rate_hz)
-    lock = threading.Lock()
-    cmd_pub = node.publisher(keys.CMD_VEL)
-    status_pub = node.publisher(keys.GOAL_STATUS)
+class ControlNode:
+    def __init__(self, node: Node, cfg: ControlConfig) -> None:
+        chair = node.chair
+        fp = Footprint(chair.front_m, chair.rear_m, chair.half_width_m)
+        try:  # the odometry watchdog is one of the chain's thresholds, set in [stale] only
+            self.core = ControlCore(cfg, odom_timeout_s=node.stale.odometry_s, footprint=fp)
+        except ValueError as e:
+            raise ConfigError(f"[control] {e}") from None
+        self.core.inline_planning = False  # planned on its own thread (plan_tick)
+        self.node, self.cfg = node, cfg
+        self.lock = threading.Lock()
+        self.cmd_pub = node.publisher(keys.CMD_VEL)
+        self.status_pub = node.publisher(keys.GOAL_STATUS)
+        self.plan_pub = node.publisher(keys.NAV_PLAN)
+        # When the current goal was accepted (Unix ns): its commands carry it as their stream
+        # start, so the velocity PID obeys them only if the goal came after its last stop.
+        self.stream_start_ns = 0
+        self.announced = 0
+        self.grid: OccupancyGrid | None = None  # newest map, not yet turned into a field
+        self.grid_key = b""
 
-    def on_odom(o: Odometry) -> None:
+    # --- inputs -----------------------------------------------------------------------------
+    def on_odom(self, o: Odometry) -> None:
         sample = OdomSample(o.x_m, o.y_m, o.yaw_rad, o.v_mps, o.omega_radps, time.monotonic())
-        with lock:
-            core.on_odom(sample)
-        node.health.count("odom")
+        with self.lock:
+            self.core.on_odom(sample)
+        self.node.health.count("odom")
 
-    # When the current goal was accepted (Unix ns): its commands carry it as their stream
-    # start, so the velocity PID obeys them only if the goal came after its last stop.
-    stream = {"start_ns": 0, "announced": 0}
+    def on_estop(self, msg: EStopState) -> None:
+        with self.lock:
+            self.core.on_estop(msg.latched, time.monotonic())
 
-    def tick() -> None:
-        with lock:
+    def on_owner(self, msg: CommandOwner) -> None:
+        with self.lock:
+            self.core.on_owner(msg.owner, time.monotonic())
+
+    def on_limit(self, msg: SafetyLimit) -> None:
+        with self.lock:  # plan within the monitor's bounds instead of being clamped by the PID
+            self.core.on_limit(msg.omega_max_radps)
+
+    def on_grid(self, msg: OccupancyGrid) -> None:
+        self.grid = msg  # (built on the map thread: never block a Zenoh callback)
+
+    # --- loops ------------------------------------------------------------------------------
+    def tick(self) -> None:
+        core = self.core
+        with self.lock:
             out = core.step(time.monotonic())
-            ended = core.state != "active" and stream["announced"] != core.goal_id
+            ended = not core.active and self.announced != core.goal_id
             if ended:
-                stream["announced"] = core.goal_id
-        if ended and core.goal_id and core.state != "cancelled":  # (cancel says so itself)
+                self.announced = core.goal_id
+        if ended and core.goal_id and core.state != CANCELLED:  # (cancel says so itself)
             why = f": {core.reason}" if core.reason else ""
-            node.event("warning" if core.state == "aborted" else "info",
-                       f"goal {core.goal_id} {core.state}{why}")
+            self.node.event("warning" if core.state == ABORTED else "info",
+                            f"goal {core.goal_id} {core.state}{why}")
         if out is not None:
-            cmd_pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=out[0],
-                                        omega_radps=out[1], source="control",
-                                        stream_start_ns=stream["start_ns"]))
-            node.health.count("commands")
+            self.cmd_pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=out[0],
+                                             omega_radps=out[1], source="control",
+                                             stream_start_ns=self.stream_start_ns))
+            self.node.health.count("commands")
 
-    def status_msg() -> GoalStatus:
-        with lock:
-            s = core.status()
+    def plan_tick(self) -> None:
+        with self.lock:
+            req = self.core.plan_request(time.monotonic())
+        if req is None:
+            return
+        t0 = time.perf_counter()
+        res = compute(req)  # outside the lock: the 50 Hz loop goes on meanwhile
+        ms = (time.perf_counter() - t0) * 1e3
+        self.node.health.count("plans")
+        if ms > 1000.0 / self.cfg.plan_rate_hz:
+            self.node.health.count("plans_late")
+        with self.lock:
+            self.core.on_plan(res, time.monotonic())
+            state = self.core.state
+        self.publish_plan(req, res, state, ms)
+
+    def publish_plan(self, req: PlanRequest, res: PlanResult, state: str, ms: float) -> None:
+        """The plan, the footprint and the people for the 3D view (keys.NAV_PLAN)."""
+        p, fp = res.plan, self.core.footprint
+        corners = np.array([[fp.front_m, fp.half_width_m], [fp.front_m, -fp.half_width_m],
+                            [-fp.rear_m, -fp.half_width_m], [-fp.rear_m, fp.half_width_m]])
+        outline = place(corners, *req.pose).reshape(-1)
+        path = np.zeros((0, 3)) if p is None else p.path
+        target = req.pose if p is None else p.target
+        self.plan_pub.put(NavPlan(
+            stamp_ns=time.time_ns(), frame_id=req.field.frame_id, goal_id=req.goal_id,
+            state=state, target_x_m=target[0], target_y_m=target[1], target_yaw_rad=target[2],
+            vmax_mps=0.0 if p is None else p.vmax_mps, path_x_m=path[:, 0].round(3).tolist(),
+            path_y_m=path[:, 1].round(3).tolist(), path_yaw_rad=path[:, 2].round(3).tolist(),
+            footprint_xy_m=outline.round(3).tolist(),
+            people_xyr_m=[v for q in req.people for v in (q.x_m, q.y_m, q.radius_m)],
+            cost=0.0 if p is None else round(p.cost, 4),
+            progress_m=0.0 if p is None else round(p.progress_m, 3),
+            survival=1.0 if p is None else round(p.survival, 3),
+            min_clearance_m=0.0 if p is None else round(p.min_clearance_m, 3),
+            plan_ms=round(ms, 2)))
+
+    def map_tick(self) -> None:
+        """Rebuild the navigation field when the grid's obstacles changed."""
+        msg = self.grid
+        if msg is None:
+            return
+        gm = GridMap.from_msg(msg)
+        # ≥ 0.1 m cells: the costs-to-go are recomputed on every change, on this process's
+        # CPU, while the 50 Hz loop runs (a 30 × 20 m map at 0.05 m is 240 000 cells).
+        gm = gm.coarsened(max(1, round(0.1 / gm.resolution_m)))
+        key = gm.occupied.tobytes() + repr((gm.resolution_m, gm.origin_x_m,
+                                           gm.origin_y_m)).encode()
+        if key == self.grid_key:
+            return
+        self.grid_key = key
+        fld = NavField(gm, self.core.footprint)
+        with self.lock:
+            self.core.on_field(fld)
+        self.node.health.count("nav_fields")
+
+    # --- requests and status ------------------------------------------------------------------
+    def status_msg(self) -> GoalStatus:
+        with self.lock:
+            s = self.core.status()
         return GoalStatus(stamp_ns=time.time_ns(), goal_id=s.goal_id, state=s.state,
                           waypoint_index=s.waypoint_index, waypoint_count=s.waypoint_count,
                           distance_left_m=round(s.distance_left_m, 4), eta_s=round(s.eta_s, 2),
                           reason=s.reason)
 
-    def publish_status() -> None:
-        status_pub.put(status_msg())
-
-    def on_set(req: GoalRequest) -> GoalReply:
-        with lock:
-            result = core.set_goal(req, time.monotonic())
+    def on_set(self, req: GoalRequest) -> GoalReply:
+        with self.lock:
+            result = self.core.set_goal(req, time.monotonic())
             if result.ok:
-                stream["start_ns"] = time.time_ns()
+                self.stream_start_ns = time.time_ns()
         if result.ok:
             last = req.waypoints[-1]
-            node.event("info", f"goal {result.goal_id}: {len(req.waypoints)} waypoint(s) to "
-                               f"({last.x_m:.2f}, {last.y_m:.2f}, {last.yaw_rad:.3f} rad)")
+            self.node.event("info", f"goal {result.goal_id}: {len(req.waypoints)} waypoint(s) "
+                                    f"to ({last.x_m:.2f}, {last.y_m:.2f}, {last.yaw_rad:.3f} rad)")
         else:
-            node.health.count("rejected_goals")
-            node.event("warning", f"goal rejected: {result.error}")
+            self.node.health.count("rejected_goals")
+            self.node.event("warning", f"goal rejected: {result.error}")
         return result
 
-    def on_cancel(_: GoalRequest) -> GoalReply:
-        with lock:
-            result = core.cancel(time.monotonic())
+    def on_cancel(self, _: GoalRequest) -> GoalReply:
+        with self.lock:
+            result = self.core.cancel(time.monotonic())
         if result.goal_id:
-            node.event("info", f"goal {result.goal_id} cancelled")
+            self.node.event("info", f"goal {result.goal_id} cancelled")
         return result
 
-    def on_get(_: Empty) -> GoalStatus:
-        return status_msg()
 
-    def on_estop(msg: EStopState) -> None:
-        with lock:
-            core.on_estop(msg.latched, time.monotonic())
-
-    def on_owner(msg: CommandOwner) -> None:
-        with lock:
-            core.on_owner(msg.owner, time.monotonic())
-
-    def on_limit(msg: SafetyLimit) -> None:
-        with lock:  # plan within the monitor's bounds instead of being clamped by the PID
-            core.on_limit(msg.v_max_rev_autonomy_mps, msg.omega_max_radps)
-
-    node.subscribe(keys.ODOM, on_odom)
-    node.subscribe(keys.ESTOP_STATE, on_estop)
-    node.subscribe(keys.CMD_OWNER, on_owner)
-    node.subscribe(keys.SAFETY_LIMIT, on_limit)
-    node.serve(keys.GOAL_SET, on_set)
-    node.serve(keys.GOAL_CANCEL, on_cancel)
-    node.serve(keys.GOAL_GET, on_get)
-    node.every(1.0 / cfg.rate_hz, tick, "control")
-    node.every(1.0 / cfg.status_rate_hz, publish_status, "status")
+def start(node: Node, cfg: ControlConfig) -> None:
+    c = ControlNode(node, cfg)
+    node.health.thresholds.update(odometry_s=node.stale.odometry_s, rate_hz=cfg.rate_hz)
+    node.subscribe(keys.ODOM_SLOW, c.on_odom)  # 50 Hz: the law runs at 50 Hz too
+    node.subscribe(keys.ESTOP_STATE, c.on_estop)
+    node.subscribe(keys.CMD_OWNER, c.on_owner)
+    node.subscribe(keys.SAFETY_LIMIT, c.on_limit)
+    node.subscribe(keys.MAP_GRID, c.on_grid)
+    node.serve(keys.GOAL_SET, c.on_set)
+    node.serve(keys.GOAL_CANCEL, c.on_cancel)
+    node.serve(keys.GOAL_GET, lambda _: c.status_msg())
+    node.every(1.0 / cfg.rate_hz, c.tick, "control")
+    node.every(0.5 / cfg.plan_rate_hz, c.plan_tick, "plan")
+    node.every(0.5, c.map_tick, "map")
+    node.every(1.0 / cfg.status_rate_hz, lambda: c.status_pub.put(c.status_msg()), "status")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -8,11 +8,18 @@ and the map work without any user scripts.
 | /scan            | foxglove.LaserScan         | keys.SCAN                          |
 | /map             | foxglove.Grid              | keys.MAP_GRID                      |
 | /log             | foxglove.Log               | keys.LOG, new faults in keys.HEALTH |
+| /nav/plan        | foxglove.PosesInFrame      | keys.NAV_PLAN (predicted path, then the target) |
+| /nav/scene       | foxglove.SceneUpdate       | keys.NAV_PLAN (footprint, target arrow, people) |
+| /loc/map         | foxglove.Grid              | keys.LOC_MAP (frame `map`)         |
+| /loc/pose        | foxglove.PoseInFrame       | keys.LOC_POSE (frame `map`)        |
 
 /tf (from keys.TF), /pose and /scan are duplicates of channels recorded at the full rate
 (keys.TF, keys.ODOM, keys.SCAN): they are decimated by message stamp to at most `max_hz` (the
 logger's `derived_max_hz`, default 20 Hz) and `scan_max_hz` (`derived_scan_hz`, default 5 Hz),
-enough for the 3D panel. Static transforms, maps and logs are derived from every message.
+enough for the 3D panel; each transform (parent, child) is decimated on its own, so the
+10 Hz `map` → `odom` correction is not crowded out by the odometry's `odom` → `chair`. Static
+transforms, maps, localized poses and logs are derived from every message. Frames follow
+REP-105 (`map` → `odom` → `chair` → `laser`): set the 3D panel's display frame to `map`.
 
 Times are {sec, nsec}; bytes are base64. The schemas are Foxglove's own (copied from npm
 `@foxglove/schemas` into foxglove_schemas.json). foxglove.LaserScan has no range limits and
@@ -37,7 +44,9 @@ from autochair_msgs import (
     FrameTransform,
     Health,
     LaserScan,
+    LocalizedPose,
     LogEvent,
+    NavPlan,
     OccupancyGrid,
     Odometry,
     keys,
@@ -49,9 +58,13 @@ SCHEMAS: dict[str, dict[str, Any]] = json.loads(
 LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "fatal": 5}
 
 TOPIC_TF, TOPIC_POSE, TOPIC_SCAN, TOPIC_MAP, TOPIC_LOG = "/tf", "/pose", "/scan", "/map", "/log"
+TOPIC_PLAN, TOPIC_SCENE = "/nav/plan", "/nav/scene"
+TOPIC_LOC_MAP, TOPIC_LOC_POSE = "/loc/map", "/loc/pose"
 DERIVED = {TOPIC_TF: "foxglove.FrameTransforms", TOPIC_POSE: "foxglove.PoseInFrame",
            TOPIC_SCAN: "foxglove.LaserScan", TOPIC_MAP: "foxglove.Grid",
-           TOPIC_LOG: "foxglove.Log"}
+           TOPIC_LOG: "foxglove.Log", TOPIC_PLAN: "foxglove.PosesInFrame",
+           TOPIC_SCENE: "foxglove.SceneUpdate", TOPIC_LOC_MAP: "foxglove.Grid",
+           TOPIC_LOC_POSE: "foxglove.PoseInFrame"}
 
 Derived = tuple[str, int, dict[str, Any]]  # (derived topic, stamp ns, message)
 
@@ -86,6 +99,12 @@ def _pose(m: Odometry) -> dict[str, Any]:
         "orientation": yaw_quaternion(_finite(m.yaw_rad))}}
 
 
+def _loc_pose(m: LocalizedPose) -> dict[str, Any]:
+    return {"timestamp": time_of(m.stamp_ns), "frame_id": m.frame_id, "pose": {
+        "position": {"x": _finite(m.x_m), "y": _finite(m.y_m), "z": 0.0},
+        "orientation": yaw_quaternion(_finite(m.yaw_rad))}}
+
+
 _ORIGIN = {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
            "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
 
@@ -112,6 +131,45 @@ def _grid(m: OccupancyGrid) -> dict[str, Any]:
             "data": base64.b64encode(m.data).decode("ascii")}
 
 
+def _pose3(x: float, y: float, yaw: float) -> dict[str, Any]:
+    return {"position": {"x": _finite(x), "y": _finite(y), "z": 0.0},
+            "orientation": yaw_quaternion(_finite(yaw))}
+
+
+def _plan(m: NavPlan) -> dict[str, Any]:
+    poses = [_pose3(x, y, a) for x, y, a in zip(m.path_x_m, m.path_y_m, m.path_yaw_rad,
+                                                strict=False)]
+    poses.append(_pose3(m.target_x_m, m.target_y_m, m.target_yaw_rad))
+    return {"timestamp": time_of(m.stamp_ns), "frame_id": m.frame_id, "poses": poses}
+
+
+def _rgba(r: float, g: float, b: float, a: float = 1.0) -> dict[str, float]:
+    return {"r": r, "g": g, "b": b, "a": a}
+
+
+def _scene(m: NavPlan) -> dict[str, Any]:
+    """The chair's footprint (a loop), MPEPC's target (an arrow) and the people (cylinders)."""
+    xy = m.footprint_xy_m
+    loop = {"type": 1, "pose": _ORIGIN, "thickness": 0.03, "scale_invariant": False,
+            "points": [{"x": _finite(xy[i]), "y": _finite(xy[i + 1]), "z": 0.05}
+                       for i in range(0, len(xy) - 1, 2)],
+            "color": _rgba(0.1, 0.6, 1.0), "colors": [], "indices": []}
+    arrow = {"pose": _pose3(m.target_x_m, m.target_y_m, m.target_yaw_rad),
+             "shaft_length": 0.4, "shaft_diameter": 0.05, "head_length": 0.15,
+             "head_diameter": 0.12, "color": _rgba(1.0, 0.5, 0.0)}
+    p = m.people_xyr_m
+    people = [{"pose": _pose3(p[i], p[i + 1], 0.0),
+               "size": {"x": _finite(2 * p[i + 2]), "y": _finite(2 * p[i + 2]), "z": 1.7},
+               "bottom_scale": 1.0, "top_scale": 1.0, "color": _rgba(1.0, 0.2, 0.2, 0.6)}
+              for i in range(0, len(p) - 2, 3)]
+    entity = {"timestamp": time_of(m.stamp_ns), "frame_id": m.frame_id, "id": "nav",
+              "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
+              "metadata": [{"key": "state", "value": m.state}],
+              "arrows": [arrow], "cubes": [], "spheres": [], "cylinders": people,
+              "lines": [loop], "triangles": [], "texts": [], "models": []}
+    return {"deletions": [], "entities": [entity]}
+
+
 def log_message(stamp_ns: int, level: str, name: str, message: str) -> dict[str, Any]:
     return {"timestamp": time_of(stamp_ns), "level": LEVELS.get(level, 0), "message": message,
             "name": name, "file": "", "line": 0}
@@ -124,15 +182,21 @@ class Deriver:
     def __init__(self, max_hz: float = 0.0, scan_max_hz: float = 0.0) -> None:
         self._faults: dict[str, int] = {}
         # Decimation of the duplicates of full-rate raw channels (0 = every message).
-        tf, pose, scan = Decimator.at(max_hz), Decimator.at(max_hz), Decimator.at(scan_max_hz)
+        pose, scan = Decimator.at(max_hz), Decimator.at(scan_max_hz)
+        self._max_hz = max_hz
+        self._tf: dict[tuple[str, str], Decimator] = {}  # one per (parent, child)
         self._by_key: dict[str, Callable[[Any], list[Derived]]] = {
-            keys.TF.key: lambda m: [(TOPIC_TF, m.stamp_ns, _tf(m))] if tf(m.stamp_ns) else [],
+            keys.TF.key: self._tf_decimated,
             keys.TF_STATIC.key: lambda m: [(TOPIC_TF, m.stamp_ns, _tf(m))],
             keys.ODOM.key: lambda m: [(TOPIC_POSE, m.stamp_ns, _pose(m))]
             if pose(m.stamp_ns) else [],
             keys.SCAN.key: lambda m: [(TOPIC_SCAN, m.stamp_ns, _scan(m))]
             if scan(m.stamp_ns) else [],
             keys.MAP_GRID.key: lambda m: [(TOPIC_MAP, m.stamp_ns, _grid(m))],
+            keys.LOC_MAP.key: lambda m: [(TOPIC_LOC_MAP, m.stamp_ns, _grid(m))],
+            keys.LOC_POSE.key: lambda m: [(TOPIC_LOC_POSE, m.stamp_ns, _loc_pose(m))],
+            keys.NAV_PLAN.key: lambda m: [(TOPIC_PLAN, m.stamp_ns, _plan(m)),
+                                          (TOPIC_SCENE, m.stamp_ns, _scene(m))],
             keys.LOG.key: self._log,
         }
 
@@ -143,6 +207,14 @@ class Deriver:
         if isinstance(msg, Health):
             return self._health(msg)
         return []
+
+    def _tf_decimated(self, m: FrameTransform) -> list[Derived]:
+        pair = (m.parent_frame_id, m.child_frame_id)
+        if pair not in self._tf:
+            if len(self._tf) > 64:  # bounded: frame names come from the wire
+                self._tf.clear()
+            self._tf[pair] = Decimator.at(self._max_hz)
+        return [(TOPIC_TF, m.stamp_ns, _tf(m))] if self._tf[pair](m.stamp_ns) else []
 
     def _log(self, m: LogEvent) -> list[Derived]:
         return [(TOPIC_LOG, m.stamp_ns, log_message(m.stamp_ns, m.level, m.service, m.message))]

@@ -30,6 +30,9 @@ class OdometryCore:
     wheel_radius_m: float = 0.049
     base_m: float = 0.367
     counts_per_rev: int = 10000
+    # D_right / D_left of the encoder wheels (their mean is 2·wheel_radius_m): from
+    # `python -m bench loc_eval` calibration, 1.0 = equal
+    wheel_diameter_ratio: float = 1.0
     counter_bits: int = 32
     clock_bits: int = 32
     velocity_window_s: float = 0.02  # velocities averaged over this window (quantisation noise)
@@ -76,8 +79,9 @@ class OdometryCore:
         pl, pr, pt = self._prev
         self._prev = (left, right, t_us)
         metres_per_count = 2 * math.pi * self.wheel_radius_m / self.counts_per_rev
-        d_l = wrap_delta(pl, left, self.counter_bits) * metres_per_count
-        d_r = wrap_delta(pr, right, self.counter_bits) * metres_per_count
+        e_d = self.wheel_diameter_ratio
+        d_l = wrap_delta(pl, left, self.counter_bits) * metres_per_count * 2 / (1 + e_d)
+        d_r = wrap_delta(pr, right, self.counter_bits) * metres_per_count * 2 * e_d / (1 + e_d)
         dt = ((t_us - pt) % (1 << self.clock_bits)) * 1e-6
         if max(abs(d_l), abs(d_r)) > self.max_wheel_mps * dt + 0.01:
             self.implausible += 1  # not integrated; the velocities stay the window's

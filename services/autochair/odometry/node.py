@@ -1,6 +1,7 @@
 """Odometry node: EncoderSample → Odometry at the encoder rate (keys.ODOM, for the velocity PID
 and the recording), decimated to `slow_rate_hz` (keys.ODOM_SLOW, for everyone else), and the
-world→chair transform (keys.TF) at `tf_rate_hz` (the same pose, for viewers)."""
+odom→chair transform (keys.TF; REP-105: localization adds map→odom) at `tf_rate_hz` (the
+same pose, for viewers)."""
 
 from __future__ import annotations
 
@@ -21,19 +22,23 @@ class OdometryConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     wheel_radius_m: float = 0.049
     base_m: float = 0.367
     counts_per_rev: int = 10000
+    wheel_diameter_ratio: float = 1.0  # D_right / D_left (odometry calibration)
     velocity_window_s: float = 0.02
     publish_tf: bool = True
-    tf_rate_hz: float = 50.0  # keys.TF at most this often (by sample stamp); 0 = every sample
+    tf_rate_hz: float = 20.0  # keys.TF at most this often (by sample stamp); 0 = every sample
     slow_rate_hz: float = 50.0  # keys.ODOM_SLOW likewise
 
 
 def start(node: Node, cfg: OdometryConfig) -> None:
-    if cfg.wheel_radius_m <= 0 or cfg.base_m <= 0 or cfg.counts_per_rev <= 0:
-        raise ConfigError("[odometry] wheel_radius_m, base_m and counts_per_rev must be > 0")
+    if cfg.wheel_radius_m <= 0 or cfg.base_m <= 0 or cfg.counts_per_rev <= 0 \
+            or not 0.5 < cfg.wheel_diameter_ratio < 2.0:
+        raise ConfigError("[odometry] wheel_radius_m, base_m and counts_per_rev must be > 0, "
+                          "wheel_diameter_ratio in (0.5, 2)")
     if cfg.tf_rate_hz < 0 or cfg.slow_rate_hz < 0:
         raise ConfigError("[odometry] tf_rate_hz and slow_rate_hz must be ≥ 0")
     core = OdometryCore(wheel_radius_m=cfg.wheel_radius_m, base_m=cfg.base_m,
                         counts_per_rev=cfg.counts_per_rev,
+                        wheel_diameter_ratio=cfg.wheel_diameter_ratio,
                         velocity_window_s=cfg.velocity_window_s)
     odom_pub = node.publisher(keys.ODOM)
     tf_pub = node.publisher(keys.TF)
@@ -59,7 +64,7 @@ def start(node: Node, cfg: OdometryConfig) -> None:
             slow_pub.put(odom)
         if cfg.publish_tf and tf_due(stamp):
             tf_pub.put(FrameTransform(
-                stamp_ns=stamp, parent_frame_id="world", child_frame_id="chair",
+                stamp_ns=stamp, parent_frame_id="odom", child_frame_id="chair",
                 translation=Vector3(st.x, st.y, 0.0),
                 rotation=Quaternion(*yaw_quaternion(st.yaw))))
         node.health.count("samples")

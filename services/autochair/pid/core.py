@@ -2,13 +2,25 @@
 
 Derivative on measurement through a first-order filter (time constant Td/N), Ki inside the
 integral (gain changes are bumpless), clamping anti-windup, output saturation; dt is passed in.
+
+With an identified model of the drive chain per axis (`autochair tune`) each loop is
+two-degree-of-freedom: the desired velocity passes a short prefilter, its model inverse is the
+feed-forward effort, and the PID acts on the model's own response (the prefiltered desired,
+delayed by the dead time): the feed-forward drives, the feedback only trims model error, so a
+smooth desired velocity is followed without the feedback's lag and overshoot.
 """
 
 from __future__ import annotations
 
 import enum
 import math
+from collections import deque
 from dataclasses import dataclass, field
+from typing import Annotated
+
+import msgspec
+
+from autochair.tune.core import ChainModel, Probe, ProbeState
 
 NEUTRAL_V = 2.5
 VOLTS_PER_EFFORT = 1.5  # thesis eq. 5.17: V = 1.5·C + 2.5
@@ -51,6 +63,50 @@ class PID:
         return min(max(p + self.integral + d, self.out_min), self.out_max)
 
 
+@dataclass
+class Feedforward:
+    """One axis's 2-DOF part: the desired velocity through a prefilter (two lags of
+    `prefilter_s`), the SOPDT inverse of that as feed-forward effort, and the model's response
+    to the effort actually sent (after saturation) as the feedback's reference (IMC): the PID
+    corrects only what the model does not explain."""
+
+    model: ChainModel
+    prefilter_s: float = 0.1
+    _x1: float = 0.0  # prefilter states
+    _x2: float = 0.0
+    _m1: float = 0.0  # model lag states (m2 = the model's output)
+    _m2: float = 0.0
+    _t: float = 0.0
+    _queue: deque[tuple[float, float]] = field(default_factory=deque)  # (due, y) in transit
+    _due: float = 0.0  # the model's delayed input
+
+    def reset(self, y: float) -> None:
+        """Start from the measured velocity: the model is taken to be at rest there."""
+        self._x1 = self._x2 = self._m1 = self._m2 = self._due = y
+        self._queue.clear()
+
+    def effort(self, r: float, dt: float) -> float:
+        """Feed-forward effort for desired r over the next dt."""
+        m, tf = self.model, max(self.prefilter_s, 1e-3)
+        a = 1.0 - math.exp(-dt / tf)
+        self._x1 += (r - self._x1) * a
+        self._x2 += (self._x1 - self._x2) * a
+        d1 = (self._x1 - self._x2) / tf  # ṙ of the prefiltered desired
+        d2 = ((r - self._x1) / tf - d1) / tf  # r̈
+        return m.effort_for(self._x2 + (m.tau1_s + m.tau2_s) * d1 + m.tau1_s * m.tau2_s * d2)
+
+    def reference(self, u: float, dt: float) -> float:
+        """Advance the model by dt with effort u applied; its output is the reference."""
+        m = self.model
+        self._t += dt
+        self._queue.append((self._t + m.delay_s, m.output_for(u)))
+        while self._queue and self._queue[0][0] <= self._t + 1e-9:
+            self._due = self._queue.popleft()[1]
+        self._m1 += (self._due - self._m1) * (1.0 - math.exp(-dt / max(m.tau1_s, 1e-3)))
+        self._m2 += (self._m1 - self._m2) * (1.0 - math.exp(-dt / max(m.tau2_s, 1e-3)))
+        return self._m2
+
+
 @dataclass(frozen=True)
 class PidOutput:
     v_effort: float
@@ -59,6 +115,8 @@ class PidOutput:
     angular_v: float
     active: bool
     desired: tuple[float, float] = (0.0, 0.0)  # within caps and limit ((0, 0) when stopped)
+    saturated: bool = False  # an effort at the joystick window's edge
+    probe: str = ""  # "" or "<kind> <axis> <state>" while a tuning probe runs
 
 
 @dataclass(frozen=True)
@@ -124,8 +182,18 @@ class VelocityPidCore:
     caps: Caps = field(default_factory=Caps)
     start_ns: int = 0  # when this core started: a restarted PID obeys nothing begun before
     owner: str = "autonomy"  # whose commands count: "autonomy" (CMD_VEL) or "teleop"
+    # Identified drive chain per axis (None: feedback only, as the thesis) and the prefilter.
+    v_model: ChainModel | None = None
+    omega_model: ChainModel | None = None
+    prefilter_s: float = 0.1
+    d_filter_n: float = 10.0
     v_pid: PID = field(init=False)
     omega_pid: PID = field(init=False)
+    probe: Probe | None = field(init=False, default=None)  # a tuning probe (autochair tune)
+    _ff: tuple[Feedforward | None, Feedforward | None] = field(init=False)
+    _last_effort: tuple[float, float] = (0.0, 0.0)  # low-passed
+    _sent: list[float] = field(default_factory=lambda: [0.0, 0.0])  # last feed-forward
+    _held: tuple[float, float] = (0.0, 0.0)  # the last desired driven (within caps, limit)
     stop_ns: int = field(init=False)  # commands must have begun after this (Unix ns)
     stop_reason: str = field(init=False)
     _desired: tuple[float, float] = (0.0, 0.0)
@@ -142,8 +210,11 @@ class VelocityPidCore:
     def __post_init__(self) -> None:
         lo = (self.min_v - NEUTRAL_V) / VOLTS_PER_EFFORT
         hi = (self.max_v - NEUTRAL_V) / VOLTS_PER_EFFORT
-        self.v_pid = PID(*self.v_gains, out_min=lo, out_max=hi)
-        self.omega_pid = PID(*self.omega_gains, out_min=lo, out_max=hi)
+        self.v_pid = PID(*self.v_gains, out_min=lo, out_max=hi, d_filter_n=self.d_filter_n)
+        self.omega_pid = PID(*self.omega_gains, out_min=lo, out_max=hi,
+                             d_filter_n=self.d_filter_n)
+        self._ff = tuple(None if m is None else Feedforward(m, self.prefilter_s)
+                         for m in (self.v_model, self.omega_model))  # type: ignore[assignment]
         self.stop_ns, self.stop_reason = self.start_ns, "started"
 
     # --- inputs -----------------------------------------------------------------------------
@@ -275,19 +346,184 @@ class VelocityPidCore:
             abs(v_meas) < self.stop_eps and abs(omega_meas) < self.stop_eps
         # (a first sample has dt 0; a non-finite or absurd dt is skipped the same way)
         if desired is None or at_rest or not 0 < dt <= 1.0:
+            if self.probe is not None and desired is None:
+                self.probe.end(ProbeState.ABORTED, f"stopped ({self.stop_reason})")
             # Stopped or parked: exact neutral, integrators cleared for a bumpless restart.
             self._active = False
-            self.v_pid.reset(v_meas)
-            self.omega_pid.reset(omega_meas)
-            return PidOutput(0.0, 0.0, NEUTRAL_V, NEUTRAL_V, False, desired or (0.0, 0.0))
+            self._restart(v_meas, omega_meas)
+            return PidOutput(0.0, 0.0, NEUTRAL_V, NEUTRAL_V, False, desired or (0.0, 0.0),
+                             probe=self._probe_text())
         if not self._active:
             self._active = True  # re-seeded from the measured velocity: nothing lunges
-            self.v_pid.reset(v_meas)
-            self.omega_pid.reset(omega_meas)
-        cv = self.v_pid.update(desired[0], v_meas, dt)
-        cw = self.omega_pid.update(desired[1], omega_meas, dt)
+            self._restart(v_meas, omega_meas)
+        meas = (v_meas, omega_meas)
+        self._held = desired
+        efforts = [self._axis(i, desired[i], meas[i], dt) for i in (0, 1)]
+        if self.probe is not None and self.probe.state is ProbeState.RUNNING \
+                and not self._probe_step(efforts, meas, now_s, now_ns):
+            return PidOutput(0.0, 0.0, NEUTRAL_V, NEUTRAL_V, False, (0.0, 0.0),
+                             probe=self._probe_text())
+        cv, cw = efforts
+        # The effort that holds the operating point (a probe's bias): filtered over ~0.5 s,
+        # since the derivative term passes the odometry's quantisation noise.
+        a = min(dt / 0.5, 1.0)
+        self._last_effort = (self._last_effort[0] + a * (cv - self._last_effort[0]),
+                             self._last_effort[1] + a * (cw - self._last_effort[1]))
+        lo, hi = self._window
+        sat = any(c <= lo + 1e-9 or c >= hi - 1e-9 for c in (cv, cw))
         return PidOutput(cv, cw, effort_to_volts(cv, self.min_v, self.max_v),
-                         effort_to_volts(cw, self.min_v, self.max_v), True, desired)
+                         effort_to_volts(cw, self.min_v, self.max_v), True, desired, sat,
+                         self._probe_text())
+
+    @property
+    def _window(self) -> tuple[float, float]:
+        """The effort range of the joystick window."""
+        return ((self.min_v - NEUTRAL_V) / VOLTS_PER_EFFORT,
+                (self.max_v - NEUTRAL_V) / VOLTS_PER_EFFORT)
+
+    def _probe_step(self, efforts: list[float], meas: tuple[float, float], now_s: float,
+                    now_ns: int) -> bool:
+        """The running probe replaces its axis's effort; False when it aborted (a stop:
+        exact neutral, as any stop)."""
+        assert self.probe is not None
+        i = 0 if self.probe.axis == "longitudinal" else 1
+        u = self.probe.effort(meas[i], now_s)
+        if u is not None:
+            lo, hi = self._window
+            efforts[i] = min(max(u, lo), hi)
+        elif self.probe.is_(ProbeState.ABORTED):
+            self.stop(f"tuning probe aborted: {self.probe.reason}", now_ns)
+            self._active = False
+            self._restart(*meas)
+            return False
+        else:  # done: the loop takes over again, bumpless from the probe's bias
+            self._resume(i, meas[i], self.probe.bias)
+        return True
+
+    def _axis(self, i: int, r: float, y: float, dt: float) -> float:
+        """One loop: feed-forward (if modelled) plus the PID on the model's response to what
+        was sent; the PID's window is what the feed-forward leaves (anti-windup on the total)."""
+        pid, ff = (self.v_pid, self.omega_pid)[i], self._ff[i]
+        lo, hi = self._window
+        if ff is None:
+            return pid.update(r, y, dt)
+        u_ff = min(max(ff.effort(r, dt), lo), hi)
+        pid.out_min, pid.out_max = lo - u_ff, hi - u_ff
+        # The reference is the model's response to the feed-forward alone (advanced by the
+        # previous one, which is what acted over the last dt): the feedback's correction must
+        # not move its own reference, or it could never remove a steady error.
+        ref = ff.reference(self._sent[i], dt)
+        self._sent[i] = u_ff
+        # Derivative on the error here (the reference is the model's smooth output, so no
+        # kick): on the measurement it would brake the very motion the feed-forward makes.
+        return u_ff + pid.update(0.0, y - ref, dt)
+
+    def _resume(self, i: int, y: float, effort: float) -> None:
+        pid, ff = (self.v_pid, self.omega_pid)[i], self._ff[i]
+        if ff is not None:
+            ff.reset(y)
+            self._sent[i] = ff.model.effort_for(y)
+        pid.reset(y if ff is None else 0.0,
+                  effort - (0.0 if ff is None else ff.model.effort_for(y)))
+
+    def _restart(self, v_meas: float, omega_meas: float) -> None:
+        for i, y in enumerate((v_meas, omega_meas)):
+            ff = self._ff[i]
+            (self.v_pid, self.omega_pid)[i].reset(y if ff is None else 0.0)  # (see _axis)
+            if ff is not None:
+                ff.reset(y)
+                self._sent[i] = ff.model.effort_for(y)
+
+    # --- tuning probes (autochair tune) -------------------------------------------------------
+    def start_probe(self, probe: Probe, now_s: float) -> str:
+        """Run an open-loop probe on one axis around where the loop holds the chair now: ''
+        or why not. Only while obeying a command and driving (so every gate above still
+        applies: a stop of any kind aborts the probe), and only one at a time."""
+        why = probe.check()
+        if why:
+            return why
+        if self.probe is not None and self.probe.state is ProbeState.RUNNING:
+            return "a probe is already running"
+        if not (self.obeying and self._active):
+            return "not driving: hold the operating point with a command stream first"
+        i = 0 if probe.axis == "longitudinal" else 1
+        probe.start(self._held[i], self._last_effort[i], now_s)
+        self.probe = probe
+        return ""
+
+    def stop_probe(self) -> None:
+        if self.probe is not None:
+            self.probe.end(ProbeState.ABORTED, "stopped by request")
+
+    def _probe_text(self) -> str:
+        p = self.probe
+        return "" if p is None or p.state is not ProbeState.RUNNING else \
+            f"{p.kind.value} {p.axis}"
+
+
+Model = tuple[float, float, float, float, float]  # SOPDT: K, u_db, τ1 s, τ2 s, θ s
+Gains3 = tuple[Annotated[float, msgspec.Meta(ge=0)], Annotated[float, msgspec.Meta(ge=0)],
+               Annotated[float, msgspec.Meta(ge=0)]]
+
+
+class PidConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """[pid] section. Gains and models as `autochair tune` identified them on the simulated
+    stack (real processes: the dead time includes the Zenoh hops; SIMC on the SOPDT fit). ZN,
+    the thesis's table 5.1, is (0.90, 1.03, 0.20) / (0.72, 1.08, 0.12) with no model."""
+
+    # (Kp, Ki 1/s, Kd s)
+    v_gains: Gains3 = (0.513, 0.717, 0.092)
+    omega_gains: Gains3 = (0.409, 0.845, 0.049)
+    # Drive chain per axis (see autochair.tune.core.ChainModel); None = feedback only.
+    v_model: Model | None = (1.850, 0.051, 0.358, 0.358, 0.377)
+    omega_model: Model | None = (1.885, 0.048, 0.242, 0.242, 0.314)
+    prefilter_s: Annotated[float, msgspec.Meta(gt=0, le=2)] = 0.15
+    min_v: float = 1.1
+    max_v: float = 3.9
+    d_filter_n: float = 10.0
+    # Drive only within a fresh limit from the safety monitor (stale limit → stop). The process
+    # list sets it whenever the stack runs the monitor (processes.stack_values).
+    require_safety_limit: bool = True
+    # Drive only while the e-stop service says "released" (as the gateway does).
+    require_estop: bool = True
+    # Absolute caps whatever the source (CLI, teleop, autonomy); tools read them from health.
+    v_max_fwd_mps: Annotated[float, msgspec.Meta(gt=0, le=3)] = 1.2
+    v_max_rev_mps: Annotated[float, msgspec.Meta(gt=0, le=3)] = 0.5
+    omega_max_radps: Annotated[float, msgspec.Meta(gt=0, le=3)] = 1.0
+
+    def models(self) -> tuple[ChainModel | None, ChainModel | None]:
+        return tuple(None if m is None else ChainModel(*m)  # type: ignore[return-value]
+                     for m in (self.v_model, self.omega_model))
+
+
+def make_core(cfg: PidConfig, *, stale_s: float = 0.3, skew_s: float = 0.1,
+              limit_stale_s: float = 0.5, estop_stale_s: float = 0.5, odom_gap_s: float = 0.3,
+              start_ns: int = 0, require_estop: bool | None = None) -> VelocityPidCore:
+    """The core as the [pid] section (and the [stale] thresholds) configure it."""
+    for m in (cfg.v_model, cfg.omega_model):
+        if m is not None and not (m[0] > 0 and all(x >= 0 for x in m[1:])):
+            raise ValueError(f"[pid] model {m}: K must be > 0, the rest ≥ 0")
+    v_model, omega_model = cfg.models()
+    return VelocityPidCore(
+        v_gains=cfg.v_gains, omega_gains=cfg.omega_gains, min_v=cfg.min_v, max_v=cfg.max_v,
+        stale_s=stale_s, skew_s=skew_s, require_limit=cfg.require_safety_limit,
+        limit_stale_s=limit_stale_s,
+        require_estop=cfg.require_estop if require_estop is None else require_estop,
+        estop_stale_s=estop_stale_s, odom_gap_s=odom_gap_s,
+        caps=Caps(cfg.v_max_fwd_mps, cfg.v_max_rev_mps, cfg.omega_max_radps),
+        start_ns=start_ns, v_model=v_model, omega_model=omega_model,
+        prefilter_s=cfg.prefilter_s, d_filter_n=cfg.d_filter_n)
+
+
+def probe_reply(probe: Probe | None) -> dict[str, object]:
+    """The fields of a PidProbeReply for the probe (its trace once it has ended)."""
+    if probe is None:
+        return {"ok": True}
+    ended = probe.state is not ProbeState.RUNNING
+    tr = probe.trace if ended else []
+    return {"ok": True, "state": probe.state.value, "reason": probe.reason,
+            "setpoint": probe.setpoint, "bias": probe.bias, "t_s": [s[0] for s in tr],
+            "measured": [s[1] for s in tr], "effort": [s[2] for s in tr]}
 
 
 def effort_to_volts(c: float, min_v: float = 1.1, max_v: float = 3.9) -> float:

@@ -5,11 +5,14 @@ Format (docs/world-format.md): one shape per line, metres, `#` starts a comment:
     wall x1 y1 x2 y2      # a line segment
     box cx cy w h         # a solid axis-aligned rectangle (4 segments)
     circle cx cy r        # a solid disc (pillar, bin)
+    person x1 y1 x2 y2 speed [radius]   # walks the segment back and forth (0.25 m disc)
+
+`World.at(t)` is the world at time t (s) with each person as a disc where they are then.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -24,10 +27,37 @@ class WorldError(ValueError):
     """A world file that does not parse; the message names the line."""
 
 
+PERSON_RADIUS_M = 0.25
+
+
 @dataclass(frozen=True)
 class World:
     segments: F64  # (S, 4): x1 y1 x2 y2
     circles: F64  # (C, 3): cx cy r
+    people: F64 = field(default_factory=lambda: np.zeros((0, 6)))  # (K, 6): x1 y1 x2 y2 v r
+
+    def people_state(self, t: float) -> F64:
+        """(K, 5): x, y, vx, vy, radius of each person at time t (ping-pong on the segment)."""
+        out = np.zeros((len(self.people), 5))
+        for i, (x1, y1, x2, y2, speed, radius) in enumerate(self.people):
+            length = float(np.hypot(x2 - x1, y2 - y1))
+            if length <= 0 or speed <= 0:
+                out[i] = (x1, y1, 0.0, 0.0, radius)
+                continue
+            s = (speed * t) % (2 * length)
+            sign = 1.0 if s <= length else -1.0
+            f = (s if s <= length else 2 * length - s) / length
+            ux, uy = (x2 - x1) / length, (y2 - y1) / length
+            out[i] = (x1 + f * (x2 - x1), y1 + f * (y2 - y1), sign * speed * ux,
+                      sign * speed * uy, radius)
+        return out
+
+    def at(self, t: float) -> World:
+        """The static world with every person as a disc where they are at time t."""
+        if not len(self.people):
+            return self
+        p = self.people_state(t)
+        return World(self.segments, np.concatenate([self.circles, p[:, [0, 1, 4]]]))
 
     def distance_to(self, pts: F64) -> F64:
         """Distance of each (N, 2) point to the nearest shape boundary."""
@@ -48,15 +78,18 @@ class World:
 def parse_world(text: str, name: str = "<world>") -> World:
     segs: list[list[float]] = []
     circles: list[list[float]] = []
-    arity = {"wall": 4, "box": 4, "circle": 3}
+    people: list[list[float]] = []
+    arity = {"wall": 4, "box": 4, "circle": 3, "person": 5}
     for n, raw in enumerate(text.splitlines(), 1):
         words = raw.split("#", 1)[0].split()
         if not words:
             continue
         kind, args = words[0], words[1:]
         if kind not in arity:
-            raise WorldError(f"{name}:{n}: unknown shape {kind!r} (wall, box, circle)")
-        if len(args) != arity[kind]:
+            raise WorldError(f"{name}:{n}: unknown shape {kind!r} (wall, box, circle, person)")
+        if kind == "person" and len(args) == 6:
+            pass  # optional radius
+        elif len(args) != arity[kind]:
             raise WorldError(f"{name}:{n}: {kind} wants {arity[kind]} numbers, got {len(args)}")
         try:
             v = [float(a) for a in args]
@@ -64,7 +97,12 @@ def parse_world(text: str, name: str = "<world>") -> World:
             raise WorldError(f"{name}:{n}: not a number in {raw.strip()!r}") from None
         if not all(np.isfinite(v)):
             raise WorldError(f"{name}:{n}: non-finite number")
-        if kind == "wall":
+        if kind == "person":
+            if not (0.0 <= v[4] <= 3.0) or (len(v) == 6 and v[5] <= 0):
+                raise WorldError(f"{name}:{n}: person speed must be in [0, 3] m/s and "
+                                 "radius > 0")
+            people.append(v if len(v) == 6 else [*v, PERSON_RADIUS_M])
+        elif kind == "wall":
             segs.append(v)
         elif kind == "box":
             cx, cy, w, h = v
@@ -77,7 +115,8 @@ def parse_world(text: str, name: str = "<world>") -> World:
                 raise WorldError(f"{name}:{n}: circle radius must be > 0")
             circles.append(v)
     return World(np.array(segs, dtype=np.float64).reshape(-1, 4),
-                 np.array(circles, dtype=np.float64).reshape(-1, 3))
+                 np.array(circles, dtype=np.float64).reshape(-1, 3),
+                 np.array(people, dtype=np.float64).reshape(-1, 6))
 
 
 def load_world(path: str | Path = DEFAULT_WORLD) -> World:

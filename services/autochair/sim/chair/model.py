@@ -14,6 +14,13 @@ Public API (stable; the control-law evaluation runs it in lockstep with the pure
 - `effort(volts)`: joystick voltage to effort C = (V - 2.5)/1.5; `volts(effort)` the inverse.
 - `ziegler_nichols(model_factory, axis)`: the thesis's tuning experiment, run on the model.
 
+Drift (`drift=True`, off by default): the encoders count the rotation of encoder wheels whose
+diameters differ (`diameter_ratio`), the chair turns about a base longer than the nominal one
+(`base_ratio`), and the chair moves less over ground than its wheels roll: in turns (skid,
+growing with |omega|) and when accelerating (spin, growing with |a|), plus seeded noise. The
+true pose (x, y, yaw) follows the ground motion; the counts follow the wheels. Odometry with
+the nominal geometry thus drifts like a real chair's, while the ground truth stays true.
+
 Plant, per channel (longitudinal v, angular omega), in signal order:
   effort C -> saturation |C| <= 1 -> dead band (|C| < dead_band -> 0, rescaled beyond) ->
   full-stick speed K*C -> transport delay -> controller lag (per channel) -> wheel speed
@@ -70,6 +77,14 @@ class ChairParams:
     seed: int = 0
     wheel_noise_mps: float = 0.01  # std of white noise on each wheel's speed
     slip_std: float = 0.01  # std of the relative error of encoder travel per step
+    # Optional systematic odometry errors (UMBmark kind; seeded). The odometry's nominal
+    # geometry stays wheel_radius_m/base_m; the chair's true geometry differs from it:
+    drift: bool = False
+    diameter_ratio: float = 1.004  # E_d = D_right / D_left of the encoder wheels (mean nominal)
+    base_ratio: float = 1.02  # E_b = true effective base / base_m
+    slip_turn_per_radps: float = 0.015  # rotation lost to skid, per rad/s of yaw rate
+    slip_accel_per_mps2: float = 0.01  # travel lost to wheel spin, per m/s² of acceleration
+    slip_noise: float = 0.003  # std of the random part of both slips, per step
 
 
 def _lag(x: float, target: float, dt: float, tau: float) -> float:
@@ -130,7 +145,7 @@ class ChairModel:
         # Inertia in mode coordinates: translation (mean) and rotation (difference).
         v_target = 0.5 * (self._drive_l + self._drive_r)
         diff_target = self._drive_r - self._drive_l
-        v_new = _lag(self.v, v_target, dt, p.tau_translation_s)
+        v_new = _lag(0.5 * (self.v_left + self.v_right), v_target, dt, p.tau_translation_s)
         diff_new = _lag(self.v_right - self.v_left, diff_target, dt, p.tau_rotation_s)
         vl, vr = v_new - 0.5 * diff_new, v_new + 0.5 * diff_new
         if p.noise:
@@ -138,16 +153,29 @@ class ChairModel:
             vr += self._rng.gauss(0.0, p.wheel_noise_mps)
         self._integrate(vl, vr, dt)
 
+    def _slip(self, vl: float, vr: float, dt: float) -> tuple[float, float]:
+        """Ground travel / wheel travel and ground rotation / wheel rotation (nominal base)
+        for the new wheel speeds vl, vr: 1, 1 without drift."""
+        p = self.params
+        if not p.drift:
+            return 1.0, 1.0
+        accel = abs(0.5 * (vl + vr) - 0.5 * (self.v_left + self.v_right)) / dt
+        rate = abs(vr - vl) / (p.base_m * p.base_ratio)
+        s_turn = p.slip_turn_per_radps * rate + self._rng.gauss(0.0, p.slip_noise)
+        s_acc = p.slip_accel_per_mps2 * accel + self._rng.gauss(0.0, p.slip_noise)
+        return 1.0 - s_acc, (1.0 - s_turn) / p.base_ratio
+
     def _integrate(self, vl: float, vr: float, dt: float) -> None:
         p = self.params
         # Trapezoidal wheel travel over the step, then the exact arc for the pose.
         dl = 0.5 * (self.v_left + vl) * dt
         dr = 0.5 * (self.v_right + vr) * dt
+        k_d, k_psi = self._slip(vl, vr, dt)
         self.v_left, self.v_right = vl, vr
-        self.v = 0.5 * (vl + vr)
-        self.omega = (vr - vl) / p.base_m
-        d = 0.5 * (dl + dr)
-        dpsi = (dr - dl) / p.base_m
+        self.v = 0.5 * (vl + vr) * k_d
+        self.omega = (vr - vl) / p.base_m * k_psi
+        d = 0.5 * (dl + dr) * k_d
+        dpsi = (dr - dl) / p.base_m * k_psi
         yaw0 = self.yaw
         if abs(dpsi) < 1e-9:
             self.x += d * math.cos(yaw0)
@@ -162,9 +190,13 @@ class ChairModel:
             dr *= 1.0 + self._rng.gauss(0.0, p.slip_std)
         self._left_travel_m += dl
         self._right_travel_m += dr
-        per_m = p.counts_per_rev / (2.0 * math.pi * p.wheel_radius_m)
-        self.left_counts = math.floor(self._left_travel_m * per_m)
-        self.right_counts = math.floor(self._right_travel_m * per_m)
+        r_left = r_right = p.wheel_radius_m
+        if p.drift:  # encoder-wheel diameters differ, their mean is the nominal one
+            r_left, r_right = (2.0 * p.wheel_radius_m / (1.0 + p.diameter_ratio),
+                               2.0 * p.wheel_radius_m * p.diameter_ratio / (1.0 + p.diameter_ratio))
+        turns = p.counts_per_rev / (2.0 * math.pi)
+        self.left_counts = math.floor(self._left_travel_m / r_left * turns)
+        self.right_counts = math.floor(self._right_travel_m / r_right * turns)
 
 
 # --- Ziegler–Nichols experiment ---------------------------------------------------------------

@@ -34,6 +34,11 @@ class SimConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     truth_rate_hz: float = 100.0  # ground truth per simulated second
     seed: int = 0  # noise and garbage bytes
     noise: bool = False  # wheel-speed noise and encoder slip in the model
+    # Systematic odometry errors (model.ChairParams: wheel-diameter ratio, base error, slip in
+    # turns and accelerations); the ground truth stays true. Off: exact encoders.
+    drift: bool = False
+    diameter_ratio: float = 1.004
+    base_ratio: float = 1.02
 
 
 class PtyPort:
@@ -101,7 +106,9 @@ class Simulator:
     def __init__(self, node: Node, cfg: SimConfig) -> None:
         self.node, self.cfg = node, cfg
         self.dt = 1.0 / cfg.telemetry_rate_hz
-        self.model = ChairModel(ChairParams(noise=cfg.noise, seed=cfg.seed))
+        self.model = ChairModel(ChairParams(noise=cfg.noise, seed=cfg.seed, drift=cfg.drift,
+                                            diameter_ratio=cfg.diameter_ratio,
+                                            base_ratio=cfg.base_ratio))
         self.fw = Firmware()
         self.port = PtyPort(cfg.pty_link)
         self.t = 0.0

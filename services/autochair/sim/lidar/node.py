@@ -32,7 +32,7 @@ from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import GroundTruth, keys
 
-from ..world import DEFAULT_WORLD, WorldError, load_world
+from ..world import DEFAULT_WORLD, World, WorldError, load_world
 from .scanner import ERR_NO_RETURN, ScanFn, UrgDevice, UrgParams, ray_scan
 
 BLIND_SIGNAL = signal.SIGRTMIN  # test hook: toggles blinding
@@ -157,6 +157,60 @@ class TcpEndpoint(Endpoint):
             self.unplugged(stop)
 
 
+class LidarSim:
+    """The device's scan source: the world (people where they are now) seen from the chair's
+    true pose, or blinded."""
+
+    def __init__(self, node: Node, cfg: LidarSimConfig, world: World) -> None:
+        self.node, self.cfg, self.world = node, cfg, world
+        self.params = UrgParams(scan_rate_hz=cfg.scan_rate_hz)
+        self.pose = (0.0, 0.0, 0.0)
+        self.mount = node.chair.laser_mount
+        self.rng = np.random.default_rng(cfg.seed)
+        self.lock = threading.Lock()  # the generator is shared by the pty and TCP threads
+        self.blind = threading.Event()
+        if cfg.blinded:
+            self.blind.set()
+        self.was_blind = False
+        self.t0 = time.monotonic()  # people walk from the start of this process
+        self.endpoints: list[Endpoint] = []
+
+    def on_truth(self, msg: GroundTruth) -> None:
+        self.pose = (msg.x_m, msg.y_m, msg.yaw_rad)
+
+    def scan_fn(self, _now_s: float) -> npt.NDArray[np.int64]:
+        world = self.world.at(time.monotonic() - self.t0)
+        with self.lock:
+            raw = ray_scan(world, self.params, self.pose, self.mount, self.cfg.noise_std_m,
+                           self.rng)
+        blinded = self.blind.is_set()
+        if blinded != self.was_blind:  # logged here, not in the signal handler
+            self.was_blind = blinded
+            self.node.event("warning" if blinded else "info",
+                            "lidar-sim: blinded (every beam an error code)" if blinded
+                            else "lidar-sim: no longer blinded")
+        if blinded:
+            self.node.health.count("blinded_scans")
+            return np.full_like(raw, ERR_NO_RETURN)
+        return raw
+
+    def on_usr1(self, _signum: int, _frame: object) -> None:
+        for ep in self.endpoints:
+            ep.unplug.set()
+
+    def on_blind(self, _signum: int, _frame: object) -> None:
+        if self.blind.is_set():
+            self.blind.clear()
+        else:
+            self.blind.set()
+        self.node.health.detail = self.detail()
+
+    def detail(self) -> str:
+        people = f", {len(self.world.people)} walking" if len(self.world.people) else ""
+        return (f"world {self.cfg.world or DEFAULT_WORLD.name}{people}, "
+                f"{self.cfg.scan_rate_hz} scans/s"
+                + (", BLINDED (test hook)" if self.blind.is_set() else ""))
+
 
 def start(node: Node, cfg: LidarSimConfig) -> None:
     if not cfg.pty_link and cfg.tcp_port < 0:
@@ -167,60 +221,17 @@ def start(node: Node, cfg: LidarSimConfig) -> None:
         world = load_world(cfg.world or DEFAULT_WORLD)
     except WorldError as e:
         raise ConfigError(str(e)) from None
-    params = UrgParams(scan_rate_hz=cfg.scan_rate_hz)
-    pose: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)]
-    mount = node.chair.laser_mount
-    rng = np.random.default_rng(cfg.seed)
-    lock = threading.Lock()  # the generator is shared by the pty and TCP threads
-    blind = threading.Event()
-    if cfg.blinded:
-        blind.set()
-    was_blind = [False]
-
-    def on_truth(msg: GroundTruth) -> None:
-        pose[0] = (msg.x_m, msg.y_m, msg.yaw_rad)
-
-    def scan_fn(_now_s: float) -> npt.NDArray[np.int64]:
-        with lock:
-            raw = ray_scan(world, params, pose[0], mount, cfg.noise_std_m, rng)
-        blinded = blind.is_set()
-        if blinded != was_blind[0]:  # logged here, not in the signal handler
-            was_blind[0] = blinded
-            node.event("warning" if blinded else "info",
-                       "lidar-sim: blinded (every beam an error code)" if blinded
-                       else "lidar-sim: no longer blinded")
-        if blinded:
-            node.health.count("blinded_scans")
-            return np.full_like(raw, ERR_NO_RETURN)
-        return raw
-
-    node.subscribe(keys.SIM_TRUTH, on_truth)
-    endpoints: list[Endpoint] = []
+    sim = LidarSim(node, cfg, world)
+    node.subscribe(keys.SIM_TRUTH, sim.on_truth)
     if cfg.pty_link:
-        endpoints.append(PtyEndpoint(node, cfg, params, scan_fn))
+        sim.endpoints.append(PtyEndpoint(node, cfg, sim.params, sim.scan_fn))
     if cfg.tcp_port >= 0:
-        endpoints.append(TcpEndpoint(node, cfg, params, scan_fn))
-    for i, ep in enumerate(endpoints):
+        sim.endpoints.append(TcpEndpoint(node, cfg, sim.params, sim.scan_fn))
+    for i, ep in enumerate(sim.endpoints):
         node.thread(ep.run, f"endpoint{i}")
-
-    def on_usr1(_signum: int, _frame: object) -> None:
-        for ep in endpoints:
-            ep.unplug.set()
-
-    def on_blind(_signum: int, _frame: object) -> None:
-        if blind.is_set():
-            blind.clear()
-        else:
-            blind.set()
-        node.health.detail = detail()
-
-    def detail() -> str:
-        return (f"world {cfg.world or DEFAULT_WORLD.name}, {cfg.scan_rate_hz} scans/s"
-                + (", BLINDED (test hook)" if blind.is_set() else ""))
-
-    signal.signal(signal.SIGUSR1, on_usr1)
-    signal.signal(BLIND_SIGNAL, on_blind)
-    node.health.detail = detail()
+    signal.signal(signal.SIGUSR1, sim.on_usr1)
+    signal.signal(BLIND_SIGNAL, sim.on_blind)
+    node.health.detail = sim.detail()
 
 
 def main(argv: list[str] | None = None) -> int:

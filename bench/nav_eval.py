@@ -1,0 +1,345 @@
+"""Navigation evaluation: MPEPC + the graceful law through the simulator's worlds, in process and
+in lockstep (deterministic, faster than real time).
+
+Loop at the encoder rate (200 Hz), as bench/control_eval.py: ChairModel (sim/chair/model.py) →
+encoder counts → OdometryCore → ControlCore (50 Hz; MPEPC at its plan rate, timed) → the
+velocity PID as [pid] configures it → joystick volts → ChairModel. The navigation field is the
+world rasterised at 0.05 m (what a perfect map would hold); people are given to the planner from
+the world's ground truth (a perfect tracker: the stack has none yet). Metrics come from the
+simulator's ground truth: footprint clearance against the exact world (people included) every
+0.05 s, collisions (any contact), the true final pose error, time and path length against the
+shortest feasible path (fast marching on the same grid at uniform speed, driven at the comfort
+limits: a trapezoid at vmax 1.2 m/s, 1.0 m/s²), comfort peaks from the odometry (as
+control_eval), and the wall time of each planning cycle. Goals that cannot be reached must be
+refused (< 1 s).
+
+    .venv/bin/python -m bench.nav_eval [--quick] [--only SUBSTRING]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+import msgspec
+import numpy as np
+
+from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
+from autochair.geometry import wrap_angle as wrap
+from autochair.nav.field import Footprint, GridMap, NavField, place
+from autochair.nav.mpepc import Person
+from autochair.nav.planner import compute
+from autochair.odometry.core import OdometryCore
+from autochair.pid.core import Command, PidConfig, make_core
+from autochair.sim.chair.model import ChairModel
+from autochair.sim.world import DEFAULT_WORLD, World, load_world
+from bench.control_eval import deriv, smooth, trapezoid_time
+
+DT = 0.005
+SETTLE_S = 1.5
+TIMEOUT_S = 90.0
+TRUTH_EVERY = 10  # ground-truth clearance every 10 steps (0.05 s)
+WORLDS = DEFAULT_WORLD.parent
+RESULTS = Path(__file__).parent / "results" / "nav_eval.json"
+D = math.radians
+
+Pose = tuple[float, float, float]
+# (name, world file, start, goal, doorway: the clearance goal is 0.05 m instead of 0.2 m)
+CASES: list[tuple[str, str, Pose, Pose, bool]] = [
+    ("hallway: into office A", "hallway", (0, 0, 0), (4.5, 3.0, D(90)), True),
+    ("hallway: office A, far corner", "hallway", (0, 0, 0), (5.5, 3.5, D(180)), True),
+    ("hallway: into office B", "hallway", (0, 0, 0), (12.4, 2.5, D(90)), True),
+    ("hallway: office B, at the desk", "hallway", (0, 0, 0), (12.0, 2.6, 0), True),
+    ("hallway: into the store room", "hallway", (0, 0, 0), (8.5, -2.3, D(-90)), True),
+    ("hallway: around the pillar", "hallway", (0, 0, 0), (20.8, -0.8, 0), False),
+    ("hallway: to the dead end", "hallway", (0, 0, 0), (20.9, 0.5, 0), False),
+    ("hallway: past the bench", "hallway", (0, 0, 0), (19.5, 0.4, 0), False),
+    ("hallway: recessed door", "hallway", (0, 0, 0), (16.5, -0.5, 0), False),
+    ("hallway: 6 m past the bin", "hallway", (0, 0, 0), (6.0, 0.3, 0), False),
+    ("hallway: turn around", "hallway", (0, 0, 0), (0.0, 0.0, D(180)), False),
+    ("hallway: README example 3 0 90", "hallway", (0, 0, 0), (3.0, 0.0, D(90)), False),
+    ("hallway: back to the start", "hallway", (10, 0, 0), (1.0, 0.0, D(180)), False),
+    ("hallway: office A to office B", "hallway", (4.5, 3.0, D(-90)), (12.4, 2.5, D(90)), True),
+    ("hallway: store room to dead end", "hallway", (8.5, -2.3, D(90)), (20.9, 0.5, 0), True),
+    ("L: past the cabinet", "l_corridor", (0, 0, 0), (6.0, 0.0, 0), False),
+    ("L: into the corner", "l_corridor", (0, 0, 0), (8.0, 0.0, D(90)), False),
+    ("L: round the corner", "l_corridor", (0, 0, 0), (8.0, 4.0, D(90)), False),
+    ("L: to the end", "l_corridor", (0, 0, 0), (8.0, 7.5, D(90)), False),
+    ("L: back from the end", "l_corridor", (8.0, 7.5, D(-90)), (0.5, 0.0, D(180)), False),
+    ("door: through to room B", "doorway", (0, 0, 0), (6.5, 0.0, 0), True),
+    ("door: room B corner", "doorway", (0, 0, 0), (7.5, 1.0, 0), True),
+    ("door: back to room A", "doorway", (6.5, 0.0, D(180)), (1.0, 0.0, D(180)), True),
+    ("door: into room B facing down", "doorway", (0.5, -1.0, D(90)), (6.0, -0.8, D(-90)),
+     True),
+    ("clutter: far side", "cluttered", (0, 0, 0), (5.8, 0.0, 0), False),
+    ("clutter: behind the cabinet", "cluttered", (0, 0, 0), (5.9, 2.0, 0), False),
+    ("clutter: past the plant", "cluttered", (0, 0, 0), (3.0, -2.2, 0), False),
+    ("clutter: behind the table", "cluttered", (0, 0, 0), (1.0, 2.0, D(180)), False),
+    ("clutter: far corner", "cluttered", (0, 0, 0), (5.9, -2.3, 0), False),
+    ("person: down the corridor", "crossing", (0, 0, 0), (10.0, 0.0, 0), False),
+    ("person: back", "crossing", (10.0, 0.0, D(180)), (0.5, 0.0, D(180)), False),
+    ("person: to the side", "crossing", (0, 0, 0), (8.0, 0.8, 0), False),
+    ("person: passing head-on", "passing", (0, 0, 0), (11.0, 0.5, 0), False),
+    ("person: overtaken, then met", "passing", (2.0, 0.6, 0), (6.0, 0.6, 0), False),
+]
+# Goals that must be refused at once: (name, world, start, goal).
+REFUSED: list[tuple[str, str, Pose, Pose]] = [
+    ("README's old example (front in the wall)", "hallway", (0, 0, 0), (3.0, 1.0, D(90))),
+    ("inside the pillar", "hallway", (0, 0, 0), (20.0, -0.6, 0)),
+    ("outside the building", "hallway", (0, 0, 0), (10.0, 5.0, 0)),
+    ("behind the L's walls", "l_corridor", (0, 0, 0), (3.0, 5.0, 0)),
+    ("beside the bench, too close", "hallway", (0, 0, 0), (18.5, 0.6, 0)),
+    ("5 cm from office B's desk (tolerance 5 cm)", "hallway", (0, 0, 0), (12.5, 2.6, D(90))),
+]
+
+
+def build(world_name: str, fp: Footprint) -> tuple[World, NavField]:
+    world = load_world(WORLDS / f"{world_name}.world")
+    gm = GridMap.from_shapes(world.segments, world.circles, frame_id="map")
+    return world, NavField(gm, fp)
+
+
+def shortest_path_m(fld: NavField, start: Pose, goal: Pose) -> float:
+    """Length of the shortest path the axle can take (uniform speed, the same pass bound)."""
+    uniform = NavField(fld.map, fld.footprint, slow_factor=1.0)
+    ctg = uniform.cost_to_go(goal[0], goal[1])
+    return math.inf if ctg is None else uniform.start_cost(ctg, start[0], start[1])
+
+
+def truth_clearance(world: World, fp: Footprint, outline: Any, x: float, y: float, yaw: float,
+                    t: float) -> float:
+    pts = place(outline, x, y, yaw)
+    w = world.at(t)
+    d = float(w.distance_to(pts).min())
+    inside = w.circles.size and bool(
+        (np.hypot(*(w.circles[:, None, :2] - pts[None]).transpose(2, 0, 1))
+         < w.circles[:, None, 2]).any())
+    return -1.0 if inside else d
+
+
+def people_at(world: World, t: float) -> list[Person]:
+    return [Person(float(x), float(y), float(vx), float(vy), float(r))
+            for x, y, vx, vy, r in world.people_state(t)]
+
+
+def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig,
+             fp: Footprint) -> dict[str, Any]:
+    from autochair_msgs import GoalRequest, Pose2D
+
+    model = ChairModel()
+    model.x, model.y, model.yaw = start
+    odom = OdometryCore()
+    odom.reset(*start)
+    # The PID as the node configures it ([pid] defaults), without e-stop or safety monitor.
+    pid = make_core(msgspec.structs.replace(PidConfig(), require_safety_limit=False,
+                                            require_estop=False))
+    core = ControlCore(cfg, footprint=fp)
+    core.inline_planning = False  # planned here, so each cycle can be timed
+    core.on_field(fld)
+    outline = fp.outline(0.02)
+    ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
+    volts = (2.5, 2.5)
+    rows: list[tuple[float, ...]] = []
+    plan_ms: list[float] = []
+    clear: list[float] = []
+    speeds: list[float] = []  # true |v| at each clearance sample
+    states: set[str] = set()
+    t_end: float | None = None
+    k = 0
+    while True:
+        t = k * DT
+        model.step(volts[0], volts[1], DT)
+        st = odom.update(model.left_counts, model.right_counts, round(model.t * 1e6))
+        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
+        if k == 0:
+            reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t)
+            if not reply.ok:
+                return {"state": "refused", "reason": reply.error, "arrived": False}
+        if k % ctrl_every == 0:
+            core.people = people_at(world, t)
+            req = core.plan_request(t)
+            if req is not None:
+                t0 = time.perf_counter()
+                res = compute(req)
+                plan_ms.append((time.perf_counter() - t0) * 1e3)
+                core.on_plan(res, t)
+            states.add(core.state)
+            out = core.step(t)
+            if out is not None:
+                now_ns = round(t * 1e9)
+                pid.set_desired(Command(out[0], out[1], "autonomy", now_ns, 1), t, now_ns)
+        p = pid.update(st.v, st.omega, DT, t, round(t * 1e9))
+        volts = (p.longitudinal_v, p.angular_v)
+        rows.append((t, st.x, st.y, st.yaw, st.v, st.omega, st.distance,
+                     model.x, model.y, model.yaw))
+        if k % TRUTH_EVERY == 0:
+            clear.append(truth_clearance(world, fp, outline, model.x, model.y, model.yaw, t))
+            speeds.append(abs(model.v))
+        if t_end is None and not core.active:
+            t_end = t
+        if (t_end is not None and t - t_end >= SETTLE_S) or t >= TIMEOUT_S:
+            break
+        k += 1
+    result = metrics(rows, clear, plan_ms, core, start, goal, t_end, fld, states)
+    cl, sp = np.array(clear), np.array(speeds)
+    starts = (cl <= 0.0) & np.concatenate([[True], cl[:-1] > 0.0])
+    result["collisions_moving"] = int(np.sum(starts & (sp > 0.05)))  # the chair was driving
+    return result
+
+
+def metrics(rows: list[tuple[float, ...]], clear: list[float], plan_ms: list[float],
+            core: ControlCore, start: Pose, goal: Pose, t_end: float | None, fld: NavField,
+            states: set[str]) -> dict[str, Any]:
+    cfg = core.cfg
+    a = np.array(rows)
+    n, h = round(0.1 / DT), round(0.05 / DT)
+    v, w = smooth(a[:, 4], n), smooth(a[:, 5], n)
+    acc = deriv(v, h)
+    jerk = deriv(smooth(acc, n), h)
+    wdot = deriv(w, h)
+    i_end = len(a) - 1 if t_end is None else round(t_end / DT)
+    true_path = float(np.hypot(np.diff(a[:i_end + 1, 7]), np.diff(a[:i_end + 1, 8])).sum())
+    shortest = shortest_path_m(fld, start, goal)
+    turn = abs(wrap(goal[2] - start[2]))
+    bound = max(trapezoid_time(shortest, cfg.vmax_mps, cfg.a_max_mps2),
+                trapezoid_time(turn, cfg.omega_max_radps, cfg.omega_acc_max_radps2))
+    t_goal = t_end if t_end is not None else TIMEOUT_S
+    end = a[-1]
+    cl = np.array(clear)
+    return {
+        "state": core.state, "reason": core.reason, "arrived": core.state == ARRIVED,
+        "states_seen": sorted(states),
+        "time_s": round(t_goal, 2), "bound_s": round(bound, 2),
+        "time_ratio": round(t_goal / bound, 2) if bound > 0 else None,
+        "path_m": round(true_path, 2), "shortest_m": round(shortest, 2),
+        "path_ratio": round(true_path / shortest, 2) if shortest > 0.05 else None,
+        "true_pos_error_m": round(math.hypot(goal[0] - end[7], goal[1] - end[8]), 4),
+        "true_yaw_error_deg": round(math.degrees(abs(wrap(goal[2] - end[9]))), 2),
+        "min_clearance_m": round(float(cl.min()), 3),
+        "collisions": int(np.sum((cl[1:] <= 0.0) & (cl[:-1] > 0.0)) + int(cl[0] <= 0.0)),
+        "peak_a_mps2": round(float(np.max(np.abs(acc))), 3),
+        "peak_jerk_mps3": round(float(np.max(np.abs(jerk))), 3),
+        "peak_omega_dot_radps2": round(float(np.max(np.abs(wdot))), 3),
+        "plan_cycles": len(plan_ms),
+        "plan_ms_median": round(statistics.median(plan_ms), 1) if plan_ms else None,
+        "plan_ms_max": round(max(plan_ms), 1) if plan_ms else None,
+        "plan_ms": plan_ms,
+    }
+
+
+def refusal(world_name: str, start: Pose, goal: Pose, cfg: ControlConfig,
+            fp: Footprint) -> dict[str, Any]:
+    from autochair_msgs import GoalRequest, Pose2D
+
+    _, fld = build(world_name, fp)
+    core = ControlCore(cfg, footprint=fp)
+    core.on_field(fld)
+    core.on_odom(OdomSample(*start, 0.0, 0.0, 0.0))
+    t0 = time.perf_counter()
+    reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0)
+    return {"refused": not reply.ok, "reason": reply.error,
+            "seconds": round(time.perf_counter() - t0, 4)}
+
+
+def summarise(runs: list[dict[str, Any]], refused: list[dict[str, Any]], wall: float
+              ) -> dict[str, Any]:
+    ok = [r for r in runs if r.get("time_s") is not None]
+    door = [r for r in ok if r["doorway"]]
+    other = [r for r in ok if not r["doorway"]]
+    cycles = [ms for r in ok for ms in r["plan_ms"]]
+    sim_s = sum(r["time_s"] + SETTLE_S for r in ok)
+    return {
+        "cases": len(runs), "arrived": sum(r["arrived"] for r in runs),
+        "within_5cm_3deg": sum(r["arrived"] and r["true_pos_error_m"] <= 0.05
+                               and r["true_yaw_error_deg"] <= 3.0 for r in ok),
+        "collisions": sum(r["collisions"] for r in ok),
+        "collisions_chair_moving": sum(r["collisions_moving"] for r in ok),
+        "min_clearance_doorway_m": min((r["min_clearance_m"] for r in door), default=None),
+        "min_clearance_elsewhere_m": min((r["min_clearance_m"] for r in other), default=None),
+        "cases_clearance_below_goal": sum(r["min_clearance_m"] < (0.05 if r["doorway"] else 0.2)
+                                          for r in ok),
+        "median_time_ratio": statistics.median(r["time_ratio"] for r in ok if r["arrived"])
+        if any(r["arrived"] for r in ok) else None,
+        "cases_time_ratio_over_1_5": sum(r["arrived"] and r["time_ratio"] > 1.5 for r in ok),
+        "median_path_ratio": statistics.median(r["path_ratio"] for r in ok
+                                               if r["arrived"] and r["path_ratio"]),
+        "max_peak_a_mps2": max(r["peak_a_mps2"] for r in ok),
+        "max_peak_jerk_mps3": max(r["peak_jerk_mps3"] for r in ok),
+        "max_peak_omega_dot_radps2": max(r["peak_omega_dot_radps2"] for r in ok),
+        "plan_cycles": len(cycles),
+        "plan_ms_median": round(statistics.median(cycles), 1),
+        "plan_ms_p95": round(float(np.percentile(cycles, 95)), 1),
+        "plan_ms_max": round(max(cycles), 1),
+        "refused_correctly": sum(r["refused"] for r in refused), "refusals": len(refused),
+        "refusal_s_max": max(r["seconds"] for r in refused),
+        "sim_time_s": round(sim_s, 1), "wall_time_s": round(wall, 1),
+        "speedup_vs_real_time": round(sim_s / wall, 2),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="one case per world")
+    ap.add_argument("--only", default="", help="cases whose name contains this")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a [control] setting")
+    args = ap.parse_args(argv)
+    from autochair.runtime.config import ChairGeometry, load_section
+
+    cfg = load_section(ControlConfig, "control", None, args.set)
+    chair = ChairGeometry()
+    fp = Footprint(chair.front_m, chair.rear_m, chair.half_width_m)
+    cases = [c for c in CASES if args.only in c[0]]
+    if args.quick:
+        seen: set[str] = set()
+        cases = [c for c in cases if not (c[1] in seen or seen.add(c[1]))]  # type: ignore[func-returns-value]
+    fields: dict[str, tuple[World, NavField]] = {}
+    runs: list[dict[str, Any]] = []
+    t0 = time.perf_counter()
+    for name, wname, start, goal, doorway in cases:
+        if wname not in fields:
+            fields[wname] = build(wname, fp)
+        world, fld = fields[wname]
+        r = run_case(world, fld, start, goal, cfg, fp)
+        r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
+        runs.append(r)
+        if r["state"] == "refused":
+            print(f"{name:34s} REFUSED {r['reason']}", flush=True)
+            continue
+        print(f"{name:34s} {r['state']:8s} t={r['time_s']:6.2f}s x{r['time_ratio']:<5} "
+              f"path x{r['path_ratio']} err={r['true_pos_error_m'] * 100:4.1f}cm/"
+              f"{r['true_yaw_error_deg']:4.1f}° clr={r['min_clearance_m']:.3f} "
+              f"hits={r['collisions']}/{r['collisions_moving']} a={r['peak_a_mps2']:.2f} "
+              f"j={r['peak_jerk_mps3']:.2f} "
+              f"ω̇={r['peak_omega_dot_radps2']:.2f} plan={r['plan_ms_median']}ms "
+              f"{r['reason']}", flush=True)
+    wall = time.perf_counter() - t0
+    refused = []
+    for name, wname, start, goal in ([] if args.only or args.quick else REFUSED):
+        rr = refusal(wname, start, goal, cfg, fp)
+        rr.update(name=name, world=wname, start=start, goal=goal)
+        refused.append(rr)
+        print(f"refuse {name:40s} {rr['refused']} {rr['seconds'] * 1e3:.0f} ms: {rr['reason']}")
+    ok_runs = [r for r in runs if r["state"] != "refused"]
+    summary = summarise(ok_runs, refused or [{"refused": True, "seconds": 0.0}], wall) \
+        if ok_runs else {}
+    summary["refused_reachable"] = len(runs) - len(ok_runs)
+    print(json.dumps(summary, indent=1))
+    if not (args.only or args.quick):
+        RESULTS.parent.mkdir(parents=True, exist_ok=True)
+        for r in runs:
+            r.pop("plan_ms", None)
+        RESULTS.write_text(json.dumps({"config": {f: getattr(cfg, f)
+                                                  for f in cfg.__struct_fields__},
+                                       "summary": summary, "runs": runs,
+                                       "refusals": refused}, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""Localization: scan matching on a map fused with odometry; mapping with loop closure."""

@@ -1,0 +1,186 @@
+"""Localization core, pure: odometry-predicted, scan-matched pose of the chair on a known map.
+
+A 3-state Kalman filter in the map frame. Prediction: the odometry increment since the last
+scan (`odom` is the odometry pose, odom frame), with noise growing with distance and turn.
+Update: the scan refined on the map's distance field (matching.refine) from the prediction,
+with the match's information matrix as measurement noise, so a corridor's weak axis is left to
+odometry. Quality is the fraction of scan points that fall on the map.
+
+States (LocState): INITIALIZING (no pose yet: global search over the map's free space),
+TRACKING, LOST (quality below `lost_quality` for `lost_after` scans: search around the last
+pose in a window that widens every scan until the scan fits again).
+
+`correction` is the map→odom transform (REP-105): map pose ∘ odom pose⁻¹.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .matching import (
+    F64,
+    BoolGrid,
+    DistanceField,
+    between,
+    compose,
+    inverse,
+    refine,
+    search,
+    search_wide,
+)
+
+
+class LocState(enum.StrEnum):
+    INITIALIZING = "initializing"
+    TRACKING = "tracking"
+    LOST = "lost"
+
+
+@dataclass(frozen=True)
+class LocParams:
+    trans_noise: float = 0.05  # odometry σ per metre travelled (m/m)
+    rot_noise: float = 0.05  # odometry yaw σ per radian turned (rad/rad)
+    rot_per_m: float = 0.02  # odometry yaw σ per metre travelled (rad/m)
+    base_sigma_m: float = 0.005  # floor on prediction noise per scan
+    lost_quality: float = 0.45  # a scan fitting worse than this is a bad scan
+    found_quality: float = 0.85  # a search result must fit this well to be taken (0.7 let
+    # a 5 m-wrong pose in the hallway through: a corridor looks much the same along it)
+    lost_after: int = 3  # consecutive bad scans: lost
+    search_xy_m: float = 0.8  # first window half-size when lost (grows ×1.5 per scan)
+    search_yaw: float = math.radians(30.0)  # first yaw window half-size when lost (grows too)
+    max_search_xy_m: float = 8.0
+    max_points: int = 200  # scan points used in matching (evenly subsampled)
+    gate: float = 25.0  # χ² (3 dof) beyond which a match is not fused, unless it fits well
+
+
+@dataclass(frozen=True)
+class Estimate:
+    pose: F64  # chair in map (x, y, yaw)
+    covariance: F64  # (3, 3)
+    correction: F64  # map → odom (x, y, yaw)
+    quality: float  # fraction of scan points on the map, 0..1
+    state: LocState
+
+
+def chair_cells(occupied: BoolGrid, free: BoolGrid, resolution_m: float) -> BoolGrid:
+    """Where the chair's centre may be on a map: ≥ 0.3 m from walls, ≤ 1.2 m from seen free
+    space (the centre is behind the laser, often outside its view, so not itself seen)."""
+    from scipy import ndimage
+
+    clear, reach = max(1, int(0.3 / resolution_m)), max(1, int(1.2 / resolution_m))
+    return np.asarray(ndimage.binary_dilation(free, iterations=reach)
+                      & ~ndimage.binary_dilation(occupied, iterations=clear), dtype=np.bool_)
+
+
+class Localizer:
+    def __init__(self, field: DistanceField, free: BoolGrid | None = None,
+                 params: LocParams | None = None) -> None:
+        self.field, self.free = field, free
+        self.p = params or LocParams()
+        self.state = LocState.INITIALIZING
+        self.pose = np.zeros(3)
+        self.cov = np.eye(3)
+        self.quality = 0.0
+        self._last_odom: F64 | None = None
+        self._bad = 0
+        self._window = self.p.search_xy_m
+        self.scans = 0
+        self.searches = 0
+
+    def set_pose(self, pose: F64, sigma_xy_m: float = 0.1, sigma_yaw: float = 0.1) -> None:
+        """An initial pose (`autochair localize`): tracking from it."""
+        self.pose = np.array(pose, dtype=np.float64)
+        self.cov = np.diag([sigma_xy_m**2, sigma_xy_m**2, sigma_yaw**2])
+        self.state, self._bad = LocState.TRACKING, 0
+
+    def _predict(self, odom: F64) -> None:
+        if self._last_odom is None:
+            self._last_odom = odom
+            return
+        delta = between(self._last_odom, odom)
+        self._last_odom = odom
+        c, s = math.cos(self.pose[2]), math.sin(self.pose[2])
+        f = np.array([[1.0, 0.0, -s * delta[0] - c * delta[1]],
+                      [0.0, 1.0, c * delta[0] - s * delta[1]], [0.0, 0.0, 1.0]])
+        dist, turn = math.hypot(delta[0], delta[1]), abs(delta[2])
+        q_xy = (self.p.base_sigma_m + self.p.trans_noise * dist) ** 2
+        q_yaw = (0.002 + self.p.rot_noise * turn + self.p.rot_per_m * dist) ** 2
+        self.pose = compose(self.pose, delta)
+        self.cov = f @ self.cov @ f.T + np.diag([q_xy, q_xy, q_yaw])
+
+    def _fuse(self, z: F64, info: F64) -> None:
+        r = np.linalg.inv(info + np.eye(3) * 1e-6)
+        innov = z - self.pose
+        innov[2] = math.atan2(math.sin(innov[2]), math.cos(innov[2]))
+        s = self.cov + r
+        k = self.cov @ np.linalg.inv(s)
+        self.pose = self.pose + k @ innov
+        self.pose[2] = math.atan2(math.sin(self.pose[2]), math.cos(self.pose[2]))
+        self.cov = (np.eye(3) - k) @ self.cov
+        self.cov = 0.5 * (self.cov + self.cov.T)
+
+    def _subsample(self, pts: F64) -> F64:
+        if len(pts) <= self.p.max_points:
+            return pts
+        return pts[np.linspace(0, len(pts) - 1, self.p.max_points).astype(np.int64)]
+
+    def _search(self, pts: F64) -> bool:
+        """Global (INITIALIZING) or windowed (LOST) search; True when the scan fits again."""
+        self.searches += 1
+        if self.state is LocState.INITIALIZING:
+            f = self.field.frame
+            centre = np.array([f.origin_x_m + self.field.w * self.field.res / 2,
+                               f.origin_y_m + self.field.h * self.field.res / 2, 0.0])
+            half = max(self.field.w, self.field.h) * self.field.res / 2
+            cand, _ = search(self.field, pts, centre, half_xy_m=half, half_yaw=math.pi,
+                             step_xy_m=0.2, step_yaw=math.radians(5), free=self.free,
+                             max_points=40)
+        else:
+            grow = self._window / self.p.search_xy_m
+            cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=self._window,
+                                  half_yaw=min(self.p.search_yaw * grow, math.pi),
+                                  free=self.free)
+            self._window = min(self._window * 1.5, self.p.max_search_xy_m)
+        m = refine(self.field, pts, cand)
+        if m.inliers < self.p.found_quality:
+            return False
+        self.pose, self.quality = m.pose, m.inliers
+        self.cov = np.asarray(np.linalg.inv(m.information + np.eye(3) * 1e-6),
+                              dtype=np.float64) + np.diag([1e-4, 1e-4, 1e-4])
+        self.state, self._bad, self._window = LocState.TRACKING, 0, self.p.search_xy_m
+        return True
+
+    def update(self, odom: F64, pts: F64) -> Estimate:
+        """One scan: `odom` the odometry pose at the scan's stamp, `pts` the scan's end points
+        in the chair frame."""
+        self.scans += 1
+        self._predict(np.asarray(odom, dtype=np.float64))
+        pts = self._subsample(pts)
+        if self.state is not LocState.TRACKING:
+            self._search(pts)
+            return self.estimate()
+        m = refine(self.field, pts, self.pose)
+        self.quality = m.inliers
+        if m.inliers < self.p.lost_quality:
+            self._bad += 1
+            if self._bad >= self.p.lost_after:
+                self.state = LocState.LOST
+            return self.estimate()
+        self._bad = 0
+        innov = m.pose - self.pose
+        innov[2] = math.atan2(math.sin(innov[2]), math.cos(innov[2]))
+        chi2 = float(innov @ np.linalg.solve(self.cov + np.linalg.inv(
+            m.information + np.eye(3) * 1e-6), innov))
+        if chi2 > self.p.gate and m.inliers < self.p.found_quality:
+            return self.estimate()  # a poor fit far from the prediction: not fused
+        self._fuse(m.pose, m.information)
+        return self.estimate()
+
+    def estimate(self) -> Estimate:
+        odom = self._last_odom if self._last_odom is not None else np.zeros(3)
+        return Estimate(self.pose.copy(), self.cov.copy(), compose(self.pose, inverse(odom)),
+                        self.quality, self.state)

@@ -1,0 +1,312 @@
+"""Mapping mode, pure: keyframe SLAM with loop closure.
+
+Each scan is predicted by odometry and refined against a local submap (the distance field of
+the last `submap_keyframes` keyframes). Every `keyframe_m` / `keyframe_rad` of motion the scan
+becomes a keyframe: a node of the pose graph, tied to the previous one by the tracked relative
+pose. A new keyframe is also matched against older keyframes near it (that the chair left at
+least `loop_min_travel_m` of travel ago): a brute-force search then refinement on their
+submap; a good fit adds a loop edge and the graph is re-optimised, which moves every keyframe
+and so the map. The occupancy grid is rendered from the keyframes' scans at their optimised
+poses (`render`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from autochair.mapping.core import GridSpec, OccupancyMapper
+
+from .core import Estimate, Localizer, LocParams, LocState
+from .graph import PoseGraph
+from .matching import (
+    F64,
+    DistanceField,
+    GridFrame,
+    between,
+    compose,
+    inverse,
+    refine,
+    search,
+    transform,
+)
+
+
+@dataclass(frozen=True)
+class Scan:
+    """A laser scan as taken: ranges (inf = no return) from `mount` (laser in chair frame)."""
+
+    ranges: F64
+    angle_min: float
+    angle_inc: float
+    mount: tuple[float, float, float]
+
+    def points(self, max_range_m: float = 30.0) -> F64:
+        """Finite end points in the chair frame."""
+        a = self.angle_min + self.angle_inc * np.arange(self.ranges.size)
+        ok = np.isfinite(self.ranges) & (self.ranges > 0.02) & (self.ranges < max_range_m)
+        lp = np.column_stack((self.ranges[ok] * np.cos(a[ok] + self.mount[2]),
+                              self.ranges[ok] * np.sin(a[ok] + self.mount[2])))
+        return transform(np.array([self.mount[0], self.mount[1], 0.0]), lp)
+
+
+@dataclass(frozen=True)
+class SlamParams:
+    resolution_m: float = 0.05
+    keyframe_m: float = 0.3
+    keyframe_rad: float = math.radians(15.0)
+    submap_keyframes: int = 15
+    submap_radius_m: float = 40.0  # 10 m lost the loop on the SENA log: far walls hold the heading
+    max_points: int = 200
+    loop_min_travel_m: float = 8.0  # a keyframe this much travel old can close a loop
+    loop_radius_m: float = 3.0  # candidates within this of the current estimate
+    loop_search_xy_m: float = 1.0
+    loop_search_yaw: float = math.radians(12.0)
+    loop_quality: float = 0.85  # fraction of points within 5 cm of the candidate submap
+    # Smallest/largest eigenvalue of the match's translation information: below this the scan
+    # pins the pose in one direction only (a corridor), and a loop there may be any place.
+    loop_min_constraint: float = 0.1
+    loop_max_chi2: float = 16.0  # a loop edge the optimised graph misses by more is dropped
+    loop_drift_per_m: float = 0.02  # a loop may correct 10 cm + this × travel since, no more
+    seq_sigma_xy_m: float = 0.02  # keyframe-to-keyframe edge
+    seq_sigma_yaw: float = math.radians(0.5)
+    loop_sigma_xy_m: float = 0.05
+    loop_sigma_yaw: float = math.radians(1.0)
+    max_range_m: float = 30.0
+    # Tracking against the submap: a match far from the odometry prediction is never taken
+    # (in mapping there is no map to recover on; the odometry carries the chair through).
+    # The odometry noise is set high: the SENA chair's real odometry is worse than the
+    # localization defaults assume, and trusting it tore the loop there (4 cm → 0.7 cm).
+    tracking: LocParams = field(default_factory=lambda: LocParams(
+        found_quality=2.0, lost_after=10**9, trans_noise=0.15, rot_noise=0.15,
+        rot_per_m=0.05))
+
+
+@dataclass
+class Keyframe:
+    scan: Scan
+    pts: F64  # chair frame, subsampled
+    travel_m: float  # odometry distance at the keyframe
+    reach_m: float  # its longest return: how far it mapped
+    dense: F64  # every end point (chair frame): submaps are drawn from these
+
+
+@dataclass
+class SlamStats:
+    keyframes: int = 0
+    loops: int = 0
+    loop_tries: int = 0
+    loops_implausible: int = 0
+    loops_degenerate: int = 0
+    loops_rejected: int = 0
+    submaps: int = 0
+    loop_log: list[tuple[int, int, float]] = field(default_factory=list)  # (old, new, fit)
+
+
+def _subsample(pts: F64, n: int) -> F64:
+    if len(pts) <= n:
+        return pts
+    return pts[np.linspace(0, len(pts) - 1, n).astype(np.int64)]
+
+
+def points_field(world_pts: F64, res: float, margin: float = 1.0) -> DistanceField:
+    """Distance field of a point set (map frame) on a grid just large enough for it."""
+    lo = np.floor((world_pts.min(axis=0) - margin) / res) * res
+    hi = world_pts.max(axis=0) + margin
+    w, h = math.ceil((hi[0] - lo[0]) / res), math.ceil((hi[1] - lo[1]) / res)
+    occ = np.zeros((h, w), dtype=np.bool_)
+    ix = ((world_pts[:, 0] - lo[0]) / res).astype(np.int64)
+    iy = ((world_pts[:, 1] - lo[1]) / res).astype(np.int64)
+    occ[iy, ix] = True
+    return DistanceField(occ, GridFrame(res, float(lo[0]), float(lo[1])))
+
+
+class Slam:
+    def __init__(self, params: SlamParams | None = None) -> None:
+        self.p = params or SlamParams()
+        self.graph = PoseGraph()
+        self.kfs: list[Keyframe] = []
+        self.pose = np.zeros(3)
+        self.quality = 0.0
+        self.stats = SlamStats()
+        self._last_odom: F64 | None = None
+        self._travel = 0.0
+        self.tracker: Localizer | None = None  # scan-to-submap, fused with odometry
+        self._submap_ids = range(0)
+
+    def _submap_of(self, idx: range, crop: bool = True) -> DistanceField:
+        """Distance field of keyframes `idx`, cropped to `submap_radius_m` round the chair:
+        the distance transform is most of a keyframe's cost, and it grows with the area."""
+        pts = np.vstack([transform(self.graph.nodes[i], self.kfs[i].dense) for i in idx])
+        near = np.hypot(pts[:, 0] - self.pose[0], pts[:, 1] - self.pose[1])
+        if crop and (near <= self.p.submap_radius_m).sum() >= 10:
+            pts = pts[near <= self.p.submap_radius_m]
+        self.stats.submaps += 1
+        return points_field(pts, self.p.resolution_m)
+
+    def update(self, odom: F64, scan: Scan) -> Estimate:
+        odom = np.asarray(odom, dtype=np.float64)
+        delta = np.zeros(3)
+        if self._last_odom is not None:
+            delta = between(self._last_odom, odom)
+            self._travel += math.hypot(delta[0], delta[1])
+        self._last_odom = odom
+        pts = _subsample(scan.points(self.p.max_range_m), self.p.max_points)
+        if self.tracker is not None:
+            seen = self._seen(compose(self.pose, delta), pts, self._submap_ids)
+            est = self.tracker.update(odom, pts[seen])  # odometry prediction fused with match
+            self.pose, self.quality = est.pose, est.quality
+        elif len(pts) >= 10:
+            self._add_keyframe(scan, pts)
+        if self.tracker is not None and len(pts) >= 10 and self._moved(self.graph.nodes[-1]):
+            self._add_keyframe(scan, pts)
+        return self.estimate()
+
+    def _seen(self, pose: F64, pts: F64, ids: range) -> npt.NDArray[np.bool_]:
+        """Points some submap keyframe's laser saw (or would have seen) along its beams. The
+        submap ends where its scans ended; a wall that runs on past that end would pull the
+        points seen beyond it back onto its end, and the chair would slide along a corridor.
+        Such points are left out."""
+        world = transform(pose, pts)
+        ok = np.zeros(len(pts), dtype=np.bool_)
+        for i in ids:
+            s = self.kfs[i].scan
+            laser = compose(self.graph.nodes[i], np.array(s.mount))
+            dx, dy = world[:, 0] - laser[0], world[:, 1] - laser[1]
+            r = np.hypot(dx, dy)
+            rel = np.mod(np.arctan2(dy, dx) - laser[2] + np.pi, 2 * np.pi) - np.pi
+            k = np.rint((rel - s.angle_min) / s.angle_inc)
+            inside = (k >= 0) & (k < s.ranges.size)
+            beam = s.ranges[np.clip(k, 0, s.ranges.size - 1).astype(np.int64)]
+            # no return: free up to its reach, but keep clear of where its walls ended
+            beam = np.where(np.isfinite(beam), beam + 0.05, self.kfs[i].reach_m - 0.3)
+            ok |= inside & (r <= beam)
+        return ok if ok.sum() >= 10 else np.ones(len(pts), dtype=np.bool_)
+
+    def _moved(self, last: F64) -> bool:
+        d = between(last, self.pose)
+        return math.hypot(d[0], d[1]) >= self.p.keyframe_m or abs(d[2]) >= self.p.keyframe_rad
+
+    def _add_keyframe(self, scan: Scan, pts: F64) -> None:
+        p = self.p
+        j = self.graph.add_node(self.pose)
+        finite = scan.ranges[np.isfinite(scan.ranges)]
+        reach = float(min(finite.max(), p.max_range_m)) if finite.size else 0.0
+        self.kfs.append(Keyframe(scan, pts, self._travel, reach, scan.points(p.max_range_m)))
+        if j > 0:
+            info = np.diag([p.seq_sigma_xy_m ** -2, p.seq_sigma_xy_m ** -2,
+                            p.seq_sigma_yaw ** -2])
+            self.graph.add_edge(j - 1, j, between(self.graph.nodes[j - 1], self.pose), info)
+        self.stats.keyframes = len(self.kfs)
+        closed = self._close_loop(j, pts)
+        if closed:
+            self._optimize()
+            self.pose = self.graph.nodes[j].copy()
+        self._submap_ids = range(max(0, j + 1 - p.submap_keyframes), j + 1)
+        submap = self._submap_of(self._submap_ids)
+        if self.tracker is None:
+            self.tracker = Localizer(submap, None, p.tracking)
+            self.tracker.set_pose(self.pose, 0.01, 0.01)
+            self.tracker.update(self._last_odom if self._last_odom is not None
+                                else np.zeros(3), pts)
+        self.tracker.field = submap
+        if closed:
+            self.tracker.set_pose(self.pose, 0.02, math.radians(1))
+
+    def _optimize(self) -> None:
+        """Optimise; then drop loop edges that the optimised graph disagrees with (χ² beyond
+        `loop_max_chi2`: a place that only looked like another) and optimise again."""
+        g = self.graph
+        for _ in range(3):
+            g.optimize()
+            bad = [e for e in g.edges if e.loop
+                   and float(g.error(e) @ e.info @ g.error(e)) > self.p.loop_max_chi2]
+            if not bad:
+                return
+            g.edges = [e for e in g.edges if not any(e is b for b in bad)]
+            self.stats.loops_rejected += len(bad)
+
+    def _close_loop(self, j: int, pts: F64) -> bool:
+        p = self.p
+        old = [i for i in range(j) if self._travel - self.kfs[i].travel_m >= p.loop_min_travel_m]
+        if not old:
+            return False
+        d = np.array([math.hypot(*(self.graph.nodes[i][:2] - self.pose[:2])) for i in old])
+        if d.min() > p.loop_radius_m:
+            return False
+        i = old[int(d.argmin())]
+        self.stats.loop_tries += 1
+        near = range(max(0, i - 5), min(len(self.kfs), i + 6))
+        near = range(near.start, min(near.stop, j - int(p.loop_min_travel_m / p.keyframe_m)))
+        if len(near) < 3:
+            return False
+        sub = self._submap_of(near, crop=False)
+        pts = pts[self._seen(self.pose, pts, near)]
+        cand, _ = search(sub, pts, self.pose, half_xy_m=p.loop_search_xy_m,
+                         half_yaw=p.loop_search_yaw, step_xy_m=0.05,
+                         step_yaw=math.radians(1.5), inlier_m=0.05)
+        m = refine(sub, pts, cand, inlier_m=0.05)
+        if m.inliers < p.loop_quality:
+            return False
+        jump = between(self.pose, m.pose)
+        travel = self._travel - self.kfs[i].travel_m
+        if math.hypot(jump[0], jump[1]) > 0.1 + p.loop_drift_per_m * travel:
+            self.stats.loops_implausible += 1  # more than the front end drifts: another place
+            return False
+        eig = np.linalg.eigvalsh(m.information[:2, :2])
+        if eig[0] < p.loop_min_constraint * eig[1]:
+            self.stats.loops_degenerate += 1  # a corridor: it fits anywhere along it
+            return False
+        # The match's own information, in the edge's frame, with its strongest axis capped at
+        # loop_sigma_xy_m: the shape keeps a corridor's weak axis weak (a loop along a corridor
+        # must not pin the position along it), the cap keeps it from out-voting the chain.
+        c, s_ = math.cos(m.pose[2]), math.sin(m.pose[2])  # the edge error is in j's frame
+        rot = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+        info = rot.T @ m.information @ rot
+        info *= p.loop_sigma_xy_m ** -2 / max(float(np.linalg.eigvalsh(info[:2, :2])[1]), 1e-9)
+        self.graph.add_edge(i, j, between(self.graph.nodes[i], m.pose), info, loop=True)
+        self.stats.loops += 1
+        self.stats.loop_log.append((i, j, m.inliers))
+        return True
+
+    def estimate(self) -> Estimate:
+        odom = self._last_odom if self._last_odom is not None else np.zeros(3)
+        cov = np.diag([0.02**2, 0.02**2, math.radians(1) ** 2])
+        return Estimate(self.pose.copy(), cov, compose(self.pose, inverse(odom)),
+                        self.quality, LocState.TRACKING)
+
+    def points(self) -> F64:
+        """All keyframe points in the map frame (optimised poses)."""
+        if not self.kfs:
+            return np.zeros((0, 2))
+        return np.vstack([transform(self.graph.nodes[i], k.pts) for i, k in enumerate(self.kfs)])
+
+    def snapshot(self) -> tuple[list[F64], list[Keyframe]]:
+        """Copies of the poses and keyframes, to render the map outside a lock."""
+        return [n.copy() for n in self.graph.nodes], list(self.kfs)
+
+    def render(self, spec: GridSpec | None = None) -> OccupancyMapper:
+        nodes, kfs = self.snapshot()
+        return render(nodes, kfs, self.p, spec)
+
+
+def render(nodes: list[F64], kfs: list[Keyframe], p: SlamParams, spec: GridSpec | None = None,
+           margin_m: float = 2.0) -> OccupancyMapper:
+    """The occupancy grid of every keyframe scan at its optimised pose (ray-traced)."""
+    if spec is None:
+        pts = (np.vstack([transform(n, k.pts) for n, k in zip(nodes, kfs, strict=True)])
+               if kfs else np.zeros((1, 2)))
+        lo = np.floor((pts.min(axis=0) - margin_m) / p.resolution_m) * p.resolution_m
+        hi = pts.max(axis=0) + margin_m
+        spec = GridSpec(p.resolution_m, float(hi[0] - lo[0]), float(hi[1] - lo[1]),
+                        float(lo[0]), float(lo[1]))
+    grid = OccupancyMapper(spec, max_range_m=p.max_range_m)
+    for node, kf in zip(nodes, kfs, strict=True):
+        s = kf.scan
+        laser = compose(node, np.array(s.mount))
+        grid.integrate(s.ranges, s.angle_min, s.angle_inc,
+                       (float(laser[0]), float(laser[1]), float(laser[2])))
+    return grid

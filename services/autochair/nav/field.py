@@ -1,0 +1,319 @@
+"""Navigation function over an occupancy grid. PURE (numpy, scipy, scikit-fmm; no clock, no I/O).
+
+- `GridMap`: a boolean obstacle grid in a named frame (from the mapping service's OccupancyGrid
+  message, or rasterised from a simulator world file).
+- `Footprint`: the chair's real rectangle around the drive axle (ChairGeometry: 0.95 m ahead,
+  0.25 m behind, 0.35 m each side), sampled along its outline.
+- `NavField`: the clearance (Euclidean distance transform, scipy) and, per goal, the costs-to-go
+  (fast marching, scikit-fmm: the Eikonal solution has no 8-neighbour staircase, so its
+  gradient — what MPEPC measures progress on — is smooth).
+
+Footprint: the axle point may only cross cells with clearance ≥ half width + `pass_margin_m`
+(whatever the heading, the body reaches that far sideways of the axle); costs grow near
+obstacles (slower travel within `soft_m` of that bound), so paths keep to the middle of
+corridors and doorways. The full, non-circular outline is checked by the planner on every
+predicted pose and by `check_goal` on the goal pose.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import scipy.ndimage as ndi
+import skfmm
+
+F64 = npt.NDArray[np.float64]
+Bool = npt.NDArray[np.bool_]
+
+OCCUPIED_PCT = 65  # an OccupancyGrid cell ≥ this (percent, not 255 = unknown) is an obstacle
+
+
+@dataclass(frozen=True)
+class Footprint:
+    front_m: float = 0.95
+    rear_m: float = 0.25
+    half_width_m: float = 0.35
+
+    def outline(self, spacing_m: float = 0.1) -> F64:
+        """(P, 2) points on the rectangle's outline, in the chair frame."""
+        xs = np.linspace(-self.rear_m, self.front_m,
+                         max(2, math.ceil((self.front_m + self.rear_m) / spacing_m) + 1))
+        ys = np.linspace(-self.half_width_m, self.half_width_m,
+                         max(2, math.ceil(2 * self.half_width_m / spacing_m) + 1))
+        hw = self.half_width_m
+        pts = [np.stack([xs, np.full_like(xs, hw)], 1), np.stack([xs, np.full_like(xs, -hw)], 1),
+               np.stack([np.full_like(ys, self.front_m), ys], 1),
+               np.stack([np.full_like(ys, -self.rear_m), ys], 1)]
+        return np.unique(np.concatenate(pts), axis=0)
+
+    def contains(self, pts_chair: F64) -> Bool:
+        """Which chair-frame points lie inside the rectangle."""
+        x, y = pts_chair[..., 0], pts_chair[..., 1]
+        return (x >= -self.rear_m) & (x <= self.front_m) & (np.abs(y) <= self.half_width_m)
+
+
+def place(points: F64, x: F64 | float, y: F64 | float, yaw: F64 | float) -> F64:
+    """Chair-frame (P, 2) points at poses (...): world (..., P, 2)."""
+    x, y, yaw = np.asarray(x)[..., None], np.asarray(y)[..., None], np.asarray(yaw)[..., None]
+    c, s = np.cos(yaw), np.sin(yaw)
+    px, py = points[:, 0], points[:, 1]
+    return np.stack([x + c * px - s * py, y + s * px + c * py], axis=-1)
+
+
+@dataclass(frozen=True)
+class GridMap:
+    occupied: Bool  # (H, W), row = y
+    resolution_m: float
+    origin_x_m: float  # world position of cell (0, 0)'s corner
+    origin_y_m: float
+    frame_id: str = "map"
+
+    @classmethod
+    def from_msg(cls, msg: object) -> GridMap:
+        """From an autochair_msgs.OccupancyGrid (unknown cells count as free: the chair
+        must be able to plan into what the laser has not seen yet)."""
+        data = np.frombuffer(msg.data, dtype=np.uint8)  # type: ignore[attr-defined]
+        grid = data.reshape(msg.height, msg.width)  # type: ignore[attr-defined]
+        occ = (grid >= OCCUPIED_PCT) & (grid != 255)
+        return cls(occ, float(msg.resolution_m), float(msg.origin_x_m),  # type: ignore[attr-defined]
+                   float(msg.origin_y_m), str(msg.frame_id))  # type: ignore[attr-defined]
+
+    @classmethod
+    def from_shapes(cls, segments: F64, circles: F64, resolution_m: float = 0.05,
+                    margin_m: float = 1.0, frame_id: str = "map") -> GridMap:
+        """Rasterise walls (S, 4) and discs (C, 3) (a simulator world) onto a grid that covers
+        them plus `margin_m`."""
+        pts = [segments[:, :2], segments[:, 2:], circles[:, :2] - circles[:, 2:],
+               circles[:, :2] + circles[:, 2:]]
+        allp = np.concatenate([p.reshape(-1, 2) for p in pts])
+        lo, hi = allp.min(0) - margin_m, allp.max(0) + margin_m
+        w, h = (np.ceil((hi - lo) / resolution_m)).astype(int)
+        occ = np.zeros((h, w), dtype=np.bool_)
+        gm = cls(occ, resolution_m, float(lo[0]), float(lo[1]), frame_id)
+        step = resolution_m / 3
+        for x1, y1, x2, y2 in segments:
+            n = max(2, math.ceil(math.hypot(x2 - x1, y2 - y1) / step) + 1)
+            t = np.linspace(0, 1, n)
+            gm.mark(np.stack([x1 + t * (x2 - x1), y1 + t * (y2 - y1)], 1))
+        if len(circles):
+            cx, cy = gm.centres()
+            for x0, y0, r in circles:
+                occ |= (cx - x0) ** 2 + (cy - y0) ** 2 <= (r + resolution_m / 2) ** 2
+        return gm
+
+    def coarsened(self, factor: int) -> GridMap:
+        """`factor` × `factor` cells merged into one, occupied if any of them is (the field is
+        computed at this resolution to bound its cost on a large live map)."""
+        if factor <= 1:
+            return self
+        h, w = self.occupied.shape
+        hh, ww = -(-h // factor) * factor, -(-w // factor) * factor
+        pad = np.zeros((hh, ww), dtype=np.bool_)
+        pad[:h, :w] = self.occupied
+        occ = np.asarray(pad.reshape(hh // factor, factor, ww // factor, factor).any(axis=(1, 3)))
+        return GridMap(occ, self.resolution_m * factor, self.origin_x_m, self.origin_y_m,
+                       self.frame_id)
+
+    def centres(self) -> tuple[F64, F64]:
+        h, w = self.occupied.shape
+        xs = self.origin_x_m + (np.arange(w) + 0.5) * self.resolution_m
+        ys = self.origin_y_m + (np.arange(h) + 0.5) * self.resolution_m
+        return np.meshgrid(xs, ys)
+
+    def mark(self, pts: F64) -> None:
+        """Set the cells holding world points (N, 2) occupied (outside ones are ignored)."""
+        h, w = self.occupied.shape
+        ix = np.floor((pts[:, 0] - self.origin_x_m) / self.resolution_m).astype(int)
+        iy = np.floor((pts[:, 1] - self.origin_y_m) / self.resolution_m).astype(int)
+        ok = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+        self.occupied[iy[ok], ix[ok]] = True
+
+
+def bilinear(grid: F64, gm: GridMap, pts: F64, outside: float) -> F64:
+    """Sample a cell-centred (H, W) grid at world points (..., 2)."""
+    h, w = grid.shape
+    fx = (pts[..., 0] - gm.origin_x_m) / gm.resolution_m - 0.5
+    fy = (pts[..., 1] - gm.origin_y_m) / gm.resolution_m - 0.5
+    inside = (fx >= 0) & (fx <= w - 1) & (fy >= 0) & (fy <= h - 1)
+    fx, fy = np.clip(fx, 0, w - 1.0001), np.clip(fy, 0, h - 1.0001)
+    x0, y0 = fx.astype(np.intp), fy.astype(np.intp)
+    ax, ay = fx - x0, fy - y0
+    v = (grid[y0, x0] * (1 - ax) * (1 - ay) + grid[y0, x0 + 1] * ax * (1 - ay)
+         + grid[y0 + 1, x0] * (1 - ax) * ay + grid[y0 + 1, x0 + 1] * ax * ay)
+    return np.where(inside, v, outside)
+
+
+@dataclass(frozen=True)
+class CostToGo:
+    """Costs-to-go (metres at full speed) to one goal position; extended past the passable
+    region (+ `outside_slope` per metre into it) so predictions grazing a wall still compare."""
+
+    phi: F64  # (H, W)
+    grad_x: F64
+    grad_y: F64
+    reachable: Bool  # passable and connected to the goal
+    goal_xy: tuple[float, float]
+
+    def at(self, gm: GridMap, pts: F64) -> F64:
+        return bilinear(self.phi, gm, pts, float(self.phi.max()) + 10.0)
+
+    def descent(self, gm: GridMap, pts: F64) -> F64:
+        """Heading (rad) of −∇φ at world points (..., 2)."""
+        gx = bilinear(self.grad_x, gm, pts, 0.0)
+        gy = bilinear(self.grad_y, gm, pts, 0.0)
+        return np.arctan2(-gy, -gx)
+
+
+class NavField:
+    def __init__(self, gm: GridMap, footprint: Footprint, pass_margin_m: float = 0.02,
+                 soft_m: float = 0.6, slow_factor: float = 0.3, power: float = 1.0) -> None:
+        self.map, self.footprint = gm, footprint
+        res = gm.resolution_m
+        # Distance from each cell centre to the nearest obstacle cell's edge.
+        edt = ndi.distance_transform_edt(~gm.occupied) * res
+        self.clearance: F64 = np.maximum(np.asarray(edt, dtype=np.float64) - res / 2, 0.0)
+        if not gm.occupied.any():
+            self.clearance[:] = 1e3
+        self.pass_m = footprint.half_width_m + pass_margin_m
+        self.passable: Bool = self.clearance >= self.pass_m
+        # Speed 1 beyond `soft_m` of the bound, down to `slow_factor` at it.
+        ramp = np.clip((self.clearance - self.pass_m) / soft_m, 0.0, 1.0) ** power
+        self.speed: F64 = slow_factor + (1.0 - slow_factor) * ramp
+        self.outline = footprint.outline(0.15)  # planner's check: ≤ 0.04 m under-estimate
+
+    @property
+    def frame_id(self) -> str:
+        return self.map.frame_id
+
+    def clearance_at(self, pts: F64) -> F64:
+        """Clearance (m) at world points (..., 2); 0 outside the map."""
+        return bilinear(self.clearance, self.map, pts, 0.0)
+
+    def footprint_clearance(self, x: F64 | float, y: F64 | float, yaw: F64 | float) -> F64:
+        """Least clearance of the footprint outline at poses (...)."""
+        return self.clearance_at(place(self.outline, x, y, yaw)).min(axis=-1)  # type: ignore[no-any-return]
+
+    def cell(self, x: float, y: float) -> tuple[int, int] | None:
+        gm = self.map
+        ix = math.floor((x - gm.origin_x_m) / gm.resolution_m)
+        iy = math.floor((y - gm.origin_y_m) / gm.resolution_m)
+        h, w = gm.occupied.shape
+        return (iy, ix) if 0 <= ix < w and 0 <= iy < h else None
+
+    def cost_to_go(self, gx: float, gy: float, outside_slope: float = 3.0) -> CostToGo | None:
+        """Fast-marching costs-to-go to (gx, gy); None if the goal point is not passable."""
+        c = self.cell(gx, gy)
+        if c is None or not self.passable[c]:
+            return None
+        res = self.map.resolution_m
+        phi0 = np.ones(self.passable.shape)
+        phi0[c] = -1.0  # the zero contour surrounds the goal cell
+        t = skfmm.travel_time(np.ma.MaskedArray(phi0, ~self.passable), self.speed, dx=res)
+        reach = ~np.ma.getmaskarray(t) & self.passable
+        phi = np.where(reach, np.ma.getdata(t), np.inf)
+        phi[c] = 0.0
+        # Extend into walls and unreachable cells: the nearest reachable cell's cost plus
+        # the distance from it, steeply, so "closer to a wall" is never cheaper.
+        dist, (iy, ix) = ndi.distance_transform_edt(~reach, return_indices=True)
+        ext = phi[iy, ix] + outside_slope * dist * res
+        full = np.where(reach, phi, ext)
+        gy_, gx_ = np.gradient(full, res)
+        return CostToGo(full, gx_, gy_, reach, (gx, gy))
+
+    def check_goal(self, x: float, y: float, yaw: float, min_clearance_m: float = 0.02) -> str:
+        """'' if the chair fits at the pose, else why not (names the pose and the obstacle)."""
+        if self.cell(x, y) is None:
+            return f"({x:.2f}, {y:.2f}) is outside the map"
+        clr = float(self.footprint_clearance(x, y, yaw))
+        where = f"the chair's footprint at ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f}°)"
+        if self.map.occupied[self._cells_under(x, y, yaw)].any():
+            return f"{where} overlaps an obstacle"
+        if clr < min_clearance_m:
+            return (f"{where} comes within {max(clr, 0.0):.2f} m of an obstacle (needs "
+                    f"{min_clearance_m:.2f} m: the position tolerance and a margin)")
+        if float(self.clearance_at(np.array([x, y]))) < self.pass_m:
+            return (f"({x:.2f}, {y:.2f}) is closer than {self.pass_m:.2f} m to an obstacle: "
+                    "the chair cannot get there")
+        return ""
+
+    def _cells_under(self, x: float, y: float, yaw: float) -> tuple[npt.NDArray[np.intp], ...]:
+        """Indices of the grid cells whose centres lie under the footprint at the pose."""
+        fp, gm = self.footprint, self.map
+        reach = math.hypot(max(fp.front_m, fp.rear_m), fp.half_width_m) + gm.resolution_m
+        c0 = self.cell(x - reach, y - reach) or (0, 0)
+        h, w = gm.occupied.shape
+        c1 = self.cell(x + reach, y + reach) or (h - 1, w - 1)
+        iy, ix = np.mgrid[c0[0]:c1[0] + 1, c0[1]:c1[1] + 1]
+        px = gm.origin_x_m + (ix + 0.5) * gm.resolution_m - x
+        py = gm.origin_y_m + (iy + 0.5) * gm.resolution_m - y
+        c, s = math.cos(yaw), math.sin(yaw)
+        inside = fp.contains(np.stack([c * px + s * py, -s * px + c * py], -1))
+        return iy[inside], ix[inside]
+
+    def descent_path(self, ctg: CostToGo, x: float, y: float, step_m: float = 0.05,
+                     max_m: float = 80.0) -> F64:
+        """(N, 2) points down −∇φ from (x, y) to the goal (the path the field implies)."""
+        pts = [(x, y)]
+        gx, gy = ctg.goal_xy
+        for _ in range(int(max_m / step_m)):
+            if math.hypot(gx - x, gy - y) < 2 * step_m:
+                break
+            heading = float(ctg.descent(self.map, np.array([x, y])))
+            x, y = x + step_m * math.cos(heading), y + step_m * math.sin(heading)
+            pts.append((x, y))
+        pts.append((gx, gy))
+        return np.array(pts)
+
+    def door_approaches(self, ctg: CostToGo, x: float, y: float, narrow_m: float = 0.6,
+                        back_m: float = 1.5) -> list[tuple[float, float, float]]:
+        """Poses to line up at before each narrow passage (a door) on the way from (x, y):
+        `back_m` before its narrowest point, facing along the passage. The field is for the
+        axle, which cuts a door's corner; the chair's front, 0.95 m ahead of it, cannot follow
+        (forward only, it can neither turn in place under the door nor curve in), so it lines
+        up first, as a wheelchair user does."""
+        path = self.descent_path(ctg, x, y)
+        clr = self.clearance_at(path)
+        out: list[tuple[float, float, float]] = []
+        i, n = 0, len(path)
+        while i < n:
+            if clr[i] >= narrow_m:
+                i += 1
+                continue
+            j = i
+            while j < n and clr[j] < narrow_m:
+                j += 1
+            k = i + int(np.argmin(clr[i:j]))  # the narrowest point of this passage
+            a, b = path[max(k - 6, 0)], path[min(k + 6, n - 1)]
+            yaw = math.atan2(b[1] - a[1], b[0] - a[0])
+            px, py = path[k, 0] - back_m * math.cos(yaw), path[k, 1] - back_m * math.sin(yaw)
+            walked = float(np.hypot(*np.diff(path[:k + 1], axis=0).T).sum()) if k else 0.0
+            if walked > back_m + 0.3 and self.check_goal(px, py, yaw) == "" \
+                    and math.hypot(ctg.goal_xy[0] - path[k, 0],
+                                   ctg.goal_xy[1] - path[k, 1]) > 0.3:
+                out.append((px, py, yaw))
+            i = j
+        return out
+
+    def start_cost(self, ctg: CostToGo, x: float, y: float, search_m: float = 0.3) -> float:
+        """Cost-to-go from the chair at (x, y): φ there if the axle stands on a reachable
+        cell, else the least φ + distance over reachable cells within `search_m` (the chair may
+        stand a little closer to a wall than the pass bound); inf if there is none."""
+        c = self.cell(x, y)
+        if c is None:
+            return math.inf
+        if ctg.reachable[c]:
+            return float(ctg.at(self.map, np.array([x, y])))
+        gm = self.map
+        r = math.ceil(search_m / gm.resolution_m)
+        iy0, ix0 = max(c[0] - r, 0), max(c[1] - r, 0)
+        win = ctg.reachable[iy0:c[0] + r + 1, ix0:c[1] + r + 1]
+        if not win.any():
+            return math.inf
+        iy, ix = np.nonzero(win)
+        cx = gm.origin_x_m + (ix + ix0 + 0.5) * gm.resolution_m
+        cy = gm.origin_y_m + (iy + iy0 + 0.5) * gm.resolution_m
+        phi = ctg.phi[iy + iy0, ix + ix0] + np.hypot(cx - x, cy - y)
+        return float(phi.min())

@@ -1,0 +1,368 @@
+"""MPEPC: model-predictive equilibrium-point control (Park, Johnson & Kuipers, IROS 2012). PURE.
+
+The planner chooses z = (r, θ, δ, vmax): the graceful law's target pose relative to the chair
+(distance r, target heading θ and chair heading δ against the line of sight) and its speed. Each
+candidate is forward-simulated over the horizon with the same law the 50 Hz loop runs
+(control/law.py: curvature, v(κ), ω floor, slowdown, in-place turn inside the capture radius)
+and a comfort-limited model of the drive chain, and scored by
+
+    J = Σ p_s(k)·Δφ(k)  +  c1·|final heading error|  +  c2·Σ p_c(k)·dt  +  Σ (c3·v² + c4·ω²)·dt
+        + hit_cost if any predicted pose touches an obstacle
+
+φ the navigation function (nav/field.py), p_c = exp(−d²/σ²) with d the least clearance of the
+footprint outline (σ 0.1 m static, 0.2 m for people, who are predicted at constant velocity),
+p_s(k) the survival probability up to step k. Unlike the paper's Π(1 − p_c) we take
+p_s(k) = 1 − max_{j≤k} p_c(j): what p_c models (the tracking and map error of one trajectory)
+is the same from step to step, not independent per 0.2 s step; the product made any 0.9 m
+doorway (0.1 m each side → p_c 0.37 per step) look fatal, and depended on the step length.
+The final heading error is against −∇φ, or against the
+goal's yaw once the prediction ends within `goal_blend_m` of the goal.
+
+Optimiser (differs from the reference, which ran NLopt DIRECT then BOBYQA one evaluation at a
+time): every candidate of a round is simulated at once with numpy — a fixed quasi-random global
+set plus seeds (previous optimum, stop, the goal itself, in-place turns), then rounds of
+shrinking Gaussian samples around the best. In Python one sequential evaluation costs ~1 ms, so
+DIRECT's 250 + BOBYQA's 75 would take ~0.3 s a cycle; batched, ~400 evaluations take a few tens
+of ms (bench/nav_eval.py reports the per-cycle time).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.stats import qmc
+
+from .field import CostToGo, NavField, place
+
+F64 = npt.NDArray[np.float64]
+ALIGNED_RAD = 0.05  # an in-place turn is done within this heading error (then it may go)
+
+
+@dataclass(frozen=True)
+class Person:
+    """A moving obstacle: a disc, predicted at constant velocity."""
+
+    x_m: float
+    y_m: float
+    vx_mps: float = 0.0
+    vy_mps: float = 0.0
+    radius_m: float = 0.25
+
+
+@dataclass(frozen=True)
+class LawParams:
+    """The graceful law and the comfort limits the 50 Hz loop runs with (ControlConfig)."""
+
+    k1: float = 1.5
+    k2: float = 3.0
+    beta: float = 0.4
+    lam: float = 2.0
+    vmax_mps: float = 1.2
+    r_thresh_m: float = 1.2
+    omega_floor_radps: float = 0.5
+    a_mps2: float = 0.6  # the limiter's planning limits (comfort × chain margin)
+    omega_max_radps: float = 0.54
+    omega_acc_radps2: float = 1.68
+    align_brake_radps2: float = 0.84
+    align_gain_1ps: float = 1.5
+    capture_m: float = 0.025
+
+
+@dataclass(frozen=True)
+class MpepcParams:
+    horizon_s: float = 5.0
+    dt_s: float = 0.2  # the paper's step
+    r_max_m: float = 8.0
+    theta_max_rad: float = math.pi
+    delta_max_rad: float = 1.8
+    v_min_mps: float = 0.15
+    # r below this: turn in place to heading yaw + θ − δ, then (vmax > v_min) drive straight
+    # on along it: the paper's targets cannot express "turn here first", which a chair
+    # entering a side door from a corridor needs (its body swings 1 m round the axle).
+    in_place_r_m: float = 0.1
+    sigma_static_m: float = 0.1
+    sigma_moving_m: float = 0.2
+    stay_weight: float = 0.5  # weight of "the person turns round" (see evaluate)
+    react_s: float = 1.0  # a person may be anywhere they can walk to in this time
+    c_heading: float = 0.2
+    c_collision: float = 1.0
+    c_v: float = 0.2
+    c_omega: float = 0.1
+    hit_cost: float = 10.0
+    contact_m: float = 0.05  # a predicted clearance below this counts as a hit
+    goal_blend_m: float = 1.0
+    progress_ahead_m: float = 0.0
+    goal_slack: float = 0.5  # the goal is taken when it costs at most this much more
+    n_global: int = 128  # rounded to a power of 2 (Sobol)
+    n_local: int = 64
+    local_rounds: int = 3
+
+
+@dataclass(frozen=True)
+class Plan:
+    z: tuple[float, float, float, float]  # r, θ, δ, vmax
+    target: tuple[float, float, float]  # the law's target, world frame (x, y, yaw)
+    vmax_mps: float
+    cost: float
+    progress_m: float  # φ(start) − φ(end of the prediction)
+    survival: float
+    min_clearance_m: float  # least clearance of the footprint along the prediction
+    path: F64  # (T, 3) predicted x, y, yaw
+    is_goal: bool  # the target is the goal itself
+    goal_clearance_m: float  # least clearance predicted towards the goal itself (nan: none)
+    stop_cost: float  # the cost of braking to a stand-still (blocked: nothing beats it)
+    evaluations: int
+
+
+def wrap(a: F64) -> F64:
+    return np.remainder(a + np.pi, 2 * np.pi) - np.pi
+
+
+class Mpepc:
+    def __init__(self, field: NavField, law: LawParams, params: MpepcParams | None = None) -> None:
+        self.field, self.law = field, law
+        self.p = p = params or MpepcParams()
+        self.steps = round(p.horizon_s / p.dt_s)
+        unit = qmc.Sobol(4, scramble=True, seed=12).random_base2(
+            max(1, round(math.log2(p.n_global))))
+        lo, hi = self.bounds()
+        self._global = lo + unit * (hi - lo)
+        self._rng = np.random.default_rng(7)
+
+    def bounds(self) -> tuple[F64, F64]:
+        p = self.p
+        return (np.array([0.0, -p.theta_max_rad, -p.delta_max_rad, p.v_min_mps]),
+                np.array([p.r_max_m, p.theta_max_rad, p.delta_max_rad, self.law.vmax_mps]))
+
+    # --- targets ------------------------------------------------------------------------------
+    @staticmethod
+    def targets(pose: tuple[float, float, float], z: F64) -> F64:
+        """World target poses (N, 3) of candidates z (N, 4) from the chair at `pose`."""
+        x, y, yaw = pose
+        alpha = yaw - z[:, 2]
+        return np.stack([x + z[:, 0] * np.cos(alpha), y + z[:, 0] * np.sin(alpha),
+                         wrap(alpha + z[:, 1])], 1)
+
+    @staticmethod
+    def relative(pose: tuple[float, float, float], target: tuple[float, float, float]) -> F64:
+        """z's (r, θ, δ) of a world target pose."""
+        x, y, yaw = pose
+        r = math.hypot(target[0] - x, target[1] - y)
+        alpha = math.atan2(target[1] - y, target[0] - x) if r > 1e-9 else yaw
+        return np.array([r, float(wrap(np.array(target[2] - alpha))),
+                         float(wrap(np.array(yaw - alpha)))])
+
+    def in_place_targets(self, pose: tuple[float, float, float], z: F64) -> F64:
+        """(N, 3) targets of turn-in-place candidates: the heading yaw + θ − δ, at the chair
+        (turn only, vmax = v_min) or r_max ahead along it (turn, then go)."""
+        psi = wrap(pose[2] + z[:, 1] - z[:, 2])
+        go = np.where(z[:, 3] > self.p.v_min_mps + 0.01, self.p.r_max_m, 0.0)
+        return np.stack([pose[0] + go * np.cos(psi), pose[1] + go * np.sin(psi), psi], 1)
+
+    # --- prediction ---------------------------------------------------------------------------
+    def simulate(self, pose: tuple[float, float, float], v0: float, w0: float,
+                 z: F64) -> tuple[F64, F64, F64, F64, F64]:
+        """Predicted (x, y, yaw, v, ω), each (N, T), of candidates z (N, 4)."""
+        g, dt = self.law, self.p.dt_s
+        n = z.shape[0]
+        in_place = z[:, 0] < self.p.in_place_r_m
+        tgt = np.where(in_place[:, None], self.in_place_targets(pose, z), self.targets(pose, z))
+        tx, ty, tyaw, vmax = tgt[:, 0], tgt[:, 1], tgt[:, 2], z[:, 3]
+        x, y, yaw = np.full(n, pose[0]), np.full(n, pose[1]), np.full(n, pose[2])
+        v, w = np.full(n, v0), np.full(n, w0)
+        turning, arrived = in_place.copy(), np.zeros(n, dtype=np.bool_)
+        out = np.empty((5, n, self.steps))
+        for k in range(self.steps):
+            dx, dy = tx - x, ty - y
+            r = np.hypot(dx, dy)
+            arrived |= r < g.capture_m
+            turning &= np.abs(wrap(tyaw - yaw)) >= ALIGNED_RAD
+            captured = turning | arrived
+            alpha = np.arctan2(dy, dx)
+            th, de = wrap(tyaw - alpha), wrap(yaw - alpha)
+            k1t = g.k1 * th
+            kappa = -(g.k2 * (de - np.arctan(-k1t)) + (1 + g.k1 / (1 + k1t * k1t)) * np.sin(de)) \
+                / np.maximum(r, 1e-6)
+            vd = vmax / (1 + g.beta * np.abs(kappa) ** g.lam)
+            vd = np.maximum(vd, np.minimum(vmax, g.omega_floor_radps / np.maximum(
+                np.abs(kappa), 1e-9)))
+            vd = np.minimum(vd, vmax * r / g.r_thresh_m)
+            wd = kappa * vd
+            e = wrap(tyaw - yaw)
+            wa = np.sign(e) * np.minimum.reduce([np.full(n, g.omega_max_radps),
+                                                 np.sqrt(2 * g.align_brake_radps2 * np.abs(e)),
+                                                 g.align_gain_1ps * np.abs(e)])
+            vd, wd = np.where(captured, 0.0, vd), np.where(captured, wa, wd)
+            s = np.minimum(1.0, g.omega_max_radps / np.maximum(np.abs(wd), 1e-9))
+            vd, wd = vd * s, wd * s
+            v = v + np.clip(vd - v, -g.a_mps2 * dt, g.a_mps2 * dt)
+            w = w + np.clip(wd - w, -g.omega_acc_radps2 * dt, g.omega_acc_radps2 * dt)
+            mid = yaw + 0.5 * w * dt
+            x, y, yaw = x + v * np.cos(mid) * dt, y + v * np.sin(mid) * dt, wrap(yaw + w * dt)
+            out[0, :, k], out[1, :, k], out[2, :, k], out[3, :, k], out[4, :, k] = x, y, yaw, v, w
+        return out[0], out[1], out[2], out[3], out[4]
+
+    # --- cost ---------------------------------------------------------------------------------
+    def evaluate(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
+                 ctg: CostToGo, people: list[Person]) -> tuple[F64, dict[str, F64]]:
+        p, dt, fld = self.p, self.p.dt_s, self.field
+        xs, ys, yaws, vs, ws = self.simulate(pose, v0, w0, z)
+        pts = place(fld.outline, xs, ys, yaws)  # (N, T, P, 2)
+        d_static = fld.clearance_at(pts).min(axis=-1)
+        pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
+        # Already closer than `contact_m` (a noisy live map, a chair nudged to a wall): only
+        # getting closer still counts as a hit, so the chair can move away instead of freezing.
+        d0 = float(fld.footprint_clearance(*pose))
+        hit = d_static < min(p.contact_m, d0 - 0.005)
+        d_all = d_static
+        t = (np.arange(self.steps) + 1) * dt
+        for person in people:
+            cx, cy = person.x_m + person.vx_mps * t, person.y_m + person.vy_mps * t
+            dp = (np.hypot(pts[..., 0] - cx[:, None], pts[..., 1] - cy[:, None]).min(-1)
+                  - person.radius_m)
+            hit |= dp < 0.0
+            d_all = np.minimum(d_all, dp)
+            pc = 1 - (1 - pc) * (1 - np.exp(-(np.maximum(dp, 0) / p.sigma_moving_m) ** 2))
+            # People stop and turn round: the disc they can reach at their speed, whichever
+            # way they turn, within `react_s` (the time the chair needs to stop at the comfort
+            # limits) is off limits too, so it does not race past where they might step.
+            reach = person.radius_m + math.hypot(person.vx_mps, person.vy_mps) * np.minimum(
+                t, p.react_s)
+            ds = (np.hypot(pts[..., 0] - person.x_m, pts[..., 1] - person.y_m).min(-1)
+                  - reach[None, :])
+            hit |= ds < 0.0
+            pc = 1 - (1 - pc) * (1 - p.stay_weight * np.exp(
+                -(np.maximum(ds, 0) / p.sigma_moving_m) ** 2))
+        pc = np.where(hit, 1.0, pc)
+        ps = 1 - np.maximum.accumulate(pc, axis=1)
+        # Progress is measured at a point `progress_ahead_m` in front of the axle: the body
+        # lies ahead of it, so the chair then leads with its front through doors and round
+        # corners (the axle cuts inside, as a rear-axle vehicle's does).
+        la = p.progress_ahead_m
+        phi = ctg.at(fld.map, np.stack([xs + la * np.cos(yaws), ys + la * np.sin(yaws)], -1))
+        phi0 = float(ctg.at(fld.map, np.array([pose[0] + la * math.cos(pose[2]),
+                                               pose[1] + la * math.sin(pose[2])])))
+        dphi = np.diff(phi, axis=1, prepend=phi0)
+        progress = (ps * dphi).sum(1)
+        end = np.stack([xs[:, -1], ys[:, -1]], -1)
+        want = ctg.descent(fld.map, end)
+        gx, gy = ctg.goal_xy
+        near = np.hypot(end[:, 0] - gx, end[:, 1] - gy) < p.goal_blend_m
+        heading = np.abs(wrap(yaws[:, -1] - want))
+        cost = (progress + p.c_heading * heading + p.c_collision * (pc * dt).sum(1)
+                + ((p.c_v * vs ** 2 + p.c_omega * ws ** 2) * dt).sum(1)
+                + p.hit_cost * hit.any(1))
+        return cost, {"phi_end": phi[:, -1], "phi0": np.full(len(z), phi0),
+                      "survival": ps[:, -1], "clearance": d_all.min(1), "near": near,
+                      "x": xs, "y": ys, "yaw": yaws}
+
+    # --- optimisation -------------------------------------------------------------------------
+    def seeds(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+              previous: tuple[float, float, float, float] | None, ctg: CostToGo
+              ) -> tuple[F64, bool]:
+        """Seed candidates; row 0 is the goal itself when it is within the bounds (→ True)."""
+        vmax = self.law.vmax_mps
+        rows = []
+        r_goal, th, de = self.relative(pose, goal)
+        has_goal = r_goal <= self.p.r_max_m and abs(de) <= self.p.delta_max_rad
+        if has_goal:  # (a goal within in_place_r_m: turn there, do not drive on)
+            rows.append([r_goal, th, de,
+                         vmax if r_goal >= self.p.in_place_r_m else self.p.v_min_mps])
+        rows.append([0.0, 0.0, 0.0, self.p.v_min_mps])  # stop (row `has_goal`)
+        want = float(ctg.descent(self.field.map, np.array(pose[:2])))
+        for heading in (want, goal[2]):
+            turn = float(wrap(np.array(heading - pose[2])))
+            rows += [[0.0, turn, 0.0, vmax], [0.0, turn, 0.0, self.p.v_min_mps]]
+        if previous is not None:
+            rows.append(list(previous))
+        # Points down the navigation function, heading along it: in clutter and doorways the
+        # quasi-random set rarely lands on the narrow band of targets that threads a gap.
+        for x, y, heading in self.descent_path(pose, ctg, goal):
+            z = self.relative(pose, (x, y, heading))
+            if abs(z[2]) <= self.p.delta_max_rad:
+                rows += [[*z, vmax], [*z, 0.5 * vmax]]
+        return np.array(rows), has_goal
+
+    def descent_path(self, pose: tuple[float, float, float], ctg: CostToGo,
+                     goal: tuple[float, float, float], step_m: float = 0.1,
+                     at_m: tuple[float, ...] = (0.6, 1.0, 1.5, 2.0, 3.0, 4.0, 5.5)
+                     ) -> list[tuple[float, float, float]]:
+        """Poses `at_m` along the steepest descent of φ from the chair (stopping at the goal)."""
+        gm = self.field.map
+        x, y = pose[0], pose[1]
+        out: list[tuple[float, float, float]] = []
+        travelled, i = 0.0, 0
+        while i < len(at_m) and travelled < at_m[-1] + 1e-9:
+            if math.hypot(goal[0] - x, goal[1] - y) < step_m:
+                break
+            heading = float(ctg.descent(gm, np.array([x, y])))
+            x, y = x + step_m * math.cos(heading), y + step_m * math.sin(heading)
+            travelled += step_m
+            if travelled >= at_m[i] - 1e-9:
+                out.append((x, y, heading))
+                i += 1
+        return out
+
+    def plan(self, pose: tuple[float, float, float], v0: float, w0: float,
+             goal: tuple[float, float, float], ctg: CostToGo, people: list[Person] | None = None,
+             previous_target: tuple[float, float, float, float] | None = None) -> Plan:
+        """The best z from the chair at `pose` (v0, ω0: the command it is tracking).
+        `previous_target`: the last plan's world target + vmax, re-expressed as a seed.
+        The goal itself wins over a slightly cheaper target near it when its prediction is
+        clear and ends on it (the final approach is then the control law's own)."""
+        people = people or []
+        lo, hi = self.bounds()
+        prev = None
+        if previous_target is not None:
+            rel = self.relative(pose, previous_target[:3])
+            if rel[0] <= self.p.r_max_m and abs(rel[2]) <= self.p.delta_max_rad:
+                prev = (float(rel[0]), float(rel[1]), float(rel[2]), previous_target[3])
+        seeds, has_goal = self.seeds(pose, goal, prev, ctg)
+        z = np.concatenate([seeds, self._global])
+        cost, info = self._costs(pose, v0, w0, z, ctg, people, goal)
+        evals = len(z)
+        i = int(np.argmin(cost))
+        best_z, best_c, best = z[i].copy(), float(cost[i]), {k: v[i] for k, v in info.items()}
+        scale = (hi - lo) * 0.15
+        for _ in range(self.p.local_rounds):
+            cand = np.clip(best_z + self._rng.normal(size=(self.p.n_local, 4)) * scale, lo, hi)
+            c2, inf2 = self._costs(pose, v0, w0, cand, ctg, people, goal)
+            evals += len(cand)
+            j = int(np.argmin(c2))
+            if c2[j] < best_c:
+                best_z, best_c, best = cand[j].copy(), float(c2[j]), {k: v[j]
+                                                                     for k, v in inf2.items()}
+            scale *= 0.5
+        is_goal, goal_clear = False, math.nan
+        if has_goal:
+            goal_clear = float(info["clearance"][0])
+            ends = math.hypot(float(info["x"][0, -1]) - goal[0], float(info["y"][0, -1]) - goal[1])
+            if float(info["clearance"][0]) >= self.p.contact_m and ends < 0.3 \
+                    and float(cost[0]) <= best_c + self.p.goal_slack:
+                best_z, best_c, best = z[0].copy(), float(cost[0]), {k: v[0]
+                                                                     for k, v in info.items()}
+                is_goal = True
+        tgt = self.targets(pose, best_z[None, :])[0]
+        if best_z[0] < self.p.in_place_r_m:
+            tgt = self.in_place_targets(pose, best_z[None, :])[0]
+        path = np.stack([best["x"], best["y"], best["yaw"]], -1)
+        return Plan((float(best_z[0]), float(best_z[1]), float(best_z[2]), float(best_z[3])),
+                    (float(tgt[0]), float(tgt[1]), float(tgt[2])), float(best_z[3]),
+                    best_c, float(best["phi0"] - best["phi_end"]), float(best["survival"]),
+                    float(best["clearance"]), path, is_goal, goal_clear,
+                    float(cost[int(has_goal)]), evals)
+
+    def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
+               ctg: CostToGo, people: list[Person], goal: tuple[float, float, float]
+               ) -> tuple[F64, dict[str, F64]]:
+        cost, info = self.evaluate(pose, v0, w0, z, ctg, people)
+        # Near the goal its yaw replaces the descent heading in the final-heading term.
+        yaw_end = info["yaw"][:, -1]
+        head_desc = np.abs(wrap(yaw_end - ctg.descent(
+            self.field.map, np.stack([info["x"][:, -1], info["y"][:, -1]], -1))))
+        head_goal = np.abs(wrap(yaw_end - goal[2]))
+        cost = cost + self.p.c_heading * np.where(info["near"], head_goal - head_desc, 0.0)
+        return cost, info

@@ -1,0 +1,121 @@
+"""One MPEPC planning cycle as a pure function of a snapshot, so the control node can run it
+outside its lock (it takes tens of ms) while the 50 Hz law keeps running. PURE.
+
+The goal manager (control/core.py) takes a `PlanRequest` under its lock, `compute` runs
+without it, and the core applies the `PlanResult` if the goal is still the same.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from dataclasses import field as dc_field
+
+import numpy as np
+
+from .field import CostToGo, Footprint, GridMap, NavField
+from .mpepc import LawParams, Mpepc, MpepcParams, Person, Plan
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    goal_id: int
+    index: int  # waypoint planned to
+    pose: tuple[float, float, float]
+    v: float
+    omega: float
+    goal: tuple[float, float, float]
+    field: NavField
+    ctg: CostToGo | None  # None: (re)compute from `field`
+    previous: tuple[float, float, float, float] | None  # last target (x, y, yaw) + vmax
+    law: LawParams = dc_field(default_factory=LawParams)
+    people: list[Person] = dc_field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    goal_id: int
+    index: int
+    field: NavField
+    ctg: CostToGo | None
+    plan: Plan | None
+    error: str = ""  # no path: why
+    blocked_by: str = ""  # what stops progress, when the plan makes none
+
+
+_planners: dict[int, tuple[NavField, Mpepc]] = {}
+
+
+def planner_for(fld: NavField, law: LawParams, params: MpepcParams | None = None) -> Mpepc:
+    """One Mpepc per field (its candidate set is built once)."""
+    key = id(fld)
+    hit = _planners.get(key)
+    if hit is None or hit[0] is not fld or hit[1].law != law:
+        _planners.clear()  # only the newest field is used
+        hit = (fld, Mpepc(fld, law, params))
+        _planners[key] = hit
+    return hit[1]
+
+
+def free_field(points: list[tuple[float, float]], footprint: Footprint,
+               margin_m: float = 3.0, resolution_m: float = 0.1) -> NavField:
+    """A field without obstacles around `points` (used before any map has arrived)."""
+    xy = np.array(points, dtype=np.float64)
+    lo, hi = xy.min(0) - margin_m, xy.max(0) + margin_m
+    w, h = np.ceil((hi - lo) / resolution_m).astype(int)
+    gm = GridMap(np.zeros((h, w), dtype=np.bool_), resolution_m, float(lo[0]), float(lo[1]),
+                 "map")
+    return NavField(gm, footprint)
+
+
+def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, float],
+               goal: tuple[float, float, float]) -> str:
+    if ctg is None:
+        return (f"no path: the goal ({goal[0]:.2f}, {goal[1]:.2f}) is closer than "
+                f"{fld.pass_m:.2f} m to an obstacle or outside the map")
+    if not math.isfinite(fld.start_cost(ctg, pose[0], pose[1])):
+        return (f"no path from ({pose[0]:.2f}, {pose[1]:.2f}) to ({goal[0]:.2f}, "
+                f"{goal[1]:.2f}) that the chair fits through")
+    return ""
+
+
+def blocker(fld: NavField, ctg: CostToGo, pose: tuple[float, float, float],
+            people: list[Person]) -> str:
+    """What keeps the chair from progressing: the nearest person within 3 m, else the
+    tightest spot on the way down the navigation function (2 m ahead)."""
+    x, y, _ = pose
+    near = [(math.hypot(p.x_m - x, p.y_m - y), p) for p in people]
+    near = [n for n in near if n[0] < 3.0]
+    if near:
+        d, p = min(near, key=lambda n: n[0])
+        return f"a person at ({p.x_m:.2f}, {p.y_m:.2f}), {d:.1f} m away"
+    pts, px, py = [], x, y
+    for _ in range(20):
+        heading = float(ctg.descent(fld.map, np.array([px, py])))
+        px, py = px + 0.1 * math.cos(heading), py + 0.1 * math.sin(heading)
+        pts.append((px, py))
+    arr = np.array(pts)
+    i = int(np.argmin(fld.clearance_at(arr)))
+    return f"an obstacle near ({arr[i, 0]:.2f}, {arr[i, 1]:.2f})"
+
+
+def compute(req: PlanRequest, params: MpepcParams | None = None,
+            blocked_progress_m: float = 0.1, blocked_gain: float = 0.1) -> PlanResult:
+    fld, ctg = req.field, req.ctg
+    if ctg is None:
+        ctg = fld.cost_to_go(req.goal[0], req.goal[1])
+    error = path_error(fld, ctg, req.pose, req.goal)
+    if error or ctg is None:
+        return PlanResult(req.goal_id, req.index, fld, ctg, None, error=error)
+    plan = planner_for(fld, req.law, params).plan(req.pose, req.v, req.omega, req.goal, ctg,
+                                              req.people, req.previous)
+    blocked = ""
+    if plan.min_clearance_m < (params or MpepcParams()).contact_m:
+        # Every motion is predicted to touch something: stand still (blocked) rather than
+        # take the least bad contact.
+        blocked = blocker(fld, ctg, req.pose, req.people)
+    elif not plan.is_goal and plan.progress_m < blocked_progress_m \
+            and plan.cost > plan.stop_cost - blocked_gain:
+        # No progress, and nothing (a turn towards the path included) beats standing still.
+        blocked = blocker(fld, ctg, req.pose, req.people)
+    return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked)

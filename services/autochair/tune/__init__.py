@@ -1,0 +1,1 @@
+"""Auto-tune of the velocity loops: relay and step probes, SOPDT fit, gain rules."""

@@ -1,0 +1,192 @@
+"""Navigation function, MPEPC cost and the goal states (pure: small grids, no processes)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
+from autochair.nav.field import Footprint, GridMap, NavField
+from autochair.nav.mpepc import LawParams, Mpepc, Person
+from autochair.nav.planner import PlanRequest, compute
+from autochair.sim.world import WorldError, parse_world
+from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
+
+FP = Footprint()
+
+
+def corridor_with_wall(gap: bool = True) -> NavField:
+    """8 × 4 m room split by a wall at x = 4 with (or without) a 1.2 m opening at y 1.4..2.6."""
+    segs = [[0, 0, 8, 0], [8, 0, 8, 4], [8, 4, 0, 4], [0, 4, 0, 0], [4, 0, 4, 1.4 if gap else 4]]
+    if gap:
+        segs.append([4, 2.6, 4, 4])
+    gm = GridMap.from_shapes(np.array(segs, dtype=float), np.zeros((0, 3)))
+    return NavField(gm, FP)
+
+
+def test_costs_to_go_grow_with_path_length_and_go_round_the_wall() -> None:
+    fld = corridor_with_wall()
+    ctg = fld.cost_to_go(6.0, 2.0)
+    assert ctg is not None
+    near, far = fld.start_cost(ctg, 5.0, 2.0), fld.start_cost(ctg, 2.0, 2.0)
+    assert 0.9 < near < 1.5  # ~1 m, a little more for the slower cells near walls
+    assert far > near
+    # From (2, 0.8) the path must go up through the opening: longer than the straight 4.1 m.
+    below = fld.start_cost(ctg, 2.0, 0.8)
+    assert below > math.hypot(4.0, 1.2) + 0.1
+    # −∇φ next to the wall's lower end points away from the wall side, towards the opening.
+    heading = float(ctg.descent(fld.map, np.array([3.0, 1.0])))
+    assert 0.0 < heading < math.pi
+
+
+def test_a_wall_without_opening_means_no_path() -> None:
+    closed = corridor_with_wall(gap=False)
+    ctg = closed.cost_to_go(6.0, 2.0)
+    assert ctg is not None and math.isinf(closed.start_cost(ctg, 2.0, 2.0))
+    opened = corridor_with_wall()  # positive control
+    c2 = opened.cost_to_go(6.0, 2.0)
+    assert c2 is not None and math.isfinite(opened.start_cost(c2, 2.0, 2.0))
+
+
+def test_the_footprint_is_the_rectangle_not_a_circle() -> None:
+    fld = corridor_with_wall()
+    # Axle 0.6 m from the right wall (x = 8): facing it, the front (0.95 m) is inside;
+    # facing away, the rear (0.25 m) clears it.
+    assert "overlaps" in fld.check_goal(7.4, 2.0, 0.0)
+    assert fld.check_goal(7.4, 2.0, math.pi) == ""
+    # beside a wall: 0.35 m half width + 0.02 pass margin
+    assert fld.check_goal(6.0, 0.45, 0.0) == ""
+    assert fld.check_goal(6.0, 0.30, 0.0) != ""
+
+
+def test_occupancy_grid_message_unknown_is_free_and_frame_is_kept() -> None:
+    data = np.full((20, 30), 255, dtype=np.uint8)
+    data[:, 15] = 100  # a wall
+    data[5, 5] = 0
+    msg = OccupancyGrid(stamp_ns=1, frame_id="map", resolution_m=0.1, width=30, height=20,
+                        origin_x_m=-1.0, origin_y_m=-1.0, data=data.tobytes())
+    gm = GridMap.from_msg(msg)
+    assert gm.frame_id == "map" and gm.occupied.sum() == 20 and gm.occupied[:, 15].all()
+
+
+def planner(fld: NavField) -> Mpepc:
+    return Mpepc(fld, LawParams())
+
+
+def test_mpepc_cost_prefers_progress_and_punishes_contact() -> None:
+    fld = corridor_with_wall()
+    ctg = fld.cost_to_go(6.0, 2.0)
+    assert ctg is not None
+    m = planner(fld)
+    pose = (1.5, 2.0, 0.0)
+    z = np.array([[0.0, 0.0, 0.0, 0.15],  # stop
+                  [4.5, 0.0, 0.0, 1.0],  # straight through the opening
+                  [3.0, 0.0, -0.9, 1.0]])  # towards the wall below the opening
+    cost, info = m.evaluate(pose, 0.0, 0.0, z, ctg, [])
+    assert cost[1] < cost[0] < cost[2]
+    assert info["clearance"][1] > 0.1 and info["clearance"][2] < 0.02
+    # A person standing in the opening makes the straight candidate worse than stopping.
+    cost_p, info_p = m.evaluate(pose, 0.0, 0.0, z, ctg, [Person(4.5, 2.0)])
+    assert cost_p[1] > cost_p[0] and info_p["clearance"][1] < 0.0
+
+
+def test_survival_is_limited_by_the_tightest_point() -> None:
+    fld = corridor_with_wall()
+    ctg = fld.cost_to_go(6.0, 2.0)
+    assert ctg is not None
+    m = planner(fld)
+    z = np.array([[4.5, 0.0, 0.0, 1.0]])
+    _, info = m.evaluate((1.5, 2.0, 0.0), 0.0, 0.0, z, ctg, [])
+    d = float(info["clearance"][0])
+    assert info["survival"][0] == pytest.approx(1 - math.exp(-(d / 0.1) ** 2), abs=1e-6)
+
+
+def test_plan_through_the_opening_makes_progress_and_ends_on_the_goal_when_close() -> None:
+    fld = corridor_with_wall()
+    ctg = fld.cost_to_go(6.0, 2.0)
+    assert ctg is not None
+    plan = planner(fld).plan((1.5, 2.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), ctg)
+    assert plan.progress_m > 1.5 and plan.min_clearance_m > 0.05
+    close = planner(fld).plan((5.0, 2.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), ctg)
+    assert close.is_goal and close.target == pytest.approx((6.0, 2.0, 0.0), abs=1e-6)
+
+
+def test_a_person_in_the_way_blocks_and_says_so() -> None:
+    fld = corridor_with_wall()
+    ctg = fld.cost_to_go(6.0, 2.0)
+    assert ctg is not None
+    req = PlanRequest(1, 0, (3.0, 2.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), fld, ctg, None,
+                      people=[Person(4.45, 2.0, radius_m=0.5)])
+    res = compute(req)
+    assert "a person at (4.45, 2.00)" in res.blocked_by
+    free = compute(PlanRequest(1, 0, (3.0, 2.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), fld, ctg,
+                               None))
+    assert free.blocked_by == "" and free.plan is not None  # positive control
+
+
+# --- goal handling in the core ---------------------------------------------------------------
+def core_with(fld: NavField, x: float, y: float, yaw: float = 0.0,
+              cfg: ControlConfig | None = None) -> ControlCore:
+    core = ControlCore(cfg or ControlConfig(), footprint=FP)
+    core.on_field(fld)
+    core.on_odom(OdomSample(x, y, yaw, 0.0, 0.0, 0.0))
+    return core
+
+
+def test_unreachable_goals_are_refused_with_a_reason() -> None:
+    fld = corridor_with_wall(gap=False)
+    core = core_with(fld, 2.0, 2.0)
+    r = core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 2.0, 0.0)]), 0.0)
+    assert not r.ok and "no path" in r.error
+    r = core.set_goal(GoalRequest(waypoints=[Pose2D(3.5, 2.0, 0.0)]), 0.0)
+    assert not r.ok and "overlaps an obstacle" in r.error  # the front in the wall
+    ok = core.set_goal(GoalRequest(waypoints=[Pose2D(2.5, 2.0, 0.0)]), 0.0)
+    assert ok.ok and core.state == "planning"  # positive control
+
+
+def test_a_goal_blocked_on_the_way_is_reported_then_aborted_with_what_blocks() -> None:
+    fld = corridor_with_wall()
+    cfg = ControlConfig(blocked_wait_s=1.0, blocked_abort_s=3.0)
+    core = core_with(fld, 2.5, 2.0, cfg=cfg)
+    core.people = [Person(4.2, 2.0, radius_m=0.55)]  # standing in the opening
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 2.0, 0.0)]), 0.0).ok
+    seen = set()
+    t, x, y, yaw, v, w = 0.0, 2.5, 2.0, 0.0, 0.0, 0.0
+    while core.active and t < 20.0:
+        core.on_odom(OdomSample(x, y, yaw, v, w, t))
+        v, w = core.step(t) or (0.0, 0.0)  # a chair that follows at once
+        x, y, yaw = x + v * math.cos(yaw) * 0.02, y + v * math.sin(yaw) * 0.02, yaw + w * 0.02
+        seen.add(core.state)
+        t += 0.02
+    assert BLOCKED in seen
+    assert core.state == ABORTED and "blocked by a person" in core.reason, core.reason
+    assert x < 3.4  # never drove into the person
+
+
+def test_a_map_that_closes_the_way_blocks_then_aborts_with_no_path() -> None:
+    cfg = ControlConfig(blocked_wait_s=1.0, blocked_abort_s=3.0)
+    core = core_with(corridor_with_wall(), 2.5, 2.0, cfg=cfg)
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 2.0, 0.0)]), 0.0).ok
+    core.step(0.0)
+    assert core.state == "driving"
+    core.on_field(corridor_with_wall(gap=False))  # the door was shut
+    t, seen = 0.02, set()
+    while core.active and t < 10.0:
+        core.on_odom(OdomSample(2.5, 2.0, 0.0, 0.0, 0.0, t))
+        core.step(t)
+        seen.add((core.state, core.reason[:7]))
+        t += 0.02
+    assert (BLOCKED, "no path") in seen
+    assert core.state == ABORTED and "no path" in core.reason and "for 3 s" in core.reason
+    assert 3.0 <= t <= 4.0
+
+
+def test_world_people_walk_their_segment_and_are_seen_as_discs() -> None:
+    w = parse_world("wall 0 0 1 0\nperson 0 1 2 1 1.0\n")
+    assert w.people_state(0.5)[0, :2] == pytest.approx([0.5, 1.0])
+    assert w.people_state(2.5)[0, :4] == pytest.approx([1.5, 1.0, -1.0, 0.0])  # back again
+    assert len(w.at(0.5).circles) == 1 and len(w.circles) == 0
+    with pytest.raises(WorldError, match="person speed"):
+        parse_world("person 0 0 1 1 9\n")

@@ -1,0 +1,119 @@
+"""Navigation end to end in the simulator: simulated lidar → mapping → control (MPEPC) → drive
+chain. An unreachable goal is refused at once; a goal round a corner is reached; a goal whose
+way turns out to be shut is reported blocked, then aborted with the reason."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from autochair.launcher import Launcher
+from autochair.runtime.client import request
+from autochair.sim.world import DEFAULT_WORLD
+from autochair_msgs import GoalReply, GoalRequest, GoalStatus, GroundTruth, Health, Pose2D, keys
+from tests.helpers import Recorder, client_session, wait_for
+
+pytestmark = pytest.mark.slow
+
+STACK = ["estop", "sim", "gateway", "odometry", "pid", "lidar-sim", "lidar", "mapping",
+         "control"]
+ACTIVE = ("planning", "driving", "blocked")
+
+
+def world_config(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, world: str) -> None:
+    path = tmp_path / "nav.world"
+    path.write_text(world)
+    conf = tmp_path / "nav.toml"
+    conf.write_text(f'[lidar-sim]\nworld = "{path}"\n')
+    monkeypatch.setenv("AUTOCHAIR_CONFIG", str(conf))
+
+
+def map_ready(session: zenoh.Session) -> Recorder:
+    """Wait until the control service has built a navigation field from the live map."""
+    health = Recorder(session, keys.HEALTH.for_service("control"), Health)
+    wait_for(lambda: (lambda h: h is not None and h.counters.get("nav_fields", 0) >= 1)(
+        health.latest()), 30, "a navigation field from the live map")
+    return health
+
+
+def drive_to(session: zenoh.Session, goal: Pose2D, timeout_s: float) -> list[GoalStatus]:
+    status = Recorder(session, keys.GOAL_STATUS.key, GoalStatus)
+    reply = request(session, keys.GOAL_SET, GoalRequest(waypoints=[goal]), GoalReply)
+    assert reply.ok, reply.error
+    wait_for(lambda: any(s.goal_id == reply.goal_id and s.state not in ACTIVE
+                         for s in status.messages()), timeout_s, "goal end")
+    return [s for s in status.messages() if s.goal_id == reply.goal_id]
+
+
+def story(states: list[GoalStatus]) -> str:
+    """The state changes, for assertion messages."""
+    out: list[str] = []
+    for s in states:
+        line = f"{s.state} {s.distance_left_m:.1f} m {s.reason}"
+        if not out or out[-1].split(" ")[0] != s.state:
+            out.append(line)
+    return " → ".join(out)
+
+
+def test_unreachable_goal_is_refused_at_once(stack_factory: Callable[..., Launcher],
+                                             hub: str) -> None:
+    stack_factory(STACK)
+    session = client_session(hub)
+    try:
+        map_ready(session)
+        # The README's old example: at 90° the chair's front would be inside the wall.
+        t0 = time.monotonic()
+        bad = request(session, keys.GOAL_SET, GoalRequest(
+            waypoints=[Pose2D(3.0, 1.0, math.radians(90))]), GoalReply)
+        assert time.monotonic() - t0 < 1.0
+        assert not bad.ok and "overlaps an obstacle" in bad.error, bad
+        # positive control: 1 m further from the wall it fits (the README's new example)
+        ok = request(session, keys.GOAL_SET, GoalRequest(
+            waypoints=[Pose2D(3.0, 0.0, math.radians(90))]), GoalReply)
+        assert ok.ok, ok.error
+        request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
+    finally:
+        session.close()
+
+
+L_WORLD = (DEFAULT_WORLD.parent / "l_corridor.world").read_text()
+
+
+def test_around_a_corner(stack_factory: Callable[..., Launcher], hub: str, tmp_path: Path,
+                         monkeypatch: pytest.MonkeyPatch) -> None:
+    world_config(tmp_path, monkeypatch, L_WORLD)
+    stack_factory(STACK)
+    session = client_session(hub)
+    try:
+        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+        map_ready(session)
+        states = drive_to(session, Pose2D(8.0, 4.0, math.radians(90)), 90)
+        assert states[-1].state == "arrived", story(states)
+        assert "driving" in {s.state for s in states}
+        t = truth.latest()
+        assert math.hypot(t.x_m - 8.0, t.y_m - 4.0) < 0.10, t
+    finally:
+        session.close()
+
+
+def test_a_goal_blocked_on_the_way_is_reported_then_aborted(
+        stack_factory: Callable[..., Launcher], hub: str, tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Someone stands in the second leg (unseen from the start): the way is shut.
+    world_config(tmp_path, monkeypatch, L_WORLD + "person 8.0 6.0 8.0 6.0 0.0 0.8\n")
+    stack_factory(STACK)
+    session = client_session(hub)
+    try:
+        map_ready(session)
+        states = drive_to(session, Pose2D(8.0, 7.5, math.radians(90)), 120)
+        blocked = [s for s in states if s.state == "blocked"]
+        assert blocked and blocked[0].reason, story(states)
+        assert states[-1].state == "aborted", story(states)
+        assert "no path" in states[-1].reason or "blocked by" in states[-1].reason, story(states)
+    finally:
+        session.close()
