@@ -39,6 +39,14 @@ def test_up_unknown_process() -> None:
     one_line_error(run("-m", "autochair.cli", "up", "--sim", "--only", "gatewy"), "gatewy")
 
 
+def test_up_unknown_map(tmp_path: Path) -> None:
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps" / "hall.yaml").write_text("image: hall.pgm\n")
+    proc = run("-m", "autochair.cli", "up", "--sim", "--map", "hal", "--state-dir",
+               str(tmp_path), "--hub", f"tcp/127.0.0.1:{free_port()}")
+    one_line_error(proc, "no map 'hal'", "known: hall", "autochair map save")
+
+
 def test_drive_out_of_range() -> None:
     one_line_error(run("-m", "autochair.cli", "drive", "5", "0"), "|v|")
 

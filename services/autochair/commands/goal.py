@@ -1,6 +1,6 @@
 """`autochair goal X Y YAW_DEG` / `autochair goal --waypoints FILE`: drive to a pose.
 
-Poses are in the `world` frame (odometry origin = where the chair started): x forward, y left,
+Poses are in the `odom` frame (REP-105; its origin is where the chair started): x forward, y left,
 metres; yaw in DEGREES, counter-clockwise (people think in degrees; the wire uses radians).
 Waypoints file: one `x, y, yaw_deg` per line (CSV), `#` comments and blank lines ignored; the
 chair passes through the intermediate ones without stopping and stops at the last.

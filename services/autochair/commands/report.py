@@ -168,7 +168,7 @@ def trajectory_figure(data: dict[str, list[Any]], path: Path) -> Path:
     ax.set_ylabel("y (m)")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    ax.set_title("Trajectory over the map (world frame)")
+    ax.set_title("Trajectory over the map (odom frame)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

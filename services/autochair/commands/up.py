@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import signal
 import threading
@@ -28,6 +29,9 @@ def register(sub: Any) -> None:
                    help=f"record the run to PATH (file or dir; default {DEFAULT_RECORD_DIR}/, "
                    f"with --chair NAME {DEFAULT_RECORD_DIR}/NAME/)")
     p.add_argument("--no-record", action="store_true", help="do not run the logger")
+    p.add_argument("--map", metavar="NAME",
+                   help="localize on map NAME of the state directory's maps/ (saved by "
+                   "`autochair map save NAME`); default: build a map while driving")
     p.add_argument("--hub", default="tcp/127.0.0.1:7447", help="Zenoh endpoint of the hub")
     add_chair_arg(p, "run the stack as chair NAME (every process gets $AUTOCHAIR_CHAIR)")
     p.add_argument("--join", action="store_true",
@@ -114,6 +118,14 @@ def run(args: argparse.Namespace) -> int:
         state_dir.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise CliError(f"cannot create the state directory {state_dir}: {e}") from None
+    if args.map:
+        maps = state_dir / "maps"
+        if not (maps / f"{args.map}.yaml").exists():
+            known = sorted(f.stem for f in maps.glob("*.yaml")) if maps.is_dir() else []
+            raise CliError(f"no map {args.map!r} in {maps} (known: {', '.join(known) or 'none'};"
+                           " save one with `autochair map save NAME`)")
+        procs = [dataclasses.replace(p, args=(*p.args, "--set", f"map={args.map}"))
+                 if p.name == "localization" else p for p in procs]
     record = args.record or os.path.join(DEFAULT_RECORD_DIR, chair)
     values = processes.local_values(run_dir, hub, record_path=str(Path(record).resolve()),
                                     state_dir=str(state_dir),
