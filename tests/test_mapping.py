@@ -106,3 +106,16 @@ def test_odom_lookup_nearest_and_stale() -> None:
 def test_compose_mount() -> None:
     x, y, yaw = compose((1.0, 2.0, math.pi / 2), MOUNT)
     assert (x, y, yaw) == pytest.approx((1.0 - 0.2032, 2.0 + 0.8636, math.pi / 2))
+
+
+def test_a_parked_chairs_scans_are_integrated_once_a_second() -> None:
+    from autochair.mapping.core import MoveGate
+
+    gate = MoveGate(min_move_m=0.02, min_turn_rad=0.02, max_age_ns=1_000_000_000)
+    ms = 1_000_000
+    parked = [t for t in range(0, 3000 * ms, 100 * ms) if gate.take((1.0, 2.0, 0.5), t)]
+    assert parked == [0, 1000 * ms, 2000 * ms]  # 10 scans/s parked: one a second
+    # Moving (positive control): every scan that moved 2 cm or turned 0.02 rad counts.
+    assert gate.take((1.03, 2.0, 0.5), 3000 * ms)
+    assert gate.take((1.03, 2.0, 0.53), 3100 * ms)
+    assert not gate.take((1.035, 2.0, 0.53), 3200 * ms)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from autochair.geometry import wrap_angle
 from autochair_msgs import OccupancyGrid, Odometry, PointCloud
 
 F64 = npt.NDArray[np.float64]
@@ -139,6 +140,28 @@ class VoxelCloud:
         arr = np.array(list(self._pts.values()), dtype=np.float32).reshape(-1, 3)
         return PointCloud(stamp_ns=stamp_ns, frame_id=frame_id, count=len(arr),
                           points_xyz_f32=arr.astype("<f4").tobytes())
+
+
+@dataclass
+class MoveGate:
+    """Whether a scan adds anything to the map: the laser moved, or the last scan integrated
+    is older than `max_age_ns`. A parked chair's identical views are integrated once a second,
+    not ten times (CPU); what changes in front of it still shows within a second."""
+
+    min_move_m: float = 0.02
+    min_turn_rad: float = 0.02
+    max_age_ns: int = 1_000_000_000
+    _last: tuple[Pose, int] | None = None
+
+    def take(self, pose: Pose, stamp_ns: int) -> bool:
+        if self._last is not None:
+            (x, y, yaw), t = self._last
+            still = (math.hypot(pose[0] - x, pose[1] - y) < self.min_move_m
+                     and abs(wrap_angle(pose[2] - yaw)) < self.min_turn_rad)
+            if still and 0 <= stamp_ns - t < self.max_age_ns:
+                return False
+        self._last = (pose, stamp_ns)
+        return True
 
 
 class OdomBuffer:

@@ -1,7 +1,8 @@
 """autochair-mapping: occupancy grid (keys.MAP_GRID) and point cloud (keys.MAP_CLOUD) from
-scans (keys.SCAN) placed by odometry (keys.ODOM) and the chair→laser mount of the [chair]
-section (`node.chair`). A chair→laser transform on keys.TF_STATIC that disagrees with it is
-counted (`tf_mount_mismatch`) and reported, not followed: the mount is defined once."""
+scans (keys.SCAN) placed by odometry (keys.ODOM_SLOW, interpolated) and the chair→laser mount
+of the [chair] section (`node.chair`). A chair→laser transform on keys.TF_STATIC that
+disagrees with it is counted (`tf_mount_mismatch`) and reported, not followed: the mount is
+defined once. A parked chair's scans are integrated once a second (`MoveGate`)."""
 
 from __future__ import annotations
 
@@ -9,21 +10,32 @@ import sys
 import threading
 import time
 from collections import deque
+from typing import Annotated
 
 import msgspec
 import numpy as np
 
-from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import FrameTransform, LaserScan, Odometry, keys
 
-from .core import GridSpec, OccupancyMapper, OdomBuffer, Pose, VoxelCloud, compose, scan_points
+from .core import (
+    GridSpec,
+    MoveGate,
+    OccupancyMapper,
+    OdomBuffer,
+    Pose,
+    VoxelCloud,
+    compose,
+    scan_points,
+)
+
+Positive = Annotated[float, msgspec.Meta(gt=0)]
 
 
 class MappingConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    resolution_m: float = 0.05
-    width_m: float = 30.0
-    height_m: float = 20.0
+    resolution_m: Positive = 0.05
+    width_m: Positive = 30.0
+    height_m: Positive = 20.0
     origin_x_m: float = -5.0  # odom position of the grid's (0, 0) corner
     origin_y_m: float = -10.0
     l_hit: float = 0.85  # log-odds added to a cell a beam ends in
@@ -32,9 +44,15 @@ class MappingConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     require_odom: bool = True  # False: map scans at the origin when there is no odometry
     voxel_m: float = 0.05  # point-cloud voxel size
     max_points: int = 100_000
-    publish_period_s: float = 1.0
+    publish_period_s: Positive = 1.0
     frame_id: str = "odom"  # REP-105: placed by odometry alone (localization maps in `map`)
     laser_frame: str = "laser"
+    # A parked chair's scans are integrated once a second, not at the scan rate (MoveGate).
+    still_period_s: Annotated[float, msgspec.Meta(ge=0)] = 1.0
+
+    def __post_init__(self) -> None:
+        if self.width_m * self.height_m / self.resolution_m**2 > 50e6:
+            raise ValueError("grid over 50 M cells; coarsen resolution_m or shrink it")
 
 
 class MappingService:
@@ -47,6 +65,7 @@ class MappingService:
                                       cfg.l_hit, cfg.l_miss)
         self.cloud = VoxelCloud(cfg.voxel_m, cfg.max_points)
         self.odom = OdomBuffer()
+        self.gate = MoveGate(max_age_ns=int(cfg.still_period_s * 1e9))
         self.mount: Pose = node.chair.laser_mount
         self.tf_error = ""
         self.pending: deque[LaserScan] = deque(maxlen=8)
@@ -87,12 +106,15 @@ class MappingService:
     def integrate(self, scan: LaserScan) -> None:
         cfg, health = self.cfg, self.node.health
         with self.lock:
-            pose = self.odom.nearest(scan.stamp_ns, int(cfg.max_odom_dt_s * 1e9))
+            pose = self.odom.at(scan.stamp_ns, int(cfg.max_odom_dt_s * 1e9))
         if pose is None:
             if cfg.require_odom:
                 health.count("scans_no_odom")
                 return
             pose = (0.0, 0.0, 0.0)
+        if not self.gate.take(pose, scan.stamp_ns):
+            health.count("scans_still")
+            return
         laser = compose(pose, self.mount)
         r = np.asarray(scan.ranges_m, dtype=np.float64)
         self.mapper.integrate(r, scan.angle_min_rad, scan.angle_increment_rad, laser)
@@ -108,12 +130,8 @@ class MappingService:
 
 
 def start(node: Node, cfg: MappingConfig) -> None:
-    if cfg.resolution_m <= 0 or cfg.width_m <= 0 or cfg.height_m <= 0:
-        raise ConfigError("mapping: resolution_m, width_m and height_m must be > 0")
-    if cfg.width_m * cfg.height_m / cfg.resolution_m**2 > 50e6:
-        raise ConfigError("mapping: grid over 50 M cells; coarsen resolution_m or shrink it")
     svc = MappingService(node, cfg)
-    node.subscribe(keys.ODOM, svc.on_odom)
+    node.subscribe(keys.ODOM_SLOW, svc.on_odom)  # 50 Hz, interpolated at the scan stamps
     node.subscribe(keys.TF_STATIC, svc.on_tf)
     node.subscribe(keys.SCAN, svc.on_scan)
     node.thread(svc.worker, "map")
