@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 
+from autochair.control.core import ControlConfig
 from autochair.estop.node import EStopConfig
 from autochair.gateway.node import GatewayConfig
 from autochair.lidar.node import LidarConfig
@@ -25,6 +26,8 @@ from autochair.safety.node import SafetyConfig
     (SafetyConfig, "safety", "decel_mps2=0", "decel_mps2"),
     (SafetyConfig, "safety", "min_valid_fraction=1.5", "min_valid_fraction"),
     (SafetyConfig, "safety", "clear_hold_s=-1", "clear_hold_s"),
+    (ControlConfig, "control", "rate_hz=10", "rate_hz"),
+    (ControlConfig, "control", "k1=0", "k1"),
 ])
 def test_a_bad_value_names_its_section_and_field(type_: type, section: str, override: str,
                                                  field: str) -> None:
@@ -41,3 +44,11 @@ def test_the_safety_configs_defaults_are_the_cores() -> None:
 
     cfg, params = SafetyConfig(), SafetyParams()
     assert all(getattr(cfg, f) == getattr(params, f) for f in SafetyTuning.__struct_fields__)
+
+
+def test_the_control_configs_gains_are_the_laws() -> None:
+    """ControlConfig and MPEPC's LawParams extend law.Gains: the thesis gains written once."""
+    from autochair.control.law import Gains
+
+    assert ControlConfig().gains == Gains()
+    assert ControlConfig().law(0.025).k2 == Gains().k2

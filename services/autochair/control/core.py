@@ -20,8 +20,6 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-import msgspec
-
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav.field import CostToGo, Footprint, NavField
 from autochair.nav.mpepc import ALIGNED_RAD, LawParams, MpepcParams, Person, Plan
@@ -38,19 +36,13 @@ LINEUP_M, LINEUP_RAD = 0.2, 0.3  # a line-up pose before a door counts as reache
 ACTIVE_STATES = (PLANNING, DRIVING, BLOCKED)
 
 
-class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    """[control] section. SI units."""
+class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True):
+    """[control] section. SI units. The Park & Kuipers gains (k1, k2, beta, lam, vmax_mps,
+    r_thresh_m) are law.Gains's, with the thesis values; checked when created."""
 
     rate_hz: float = 50.0  # command rate while a goal is active (≥ 20)
     status_rate_hz: float = 5.0
     stop_burst_s: float = 0.5  # zeros published after the chair has been braked to rest
-    # Park & Kuipers gains (thesis values)
-    k1: float = 1.5
-    k2: float = 3.0
-    beta: float = 0.4
-    lam: float = 2.0
-    vmax_mps: float = 1.2
-    r_thresh_m: float = 1.2
     # comfort limits
     a_max_mps2: float = 1.0
     jerk_max_mps3: float = 2.0
@@ -93,6 +85,9 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     no_progress_s: float = 15.0
     rest_mps: float = 0.01  # |v| (m/s) and |ω| (rad/s) of the measured chair counted as at rest
 
+    def __post_init__(self) -> None:
+        self.check()  # msgspec reports a ValueError here as a field error when decoding
+
     def check(self) -> None:
         if not self.rate_hz >= 20.0:
             raise ValueError(f"rate_hz must be >= 20, not {self.rate_hz}")
@@ -112,16 +107,17 @@ class ControlConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
     @property
     def gains(self) -> Gains:
-        return Gains(self.k1, self.k2, self.beta, self.lam, self.vmax_mps, self.r_thresh_m)
+        return Gains(**{f: getattr(self, f) for f in Gains.__struct_fields__})
 
     def law(self, capture_m: float) -> LawParams:
         """What MPEPC predicts with: the law and the limiter's planning limits."""
         lim = self.limits
-        return LawParams(self.k1, self.k2, self.beta, self.lam, self.vmax_mps, self.r_thresh_m,
-                         self.omega_floor_radps, lim.a_max_mps2, lim.omega_max_radps,
-                         lim.omega_acc_max_radps2,
-                         self.align_brake_fraction * lim.omega_acc_max_radps2,
-                         self.align_gain_1ps, capture_m)
+        return LawParams(**{f: getattr(self, f) for f in Gains.__struct_fields__},
+                         omega_floor_radps=self.omega_floor_radps, a_mps2=lim.a_max_mps2,
+                         omega_max_radps=lim.omega_max_radps,
+                         omega_acc_radps2=lim.omega_acc_max_radps2,
+                         align_brake_radps2=self.align_brake_fraction * lim.omega_acc_max_radps2,
+                         align_gain_1ps=self.align_gain_1ps, capture_m=capture_m)
 
     @property
     def limits(self) -> ComfortLimits:

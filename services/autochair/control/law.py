@@ -28,12 +28,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import msgspec
+
 from autochair.geometry import wrap_angle as wrap
 
 
-@dataclass(frozen=True)
-class Gains:
-    """Thesis / Park & Kuipers values."""
+class Gains(msgspec.Struct, frozen=True):
+    """Thesis / Park & Kuipers values: written once here; MPEPC's LawParams and the [control]
+    section (ControlConfig) extend this."""
 
     k1: float = 1.5
     k2: float = 3.0

@@ -35,6 +35,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import qmc
 
+from autochair.control.law import Gains
+
 from .field import CostToGo, NavField, place
 
 F64 = npt.NDArray[np.float64]
@@ -52,16 +54,10 @@ class Person:
     radius_m: float = 0.25
 
 
-@dataclass(frozen=True)
-class LawParams:
-    """The graceful law and the comfort limits the 50 Hz loop runs with (ControlConfig)."""
+class LawParams(Gains, frozen=True, kw_only=True):
+    """The graceful law (its gains) and the comfort limits the 50 Hz loop runs with
+    (ControlConfig.law)."""
 
-    k1: float = 1.5
-    k2: float = 3.0
-    beta: float = 0.4
-    lam: float = 2.0
-    vmax_mps: float = 1.2
-    r_thresh_m: float = 1.2
     omega_floor_radps: float = 0.5
     a_mps2: float = 0.6  # the limiter's planning limits (comfort × chain margin)
     omega_max_radps: float = 0.54
