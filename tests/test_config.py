@@ -9,9 +9,17 @@ from autochair.control.core import ControlConfig
 from autochair.estop.node import EStopConfig
 from autochair.gateway.node import GatewayConfig
 from autochair.lidar.node import LidarConfig
+from autochair.localization.node import LocalizationConfig
 from autochair.logger.writer import LoggerConfig
+from autochair.mapping.node import MappingConfig
+from autochair.odometry.node import OdometryConfig
 from autochair.runtime.config import ConfigError, load_section
 from autochair.safety.node import SafetyConfig
+from autochair.sim.chair.node import SimConfig
+from autochair.sim.lidar.node import LidarSimConfig
+
+# What a section needs besides its defaults (the simulators' pty link).
+REQUIRED = {"sim": ['pty_link="/tmp/arduino"'], "lidar-sim": ['pty_link="/tmp/lidar"']}
 
 
 @pytest.mark.parametrize("type_,section,override,field", [
@@ -27,13 +35,20 @@ from autochair.safety.node import SafetyConfig
     (SafetyConfig, "safety", "min_valid_fraction=1.5", "min_valid_fraction"),
     (SafetyConfig, "safety", "clear_hold_s=-1", "clear_hold_s"),
     (ControlConfig, "control", "rate_hz=10", "rate_hz"),
+    (OdometryConfig, "odometry", "wheel_diameter_ratio=3", "wheel_diameter_ratio"),
+    (MappingConfig, "mapping", "resolution_m=0", "resolution_m"),
+    (MappingConfig, "mapping", "resolution_m=0.001", "50 M cells"),
+    (LocalizationConfig, "localization", "map_period_s=0", "map_period_s"),
+    (SimConfig, "sim", "time_scale=0", "time_scale"),
+    (LidarSimConfig, "lidar-sim", "scan_rate_hz=400", "scan_rate_hz"),
     (ControlConfig, "control", "k1=0", "k1"),
 ])
 def test_a_bad_value_names_its_section_and_field(type_: type, section: str, override: str,
                                                  field: str) -> None:
-    load_section(type_, section, None, [])  # positive control: the defaults load
+    base = REQUIRED.get(section, [])
+    load_section(type_, section, None, base)  # positive control: the defaults load
     with pytest.raises(ConfigError) as e:
-        load_section(type_, section, None, [override])
+        load_section(type_, section, None, [*base, override])
     msg = str(e.value)
     assert msg.startswith(f"[{section}]") and field in msg and "\n" not in msg, msg
 

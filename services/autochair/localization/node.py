@@ -19,6 +19,7 @@ import threading
 import time
 from collections import deque
 from pathlib import Path
+from typing import Annotated
 
 import msgspec
 import numpy as np
@@ -51,8 +52,9 @@ from .slam import Scan, Slam, render
 class LocalizationConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     map: str = ""  # map NAME in maps_dir to localize on; "" = mapping mode
     maps_dir: str = "maps"
-    max_odom_dt_s: float = 0.25  # scan stamp to nearest odometry sample, else skipped
-    map_period_s: float = 5.0  # keys.LOC_MAP at most this often
+    # scan stamp to nearest odometry sample, else skipped
+    max_odom_dt_s: Annotated[float, msgspec.Meta(gt=0)] = 0.25
+    map_period_s: Annotated[float, msgspec.Meta(gt=0)] = 5.0  # keys.LOC_MAP at most this often
     map_frame: str = "map"
     odom_frame: str = "odom"
     chair_frame: str = "chair"
@@ -218,8 +220,6 @@ class LocalizationService:
 
 
 def start(node: Node, cfg: LocalizationConfig) -> None:
-    if cfg.map_period_s <= 0 or cfg.max_odom_dt_s <= 0:
-        raise ConfigError("localization: map_period_s and max_odom_dt_s must be > 0")
     svc = LocalizationService(node, cfg)
     node.health.detail = f"{svc.mode}" + (f" on {Path(cfg.map).name}" if cfg.map else "")
     node.subscribe(keys.ODOM_SLOW, svc.on_odom)  # 50 Hz, interpolated at the scan stamps

@@ -7,35 +7,34 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Annotated
 
 import msgspec
 
 from autochair.geometry import yaw_quaternion
-from autochair.runtime import ConfigError, Node, service_main
+from autochair.runtime import Node, service_main
 from autochair.timing import Decimator
 from autochair_msgs import EncoderSample, FrameTransform, Odometry, Quaternion, Vector3, keys
 
 from .core import OdometryCore
 
+Positive = Annotated[float, msgspec.Meta(gt=0)]
+
 
 class OdometryConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    wheel_radius_m: float = 0.049
-    base_m: float = 0.367
-    counts_per_rev: int = 10000
-    wheel_diameter_ratio: float = 1.0  # D_right / D_left (odometry calibration)
-    velocity_window_s: float = 0.02
+    wheel_radius_m: Positive = 0.049
+    base_m: Positive = 0.367
+    counts_per_rev: Annotated[int, msgspec.Meta(gt=0)] = 10000
+    # D_right / D_left (odometry calibration)
+    wheel_diameter_ratio: Annotated[float, msgspec.Meta(gt=0.5, lt=2.0)] = 1.0
+    velocity_window_s: Positive = 0.02
     publish_tf: bool = True
-    tf_rate_hz: float = 20.0  # keys.TF at most this often (by sample stamp); 0 = every sample
-    slow_rate_hz: float = 50.0  # keys.ODOM_SLOW likewise
+    # keys.TF at most this often (by sample stamp); 0 = every sample
+    tf_rate_hz: Annotated[float, msgspec.Meta(ge=0)] = 20.0
+    slow_rate_hz: Annotated[float, msgspec.Meta(ge=0)] = 50.0  # keys.ODOM_SLOW likewise
 
 
 def start(node: Node, cfg: OdometryConfig) -> None:
-    if cfg.wheel_radius_m <= 0 or cfg.base_m <= 0 or cfg.counts_per_rev <= 0 \
-            or not 0.5 < cfg.wheel_diameter_ratio < 2.0:
-        raise ConfigError("[odometry] wheel_radius_m, base_m and counts_per_rev must be > 0, "
-                          "wheel_diameter_ratio in (0.5, 2)")
-    if cfg.tf_rate_hz < 0 or cfg.slow_rate_hz < 0:
-        raise ConfigError("[odometry] tf_rate_hz and slow_rate_hz must be ≥ 0")
     core = OdometryCore(wheel_radius_m=cfg.wheel_radius_m, base_m=cfg.base_m,
                         counts_per_rev=cfg.counts_per_rev,
                         wheel_diameter_ratio=cfg.wheel_diameter_ratio,

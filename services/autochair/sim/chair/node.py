@@ -15,6 +15,7 @@ import sys
 import time
 import tty
 from collections import deque
+from typing import Annotated
 
 import msgspec
 
@@ -24,14 +25,16 @@ from autochair.sim.chair.model import ChairModel, ChairParams
 from autochair_msgs import GroundTruth, keys
 from autochair_msgs.sim import SimFault, SimFaultReply
 
+Positive = Annotated[float, msgspec.Meta(gt=0)]
+
 
 class SimConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """[sim] section."""
 
     pty_link: str  # symlink created to point at the pty slave (the "serial port")
-    telemetry_rate_hz: float = 200.0  # telemetry frames per simulated second (= model rate)
-    time_scale: float = 1.0  # simulated seconds per wall second (>1: faster than real time)
-    truth_rate_hz: float = 100.0  # ground truth per simulated second
+    telemetry_rate_hz: Positive = 200.0  # telemetry frames per simulated second (= model rate)
+    time_scale: Positive = 1.0  # simulated seconds per wall second (>1: faster than real time)
+    truth_rate_hz: Positive = 100.0  # ground truth per simulated second
     seed: int = 0  # noise and garbage bytes
     noise: bool = False  # wheel-speed noise and encoder slip in the model
     # Systematic odometry errors (model.ChairParams: wheel-diameter ratio, base error, slip in
@@ -195,8 +198,6 @@ class Simulator:
 
 
 def start(node: Node, cfg: SimConfig) -> None:
-    if cfg.telemetry_rate_hz <= 0 or cfg.truth_rate_hz <= 0 or cfg.time_scale <= 0:
-        raise ConfigError("[sim] telemetry_rate_hz, truth_rate_hz and time_scale must be > 0")
     sim = Simulator(node, cfg)
     try:
         sim.port.open()

@@ -23,6 +23,7 @@ import threading
 import time
 import tty
 from pathlib import Path
+from typing import Annotated
 
 import msgspec
 import numpy as np
@@ -43,12 +44,17 @@ class LidarSimConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     pty_link: str = ""  # path of a symlink to the pty slave ("" = no pty)
     tcp_port: int = -1  # TCP port on 127.0.0.1 (-1 = off; 10940 is the UST/UTM default)
     world: str = ""  # world file ("" = the shipped hallway)
-    scan_rate_hz: float = 10.0  # URG-04LX: 10 (600 rpm); 40 emulates a UTM-30LX's rate
+    # URG-04LX: 10 (600 rpm); 40 emulates a UTM-30LX's rate
+    scan_rate_hz: Annotated[float, msgspec.Meta(gt=0, le=100)] = 10.0
     noise_std_m: float = 0.01  # Gaussian range noise
     blinded: bool = False  # test hook: every beam an error code (BLIND_SIGNAL toggles it)
     clock_start_ms: int = 0  # device clock at boot (set near 2^24 to exercise wraparound)
     unplug_s: float = 3.0  # how long SIGUSR1 unplugs the device
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not self.pty_link and self.tcp_port < 0:
+            raise ValueError("set pty_link and/or tcp_port")
 
 
 class Endpoint:
@@ -213,10 +219,6 @@ class LidarSim:
 
 
 def start(node: Node, cfg: LidarSimConfig) -> None:
-    if not cfg.pty_link and cfg.tcp_port < 0:
-        raise ConfigError("lidar-sim: set pty_link and/or tcp_port")
-    if cfg.scan_rate_hz <= 0 or cfg.scan_rate_hz > 100:
-        raise ConfigError("lidar-sim.scan_rate_hz must be in (0, 100]")
     try:
         world = load_world(cfg.world or DEFAULT_WORLD)
     except WorldError as e:
