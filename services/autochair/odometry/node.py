@@ -35,16 +35,26 @@ class OdometryConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
 
 def start(node: Node, cfg: OdometryConfig) -> None:
-    core = OdometryCore(wheel_radius_m=cfg.wheel_radius_m, base_m=cfg.base_m,
-                        counts_per_rev=cfg.counts_per_rev,
-                        wheel_diameter_ratio=cfg.wheel_diameter_ratio,
-                        velocity_window_s=cfg.velocity_window_s)
-    odom_pub = node.publisher(keys.ODOM)
-    tf_pub = node.publisher(keys.TF)
-    slow_pub = node.publisher(keys.ODOM_SLOW)
-    tf_due, slow_due = Decimator.at(cfg.tf_rate_hz), Decimator.at(cfg.slow_rate_hz)
+    node.subscribe(keys.ENCODERS, _Odometry(node, cfg).on_sample)
 
-    def on_sample(s: EncoderSample) -> None:
+
+class _Odometry:
+    """OdometryCore wired to the encoder samples and its three publications."""
+
+    def __init__(self, node: Node, cfg: OdometryConfig) -> None:
+        self.node, self.cfg = node, cfg
+        self.core = OdometryCore(wheel_radius_m=cfg.wheel_radius_m, base_m=cfg.base_m,
+                                 counts_per_rev=cfg.counts_per_rev,
+                                 wheel_diameter_ratio=cfg.wheel_diameter_ratio,
+                                 velocity_window_s=cfg.velocity_window_s)
+        self.odom_pub = node.publisher(keys.ODOM)
+        self.tf_pub = node.publisher(keys.TF)
+        self.slow_pub = node.publisher(keys.ODOM_SLOW)
+        self.tf_due = Decimator.at(cfg.tf_rate_hz)
+        self.slow_due = Decimator.at(cfg.slow_rate_hz)
+
+    def on_sample(self, s: EncoderSample) -> None:
+        core, node = self.core, self.node
         restarts, implausible = core.restarts, core.implausible
         st = core.update(s.left_counts, s.right_counts, s.mcu_time_us, s.status)
         if core.implausible != implausible:
@@ -58,17 +68,15 @@ def start(node: Node, cfg: OdometryConfig) -> None:
         odom = Odometry(stamp_ns=stamp, x_m=st.x, y_m=st.y, yaw_rad=st.yaw, v_mps=st.v,
                         omega_radps=st.omega, distance_m=st.distance, sample_dt_s=st.dt,
                         source_seq=s.seq, mcu_restarts=core.restarts, link_epoch=s.link_epoch)
-        odom_pub.put(odom)
-        if slow_due(stamp):
-            slow_pub.put(odom)
-        if cfg.publish_tf and tf_due(stamp):
-            tf_pub.put(FrameTransform(
+        self.odom_pub.put(odom)
+        if self.slow_due(stamp):
+            self.slow_pub.put(odom)
+        if self.cfg.publish_tf and self.tf_due(stamp):
+            self.tf_pub.put(FrameTransform(
                 stamp_ns=stamp, parent_frame_id="odom", child_frame_id="chair",
                 translation=Vector3(st.x, st.y, 0.0),
                 rotation=Quaternion(*yaw_quaternion(st.yaw))))
         node.health.count("samples")
-
-    node.subscribe(keys.ENCODERS, on_sample)
 
 
 def main(argv: list[str] | None = None) -> int:
