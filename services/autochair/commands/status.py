@@ -97,15 +97,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def print_table(rows: list[tuple[str, Health | None, bool]]) -> None:
-    print(f"{'SERVICE':<12}{'ALIVE':<7}{'STATE':<10}{'UPTIME':>8}  DETAIL")
+    w = max([len("SERVICE"), *(len(n) for n, _, _ in rows)]) + 2  # e.g. "localization"
+    print(f"{'SERVICE':<{w}}{'ALIVE':<7}{'STATE':<10}{'UPTIME':>8}  DETAIL")
     for n, h, alive in rows:
         if h is None:
-            print(f"{n:<12}{'yes':<7}{'?':<10}{'':>8}  (no health yet)")
+            print(f"{n:<{w}}{'yes':<7}{'?':<10}{'':>8}  (no health yet)")
             continue
         busiest = sorted(h.rates_hz.items(), key=lambda kv: -kv[1])[:3]
         rates = " ".join(f"{k} {v:.0f}/s" for k, v in busiest if v > 0)
         detail = "; ".join(x for x in (h.detail, rates,
                                        f"last fault: {h.last_fault}" if h.last_fault else "")
                            if x)
-        print(f"{n:<12}{'yes' if alive else 'NO':<7}{h.state:<10}"
+        print(f"{n:<{w}}{'yes' if alive else 'NO':<7}{h.state:<10}"
               f"{h.uptime_s:>7.0f}s  {detail}")
