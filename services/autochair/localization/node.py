@@ -25,7 +25,7 @@ import msgspec
 import numpy as np
 
 from autochair.geometry import yaw_quaternion
-from autochair.mapping.core import OccupancyMapper, OdomBuffer
+from autochair.mapping.core import MoveGate, OccupancyMapper, OdomBuffer
 from autochair.mapping.mapfile import MapFile, MapFileError, load_map, map_path, save_map
 from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
@@ -89,6 +89,7 @@ class LocalizationService:
         self.node, self.cfg = node, cfg
         self.lock = threading.Lock()
         self.odom = OdomBuffer()
+        self.gate = MoveGate()
         self.pending: deque[LaserScan] = deque(maxlen=4)
         self.wake = threading.Event()
         self.map: MapFile | None = None
@@ -175,6 +176,11 @@ class LocalizationService:
             pose = self.odom.at(msg.stamp_ns, int(self.cfg.max_odom_dt_s * 1e9))
         if pose is None:
             health.count("scans_no_odom")
+            return
+        # Tracking a parked chair: one scan a second is enough (a kidnap is still caught
+        # within a second); lost or initializing, every scan counts.
+        if not self.gate.take(pose, msg.stamp_ns) and self.last_state == LocState.TRACKING.value:
+            health.count("scans_still")
             return
         scan = Scan(np.asarray(msg.ranges_m, dtype=np.float64), msg.angle_min_rad,
                     msg.angle_increment_rad, self.node.chair.laser_mount)
