@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -36,7 +37,7 @@ def open_client(connect: str | None = None, config: str | None = None,
 
 T = TypeVar("T", bound=msgspec.Struct)
 R = TypeVar("R", bound=msgspec.Struct)
-_ENCODER = msgspec.msgpack.Encoder()
+ENCODER = msgspec.msgpack.Encoder()  # one encoder, built once, for every publisher
 
 
 class RequestError(Exception):
@@ -51,7 +52,7 @@ def request(session: zenoh.Session, topic: Any, req: msgspec.Struct, reply: type
     if topic.kind != "query" or topic.reply is not reply or not isinstance(req, topic.type):
         raise TypeError(f"{topic.key} takes {topic.type.__name__} → "
                         f"{getattr(topic.reply, '__name__', None)}")
-    for r in session.get(topic.key, payload=msgspec.msgpack.encode(req), timeout=timeout_s):
+    for r in session.get(topic.key, payload=ENCODER.encode(req), timeout=timeout_s):
         if r.ok is not None:
             return msgspec.msgpack.decode(r.ok.payload.to_bytes(), type=reply)
         why = r.err.payload.to_string() if r.err is not None else "error reply"
@@ -90,21 +91,31 @@ def subscribe(session: zenoh.Session, topic: Any, on_msg: Callable[[T], None],
 
 
 class Publisher:
-    """A typed publisher of one key-table row for people's tools: `put` encodes."""
+    """A typed publisher of one key-table row (services' `Node.publisher` and people's tools):
+    `put` encodes. express: send at once instead of batching; reliable: block instead of
+    dropping under congestion. `stopping`: once set, a put racing shutdown (the session
+    closing) is not an error."""
 
     def __init__(self, session: zenoh.Session, topic: Any, key: str | None = None, *,
-                 express: bool = False, reliable: bool = False) -> None:
+                 express: bool = False, reliable: bool = False,
+                 stopping: threading.Event | None = None) -> None:
         self._pub = session.declare_publisher(
             key or topic.key, express=express,
             congestion_control=(zenoh.CongestionControl.BLOCK if reliable
-                                else zenoh.CongestionControl.DROP))
+                                else zenoh.CongestionControl.DROP),
+            reliability=zenoh.Reliability.RELIABLE)
+        self._stopping = stopping
 
     def put(self, msg: msgspec.Struct) -> None:
-        self._pub.put(_ENCODER.encode(msg))
+        self.put_raw(ENCODER.encode(msg))
 
     def put_raw(self, payload: bytes) -> None:
         """An already encoded message (a replay's recorded bytes)."""
-        self._pub.put(payload)
+        try:
+            self._pub.put(payload)
+        except zenoh.ZError:
+            if self._stopping is None or not self._stopping.is_set():
+                raise
 
     def undeclare(self) -> None:
         self._pub.undeclare()
@@ -174,8 +185,6 @@ def subscribe_chairs(session: zenoh.Session, topic: Any, on_msg: Callable[[str, 
 def pid_caps(session: zenoh.Session, timeout_s: float = 1.5) -> tuple[float, float, float] | None:
     """The velocity PID's absolute caps (forward m/s, reverse m/s, |ω| rad/s) from its health,
     or None when no PID reports within `timeout_s` (health comes once a second)."""
-    import threading
-
     from autochair_msgs import Health
 
     got: list[Health] = []

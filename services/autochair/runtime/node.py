@@ -34,11 +34,8 @@ from .watchdog import CHECK_PERIOD_S, Liveness, Notifier
 T = TypeVar("T", bound=msgspec.Struct)
 C = TypeVar("C")
 
-_ENCODER = msgspec.msgpack.Encoder()
-
-
 def encode(msg: msgspec.Struct) -> bytes:
-    return _ENCODER.encode(msg)
+    return client.ENCODER.encode(msg)
 
 
 class HealthState:
@@ -87,21 +84,6 @@ class HealthState:
         )
 
 
-class Publisher:
-    """A declared publisher of one table row; encodes with the shared msgpack encoder."""
-
-    def __init__(self, pub: zenoh.Publisher, stopping: threading.Event) -> None:
-        self._pub = pub
-        self._stopping = stopping
-
-    def put(self, msg: msgspec.Struct) -> None:
-        try:
-            self._pub.put(_ENCODER.encode(msg))
-        except zenoh.ZError:
-            if not self._stopping.is_set():  # a callback racing shutdown is not an error
-                raise
-
-
 class Node:
     """What every service process has. Callbacks run on Zenoh threads: keep them short.
 
@@ -141,18 +123,14 @@ class Node:
 
     # --- messaging -----------------------------------------------------------------------------
     def publisher(self, topic: keys.Topic[Any], key: str | None = None, *,
-                  express: bool = True, reliable: bool = False) -> Publisher:
+                  express: bool = True, reliable: bool = False) -> client.Publisher:
         """express: send at once instead of batching (the drive chain is latency-bound).
         reliable: block instead of dropping under congestion (e.g. an e-stop assert, which
         must never be lost), where the default drops: a stale control sample is worse than
         none. Publishers are undeclared by session.close(), not one by one: a callback may
         be using one."""
-        pub = self.session.declare_publisher(
-            key or topic.key, express=express,
-            congestion_control=(zenoh.CongestionControl.BLOCK if reliable
-                                else zenoh.CongestionControl.DROP),
-            reliability=zenoh.Reliability.RELIABLE)
-        return Publisher(pub, self.stop_event)
+        return client.Publisher(self.session, topic, key, express=express, reliable=reliable,
+                                stopping=self.stop_event)
 
     def watch_alive(self, service: str, on_change: Callable[[bool], None]) -> None:
         """`on_change(alive)` when `service`'s liveliness token appears or vanishes. A killed
@@ -236,7 +214,7 @@ class Node:
             except Exception as e:
                 query.reply_err(f"{topic.key}: {type(e).__name__}: {e}".encode())
                 raise  # counted and logged by `queryable`
-            query.reply(query.key_expr, _ENCODER.encode(reply))
+            query.reply(query.key_expr, client.ENCODER.encode(reply))
 
         self.queryable(topic, on_query)
 
