@@ -18,6 +18,7 @@ import pytest
 from autochair.runtime import Node, ZenohSettings
 from autochair.runtime.node import encode
 from autochair.runtime.watchdog import (
+    CHECK_PERIOD_S,
     Late,
     Liveness,
     Notifier,
@@ -67,6 +68,14 @@ def test_a_callback_running_too_long_is_late_and_a_finished_one_is_not() -> None
     assert [y.what for y in live.late(11.6)] == ["callback autochair/odom"]
     live.leave(token)
     assert live.late(11.6) == []
+
+
+def test_an_ended_thread_is_late_at_once_with_why_and_a_running_one_is_not() -> None:
+    loops = {"tick": (0.005, 10.0)}
+    assert late(loops, [], now=10.1, watchdog_s=1.5, ended={}) == []  # control: on time
+    (x,) = late(loops, [], now=10.1, watchdog_s=1.5, ended={"serial": ("OSError: gone", 10.0)})
+    assert str(x) == "thread serial: ended 0.10 s ago (OSError: gone)"
+    assert next_due(loops, [], 1.5, {"serial": ("returned", 10.0)}) == 10.0
 
 
 def test_next_due_is_when_the_first_thing_would_be_late() -> None:
@@ -236,6 +245,55 @@ def test_a_callback_stuck_in_a_lock_stops_the_pings_and_triggers(
         released.set()
         node.stop_event.set()
         t.join(10)
+
+
+def test_a_worker_thread_that_dies_is_a_fault_and_triggers_the_watchdog(
+        supervised: NotifyChannel) -> None:
+    """A serial reader or map worker killed by an uncaught exception: the process, its session
+    and its liveliness token stay up, so only the runtime can tell; it must, at once."""
+    node = Node("wdtest", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
+    go = threading.Event()
+
+    def worker() -> None:
+        while not node.stop_event.wait(0.01):
+            if go.is_set():
+                raise OSError("device vanished")
+
+    node.thread(worker, "serial")
+    t = run_node(node)
+    try:
+        wait_for(lambda: supervised.poll(time.monotonic()) is None
+                 and supervised.watch.pings >= 2, 5, "pings while the worker runs")
+        assert node.health.state == "ok"  # positive control: a running worker is no fault
+        t0 = time.monotonic()
+        go.set()
+        reason = wait_for(lambda: supervised.poll(time.monotonic()), 5, "hung")
+        detect = time.monotonic() - t0
+        print(f"dead worker detected after {detect:.2f} s: {reason}")
+        assert "thread serial: ended" in reason and "OSError: device vanished" in reason
+        assert detect < CHECK_PERIOD_S + 0.2
+        assert node.health.state == "fault"
+        assert "thread serial" in node.health.last_fault  # what ended, and why
+        assert "device vanished" in node.health.last_fault
+    finally:
+        node.stop_event.set()
+        t.join(10)
+
+
+def test_a_worker_that_ends_at_shutdown_is_no_fault(supervised: NotifyChannel) -> None:
+    node = Node("wdtest", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
+
+    def worker() -> None:
+        node.stop_event.wait()
+
+    node.thread(worker, "serial")
+    t = run_node(node)
+    wait_for(lambda: supervised.poll(time.monotonic()) is None
+             and supervised.watch.pings >= 1, 5, "a ping")
+    node.stop_event.set()
+    t.join(10)
+    assert not t.is_alive() and node.health.state == "ok" and not node.health.last_fault
+    assert node.liveness.late(time.monotonic()) == []
 
 
 def test_the_hang_hook_blocks_loops_and_callbacks_until_shutdown(

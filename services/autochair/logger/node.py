@@ -11,7 +11,6 @@ exclusively, a taken name gets a suffix (see autochair.logger.writer).
 from __future__ import annotations
 
 import sys
-import threading
 import time
 from collections import deque
 
@@ -57,9 +56,9 @@ def start(node: Node, cfg: LoggerConfig) -> None:
         queue.append((key, payload, now))
 
     node.record_raw(logged_keys(), on_sample)
-    writer = threading.Thread(target=_write_loop, args=(node, recorder, queue),
-                              name="logger-writer", daemon=False)
-    writer.start()
+    # Not a daemon: the process waits for the file's summary at exit. A writer that dies is a
+    # fault the watchdog restarts (a new file), never a recording silently stopped.
+    node.thread(lambda: _write_loop(node, recorder, queue), "writer", daemon=False)
 
 
 class _Reporter:

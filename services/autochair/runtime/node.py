@@ -88,8 +88,9 @@ class Node:
     """What every service process has. Callbacks run on Zenoh threads: keep them short.
 
     Hung-process watchdog: from `run()` on, a watchdog thread checks 4 × a second that every
-    rate loop of `every()` completed a tick within max(stale.watchdog_s, 3 × its period) and
-    that no subscription or query callback has been running longer than stale.watchdog_s.
+    rate loop of `every()` completed a tick within max(stale.watchdog_s, 3 × its period), that
+    no subscription or query callback has been running longer than stale.watchdog_s and that
+    no worker thread of `thread()` has ended.
     Only then does it send `WATCHDOG=1` to $NOTIFY_SOCKET (sd_notify; `READY=1` once at the
     start, `STOPPING=1` at shutdown; no $NOTIFY_SOCKET: nothing is sent). When something is
     late it logs what and the stack of every thread, and sends `WATCHDOG=trigger` with the
@@ -288,8 +289,26 @@ class Node:
 
         self.thread(loop, name)
 
-    def thread(self, target: Callable[[], None], name: str) -> None:
-        t = threading.Thread(target=target, name=f"{self.name}-{name}", daemon=True)
+    def thread(self, target: Callable[[], None], name: str, daemon: bool = True) -> None:
+        """Run `target` on its own thread until shutdown. If it ends before (an exception, or
+        a return), the node reports a fault and the watchdog has the process restarted: a
+        dead serial reader or map worker must not hide behind a live liveliness token.
+        `daemon=False`: the process waits for it at exit (the logger's writer finishes its file)."""
+
+        def run() -> None:
+            try:
+                target()
+                why = "returned"
+            except Exception as e:
+                self.log.exception("thread %s failed", name)
+                why = f"{type(e).__name__}: {e}"
+            if self.stop_event.is_set():
+                return
+            self.health.state = "fault"
+            self.health.record_fault(f"thread {name} ended: {why}")
+            self.liveness.ended(name, why, time.monotonic())
+
+        t = threading.Thread(target=run, name=f"{self.name}-{name}", daemon=daemon)
         self._threads.append(t)
         t.start()
 

@@ -5,11 +5,13 @@ process, its session and its liveliness token up while nothing it should publish
 Three pieces, shared by the node runtime, the launcher (`autochair up`, the tests) and the
 supervisord wrapper (`autochair-watchdog`):
 
-- `Liveness` + `late()` (pure: times are passed in): which rate loops have not completed a tick
-  within max(watchdog_s, 3 × period) and which callbacks have been running longer than
-  watchdog_s. The node's watchdog thread asks it 4 × a second, and also wakes at `next_due()`,
-  the moment the first of them would be late, so a hang is seen at its bound, not up to a
-  check period later.
+- `Liveness` + `late()` (pure: times are passed in): which rate loops (and worker threads that
+  beat) have not completed a tick within max(watchdog_s, 3 × period), which callbacks have been
+  running longer than watchdog_s, and which worker threads have ended while the node runs (an
+  uncaught exception in a serial reader or a map worker must not leave a process that looks
+  alive and does nothing). The node's watchdog thread asks it 4 × a second, and also wakes
+  at `next_due()`, the moment the first of them would be late, so a hang is seen at its
+  bound, not up to a check period later.
 - The sd_notify protocol, written here (no dependency): `notify()` sends one datagram
   ("READY=1", "WATCHDOG=1", "WATCHDOG=trigger", "STOPPING=1") to $NOTIFY_SOCKET, an AF_UNIX
   datagram socket (a path, or an abstract name written with a leading '@'). The same messages
@@ -38,11 +40,14 @@ LOOP_PERIODS = 3.0  # a loop is late after max(watchdog_s, LOOP_PERIODS × its p
 # --- the node's side: which loops are late ------------------------------------------------------
 @dataclass(frozen=True)
 class Late:
-    what: str  # "loop health" or "callback autochair/odom"
-    age_s: float  # since the loop's last completed tick, or since the callback began
+    what: str  # "loop health", "callback autochair/odom" or "thread serial"
+    age_s: float  # since the loop's last completed tick, the callback began or the thread ended
     bound_s: float
+    ended: str = ""  # a thread's end: "returned" or the exception
 
     def __str__(self) -> str:
+        if self.ended:
+            return f"{self.what}: ended {self.age_s:.2f} s ago ({self.ended})"
         verb = "no tick for" if self.what.startswith("loop ") else "running for"
         return f"{self.what}: {verb} {self.age_s:.2f} s (bound {self.bound_s:.2f} s)"
 
@@ -52,10 +57,14 @@ def loop_bound(period_s: float, watchdog_s: float) -> float:
 
 
 def late(loops: Mapping[str, tuple[float, float]], calls: Iterable[tuple[str, float]],
-         now: float, watchdog_s: float) -> list[Late]:
+         now: float, watchdog_s: float,
+         ended: Mapping[str, tuple[str, float]] | None = None) -> list[Late]:
     """The pure decision. `loops`: name → (period_s, time of its last completed tick, or of
-    its start before the first); `calls`: (name, start time) of callbacks still running."""
-    out = []
+    its start before the first); `calls`: (name, start time) of callbacks still running;
+    `ended`: thread name → (why, when) for worker threads that ended while the node runs
+    (late at once: no bound)."""
+    out = [Late(f"thread {name}", now - t, 0.0, why)
+           for name, (why, t) in sorted((ended or {}).items())]
     for name, (period_s, last) in sorted(loops.items()):
         bound = loop_bound(period_s, watchdog_s)
         if now - last > bound:
@@ -67,9 +76,11 @@ def late(loops: Mapping[str, tuple[float, float]], calls: Iterable[tuple[str, fl
 
 
 def next_due(loops: Mapping[str, tuple[float, float]], calls: Iterable[tuple[str, float]],
-             watchdog_s: float) -> float:
-    """When the first loop or callback would become late if nothing changes (inf: never)."""
-    due = [last + loop_bound(period_s, watchdog_s) for period_s, last in loops.values()]
+             watchdog_s: float, ended: Mapping[str, tuple[str, float]] | None = None) -> float:
+    """When the first loop or callback would become late if nothing changes (inf: never);
+    an ended thread is due when it ended."""
+    due = [t for _, t in (ended or {}).values()]
+    due += [last + loop_bound(period_s, watchdog_s) for period_s, last in loops.values()]
     due += [started + watchdog_s for _, started in calls]
     return min(due, default=float("inf"))
 
@@ -83,6 +94,7 @@ class Liveness:
         self._lock = threading.Lock()
         self._loops: dict[str, tuple[float, float]] = {}
         self._calls: dict[int, tuple[str, float]] = {}
+        self._ended: dict[str, tuple[str, float]] = {}
         self._ids = itertools.count()
 
     def add_loop(self, name: str, period_s: float, now: float) -> None:
@@ -105,15 +117,20 @@ class Liveness:
         with self._lock:
             self._calls.pop(token, None)
 
+    def ended(self, name: str, why: str, now: float) -> None:
+        """A worker thread ended while its node runs: late from now on."""
+        with self._lock:
+            self._ended[name] = (why, now)
+
     def late(self, now: float) -> list[Late]:
         with self._lock:
-            loops, calls = dict(self._loops), list(self._calls.values())
-        return late(loops, calls, now, self.watchdog_s)
+            loops, calls, ended = dict(self._loops), list(self._calls.values()), dict(self._ended)
+        return late(loops, calls, now, self.watchdog_s, ended)
 
     def next_due(self) -> float:
         with self._lock:
-            loops, calls = dict(self._loops), list(self._calls.values())
-        return next_due(loops, calls, self.watchdog_s)
+            loops, calls, ended = dict(self._loops), list(self._calls.values()), dict(self._ended)
+        return next_due(loops, calls, self.watchdog_s, ended)
 
 
 # --- sd_notify: one datagram per message ----------------------------------------------------------
