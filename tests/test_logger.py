@@ -12,7 +12,7 @@ import pytest
 
 from autochair.logger import foxglove
 from autochair.logger.reader import Recording, is_indexed, recover
-from autochair.logger.schema import Codec, json_schema, to_json
+from autochair.logger.schema import Codec, codec_for, json_schema, to_json
 from autochair.logger.writer import LoggerConfig, Recorder, base_path, part_path
 from autochair_msgs import Health, LogEvent, keys
 from tests.logger_samples import QUERY_SAMPLES, T0, samples
@@ -41,9 +41,9 @@ def test_samples_cover_every_type_in_the_key_table() -> None:
 
 @pytest.mark.parametrize("key,msg", [*samples(3).items(), *QUERY_SAMPLES.items()])
 def test_codec_round_trip_is_byte_exact(key: str, msg: msgspec.Struct) -> None:
-    codec = Codec(type(msg))
+    codec = codec_for(type(msg))
     wire = ENC.encode(msg)
-    data = to_json(codec.decode_wire(wire))
+    data = codec.encode_json(codec.decode_wire(wire))
     json.loads(data)  # strict JSON: no bare NaN/Infinity tokens
     assert codec.json_to_wire(data) == wire
 
@@ -55,6 +55,16 @@ def test_non_finite_floats_survive_and_strings_stay_strings() -> None:
     back = Codec(type(scan)).decode_json(data)
     ranges = back.ranges_m  # type: ignore[attr-defined]
     assert math.isnan(ranges[1]) and ranges[4] == math.inf and ranges[0] == 0.5
+    # The scan is recorded as a foxglove.LaserScan: non-finite beams 0 m, their values kept.
+    rec = codec_for(type(scan))
+    assert rec.name == "foxglove.LaserScan"
+    drawn = json.loads(rec.encode_json(scan))
+    assert drawn["ranges"] == [0.5, 0.0, 5.6, 0.019, 0.0, 1.0]
+    assert drawn["nonfinite"] == {"1": "NaN", "4": "Infinity"}
+    assert drawn["timestamp"] == {"sec": T0 // 10**9, "nsec": T0 % 10**9}
+    # NaN != NaN: compare the wire bytes
+    assert ENC.encode(rec.decode_json(rec.encode_json(scan))) == ENC.encode(scan)
+    assert ENC.encode(rec.decode_json(data)) == ENC.encode(scan)  # recordings made before
     status = samples()[keys.GOAL_STATUS.key]  # reason "null" (string) and a NaN float
     back2 = Codec(type(status)).decode_json(to_json(status))
     assert back2.reason == "null" and math.isnan(back2.distance_left_m)  # type: ignore[attr-defined]
@@ -69,7 +79,7 @@ def test_record_then_read_back_every_field_equal(tmp_path: Path) -> None:
     got: dict[str, list[tuple[bytes, int, int]]] = {}
     for m in Recording(tmp_path / "run.mcap").messages():
         if not m.derived:
-            codec = Codec(keys.by_key(m.topic).type)
+            codec = codec_for(keys.by_key(m.topic).type)
             got.setdefault(m.topic, []).append((codec.json_to_wire(m.data), m.log_ns,
                                                 m.publish_ns))
     expected: dict[str, list[tuple[bytes, int, int]]] = {}
@@ -108,11 +118,13 @@ def test_derived_foxglove_messages(tmp_path: Path) -> None:
     q = pose["pose"]["orientation"]  # type: ignore[index]
     assert math.isclose(2 * math.atan2(q["z"], q["w"]), math.pi)
     assert pose["pose"]["position"]["x"] == 1.25  # type: ignore[index]
-    scan = by_topic["/scan"][0]
-    # NaN, inf and below-range beams are 0 (JSON has no NaN; drawn at the sensor).
-    assert scan["ranges"] == [0.5, 0.0, 5.6, 0.0, 0.0, 1.0]
-    assert math.isclose(scan["end_angle"] - scan["start_angle"],  # type: ignore[operator]
-                        5 * 2 * math.pi / 1024)
+    (scan_ch,) = [m for m in Recording(tmp_path / "run.mcap").messages()
+                  if m.topic == keys.SCAN.key][:1]
+    assert scan_ch.schema == "foxglove.LaserScan" and not scan_ch.derived  # no /scan copy
+    scan = json.loads(scan_ch.data)
+    # NaN and inf beams are 0 (JSON has no NaN; drawn at the sensor), their values kept.
+    assert scan["ranges"] == [0.5, 0.0, 5.6, 0.019, 0.0, 1.0] and scan["frame_id"] == "laser"
+    assert math.isclose(scan["end_angle"] - scan["start_angle"], 5 * 2 * math.pi / 1024)
     grid = by_topic["/map"][0]
     assert grid["column_count"] == 4 and grid["row_stride"] == 4
     assert grid["data"] == "AGT/MgBk/zIAZP8y"  # base64 of [0, 100, 255, 50] * 3

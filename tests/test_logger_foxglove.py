@@ -54,6 +54,8 @@ def test_recording_reads_in_foxglove_reader_and_validates(node_check: Path,
     assert raw == n
     schemas = {c["schema"] for c in out["channels"].values()}
     assert set(foxglove.DERIVED.values()) <= schemas
+    # the raw scan channel is validated against Foxglove's own LaserScan schema
+    assert out["channels"]["autochair/lidar/scan"]["schema"] == "foxglove.LaserScan"
 
 
 def test_unfinished_recording_reads_with_stream_reader(node_check: Path,
@@ -65,7 +67,7 @@ def test_unfinished_recording_reads_with_stream_reader(node_check: Path,
     rec.tick(5.0)  # flushed chunk, no summary (as after SIGKILL)
     out = run_check(node_check, path, "--stream")
     assert out["errors"] == [] and out["complete"] is False
-    assert out["channels"]["/scan"]["count"] == 1
+    assert out["channels"]["autochair/lidar/scan"]["count"] == 1
 
 
 def test_checker_rejects_an_invalid_foxglove_message(node_check: Path, tmp_path: Path) -> None:

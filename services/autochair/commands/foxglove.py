@@ -1,10 +1,11 @@
 """`autochair foxglove`: a live Foxglove WebSocket bridge (foxglove-sdk) of the chair.
 
 Serves on 127.0.0.1:8765 by default (open Foxglove, "Open connection", ws://127.0.0.1:8765).
-Channels: the well-known /tf, /pose, /scan, /map, /log (foxglove.* JSON, converted by the
-logger's autochair.logger.foxglove.Deriver, so recordings and the live view match) and, for the
-Plot panel, the raw autochair messages as JSON on their Zenoh key names (odometry, PID status,
-health). The SDK's server speaks the subprotocol `foxglove.sdk.v1`.
+Channels: the well-known /tf, /pose, /map, /log (foxglove.* JSON, converted by the
+logger's autochair.logger.foxglove.Deriver, so recordings and the live view match) and the
+raw autochair messages as JSON on their Zenoh key names, for the Plot panel (odometry, PID
+status, health) and the 3D panel (`autochair/lidar/scan`, a foxglove.LaserScan as recorded).
+The SDK's server speaks the subprotocol `foxglove.sdk.v1`.
 
 Teleop: Foxglove's Teleop panel drives the chair. Set its topic to `autochair/cmd/teleop` and
 its publish rate to 20 Hz (anything over 1/deadman_s, 5 Hz; a panel left at a low rate such as
@@ -30,8 +31,8 @@ if TYPE_CHECKING:
     from autochair.commands.teleop_core import TeleopConfig
 
 # Zenoh rows bridged as raw JSON for plots (besides the derived foxglove.* channels).
-PLOT_KEYS = ("ODOM", "PID_STATUS", "HEALTH", "GOAL_STATUS")
-DERIVED_KEYS = ("TF", "TF_STATIC", "ODOM", "SCAN", "MAP_GRID", "LOG", "HEALTH")
+PLOT_KEYS = ("ODOM", "PID_STATUS", "HEALTH", "GOAL_STATUS", "SCAN")
+DERIVED_KEYS = ("TF", "TF_STATIC", "ODOM", "MAP_GRID", "LOG", "HEALTH")
 TELEOP_TOPIC = "autochair/cmd/teleop"  # the Teleop panel's topic (client publishing)
 OWNER_TOPIC = "autochair/cmd/owner"  # {"owner": "teleop" | "autonomy"}: take over, hand back
 
@@ -63,7 +64,7 @@ class Bridge:
         import foxglove
 
         from autochair.logger import foxglove as fx
-        from autochair.logger.schema import Codec, to_json
+        from autochair.logger.schema import codec_for
         from autochair.runtime.client import subscribe
         from autochair_msgs import keys
 
@@ -78,14 +79,15 @@ class Bridge:
         self._plots: dict[str, Any] = {}
         rows = {name: getattr(keys, name) for name in {*PLOT_KEYS, *DERIVED_KEYS}}
         for name, row in rows.items():
-            codec = Codec(row.type)
+            codec = codec_for(row.type)
             plot = None
             if name in PLOT_KEYS:
                 plot = foxglove.Channel(row.key.replace("/*", ""), message_encoding="json",
                                         schema=foxglove.Schema(name=codec.name,
                                                                encoding="jsonschema",
                                                                data=codec.schema))
-            subscribe(session, row, self._handler(row.key, plot, name in DERIVED_KEYS, to_json),
+            subscribe(session, row, self._handler(row.key, plot, name in DERIVED_KEYS,
+                                                 codec.encode_json),
                       on_error=self._bad)
 
     def _bad(self) -> None:

@@ -29,12 +29,12 @@ def register(sub: Any) -> None:
 def load(path: str) -> dict[str, list[Any]]:
     """Decoded messages of the keys the report uses, by key, in log-time order."""
     from autochair.logger.reader import Recording
-    from autochair.logger.schema import Codec
+    from autochair.logger.schema import codec_for
     from autochair_msgs import keys
 
     wanted: list[keys.Topic[Any]] = [keys.PID_STATUS, keys.ODOM, keys.MAP_GRID, keys.SCAN,
                                      keys.TF_STATIC, keys.SIM_TRUTH]
-    codecs = {t.key: Codec(t.type) for t in wanted}
+    codecs = {t.key: codec_for(t.type) for t in wanted}
     out: dict[str, list[Any]] = {t.key: [] for t in wanted}
     for m in Recording(path).messages():
         codec = codecs.get(m.topic)

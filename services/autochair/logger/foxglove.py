@@ -5,7 +5,6 @@ and the map work without any user scripts.
 |------------------|----------------------------|------------------------------------|
 | /tf              | foxglove.FrameTransforms   | keys.TF, keys.TF_STATIC            |
 | /pose            | foxglove.PoseInFrame       | keys.ODOM                          |
-| /scan            | foxglove.LaserScan         | keys.SCAN                          |
 | /map             | foxglove.Grid              | keys.MAP_GRID                      |
 | /log             | foxglove.Log               | keys.LOG, new faults in keys.HEALTH |
 | /nav/plan        | foxglove.PosesInFrame      | keys.NAV_PLAN (predicted path, then the target) |
@@ -13,27 +12,24 @@ and the map work without any user scripts.
 | /loc/map         | foxglove.Grid              | keys.LOC_MAP (frame `map`)         |
 | /loc/pose        | foxglove.PoseInFrame       | keys.LOC_POSE (frame `map`)        |
 
-/tf (from keys.TF), /pose and /scan are duplicates of channels recorded at the full rate
-(keys.TF, keys.ODOM, keys.SCAN): they are decimated by message stamp to at most `max_hz` (the
-logger's `derived_max_hz`, default 20 Hz) and `scan_max_hz` (`derived_scan_hz`, default 5 Hz),
-enough for the 3D panel; each transform (parent, child) is decimated on its own, so the
-10 Hz `map` → `odom` correction is not crowded out by the odometry's `odom` → `chair`. Static
-transforms, maps, localized poses and logs are derived from every message. Frames follow
-REP-105 (`map` → `odom` → `chair` → `laser`): set the 3D panel's display frame to `map`.
+The scan needs no derived channel: keys.SCAN itself is recorded as a foxglove.LaserScan
+(`schema.ScanCodec`). /tf (from keys.TF) and /pose are duplicates of channels recorded at the
+full rate (keys.TF, keys.ODOM): they are decimated by message stamp to at most `max_hz` (the
+logger's `derived_max_hz`, default 20 Hz), enough for the 3D panel; each transform (parent,
+child) is decimated on its own, so the 10 Hz `map` → `odom` correction is not crowded out by
+the odometry's `odom` → `chair`. Static transforms, maps, localized poses and logs are derived
+from every message. Frames follow REP-105 (`map` → `odom` → `chair` → `laser`): set the 3D
+panel's display frame to `map`.
 
 Times are {sec, nsec}; bytes are base64. The schemas are Foxglove's own (copied from npm
-`@foxglove/schemas` into foxglove_schemas.json). foxglove.LaserScan has no range limits and
-JSON no NaN, so an invalid beam (NaN or out of [range_min, range_max]) is written as 0.0 m,
-which draws at the sensor; the raw channel keeps the exact values.
+`@foxglove/schemas` into foxglove_schemas.json).
 """
 
 from __future__ import annotations
 
 import base64
-import json
 import math
 from collections.abc import Callable
-from importlib import resources
 from typing import Any
 
 import msgspec
@@ -43,7 +39,6 @@ from autochair.timing import Decimator
 from autochair_msgs import (
     FrameTransform,
     Health,
-    LaserScan,
     LocalizedPose,
     LogEvent,
     NavPlan,
@@ -52,16 +47,16 @@ from autochair_msgs import (
     keys,
 )
 
-SCHEMAS: dict[str, dict[str, Any]] = json.loads(
-    resources.files(__package__).joinpath("foxglove_schemas.json").read_text()
-)
+from .schema import FOXGLOVE_SCHEMAS, ORIGIN
+
+SCHEMAS = FOXGLOVE_SCHEMAS
 LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "fatal": 5}
 
-TOPIC_TF, TOPIC_POSE, TOPIC_SCAN, TOPIC_MAP, TOPIC_LOG = "/tf", "/pose", "/scan", "/map", "/log"
+TOPIC_TF, TOPIC_POSE, TOPIC_MAP, TOPIC_LOG = "/tf", "/pose", "/map", "/log"
 TOPIC_PLAN, TOPIC_SCENE = "/nav/plan", "/nav/scene"
 TOPIC_LOC_MAP, TOPIC_LOC_POSE = "/loc/map", "/loc/pose"
 DERIVED = {TOPIC_TF: "foxglove.FrameTransforms", TOPIC_POSE: "foxglove.PoseInFrame",
-           TOPIC_SCAN: "foxglove.LaserScan", TOPIC_MAP: "foxglove.Grid",
+           TOPIC_MAP: "foxglove.Grid",
            TOPIC_LOG: "foxglove.Log", TOPIC_PLAN: "foxglove.PosesInFrame",
            TOPIC_SCENE: "foxglove.SceneUpdate", TOPIC_LOC_MAP: "foxglove.Grid",
            TOPIC_LOC_POSE: "foxglove.PoseInFrame"}
@@ -105,20 +100,6 @@ def _loc_pose(m: LocalizedPose) -> dict[str, Any]:
         "orientation": yaw_quaternion(_finite(m.yaw_rad))}}
 
 
-_ORIGIN = {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
-           "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
-
-
-def _scan(m: LaserScan) -> dict[str, Any]:
-    lo, hi = m.range_min_m, m.range_max_m
-    ranges = [r if lo <= r <= hi else 0.0 for r in m.ranges_m]  # NaN fails both compares
-    n = max(len(ranges) - 1, 0)
-    return {"timestamp": time_of(m.stamp_ns), "frame_id": m.frame_id, "pose": _ORIGIN,
-            "start_angle": _finite(m.angle_min_rad),
-            "end_angle": _finite(m.angle_min_rad + n * m.angle_increment_rad),
-            "ranges": ranges, "intensities": []}
-
-
 def _grid(m: OccupancyGrid) -> dict[str, Any]:
     return {"timestamp": time_of(m.stamp_ns), "frame_id": m.frame_id,
             "pose": {"position": {"x": _finite(m.origin_x_m), "y": _finite(m.origin_y_m),
@@ -150,7 +131,7 @@ def _rgba(r: float, g: float, b: float, a: float = 1.0) -> dict[str, float]:
 def _scene(m: NavPlan) -> dict[str, Any]:
     """The chair's footprint (a loop), MPEPC's target (an arrow) and the people (cylinders)."""
     xy = m.footprint_xy_m
-    loop = {"type": 1, "pose": _ORIGIN, "thickness": 0.03, "scale_invariant": False,
+    loop = {"type": 1, "pose": ORIGIN, "thickness": 0.03, "scale_invariant": False,
             "points": [{"x": _finite(xy[i]), "y": _finite(xy[i + 1]), "z": 0.05}
                        for i in range(0, len(xy) - 1, 2)],
             "color": _rgba(0.1, 0.6, 1.0), "colors": [], "indices": []}
@@ -179,10 +160,10 @@ class Deriver:
     """Maps one decoded message to its foxglove.* messages. Keeps the last fault seen per
     service so a Health fault becomes one Log entry, not one per second."""
 
-    def __init__(self, max_hz: float = 0.0, scan_max_hz: float = 0.0) -> None:
+    def __init__(self, max_hz: float = 0.0) -> None:
         self._faults: dict[str, int] = {}
         # Decimation of the duplicates of full-rate raw channels (0 = every message).
-        pose, scan = Decimator.at(max_hz), Decimator.at(scan_max_hz)
+        pose = Decimator.at(max_hz)
         self._max_hz = max_hz
         self._tf: dict[tuple[str, str], Decimator] = {}  # one per (parent, child)
         self._by_key: dict[str, Callable[[Any], list[Derived]]] = {
@@ -190,8 +171,6 @@ class Deriver:
             keys.TF_STATIC.key: lambda m: [(TOPIC_TF, m.stamp_ns, _tf(m))],
             keys.ODOM.key: lambda m: [(TOPIC_POSE, m.stamp_ns, _pose(m))]
             if pose(m.stamp_ns) else [],
-            keys.SCAN.key: lambda m: [(TOPIC_SCAN, m.stamp_ns, _scan(m))]
-            if scan(m.stamp_ns) else [],
             keys.MAP_GRID.key: lambda m: [(TOPIC_MAP, m.stamp_ns, _grid(m))],
             keys.LOC_MAP.key: lambda m: [(TOPIC_LOC_MAP, m.stamp_ns, _grid(m))],
             keys.LOC_POSE.key: lambda m: [(TOPIC_LOC_POSE, m.stamp_ns, _loc_pose(m))],

@@ -14,7 +14,7 @@ from typing import NamedTuple
 from autochair_msgs import keys
 
 from .reader import Msg
-from .schema import Codec
+from .schema import Codec, codec_for
 
 
 class Item(NamedTuple):
@@ -37,7 +37,7 @@ def plan(messages: Iterable[Msg], rate: float, skipped: dict[str, int] | None = 
         if m.topic not in codecs:
             try:
                 row = keys.by_key(m.topic)
-                codecs[m.topic] = Codec(row.type) if row.kind == "pub" else None
+                codecs[m.topic] = codec_for(row.type) if row.kind == "pub" else None
             except KeyError:
                 codecs[m.topic] = None
         codec = codecs[m.topic]

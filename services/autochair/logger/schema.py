@@ -1,6 +1,10 @@
 """JSON Schemas from the msgspec types and the msgpack ⇄ JSON transcoding the logger records.
 
-Foxglove plays JSON with a JSON Schema, not msgpack, so every payload is recorded as JSON.
+Foxglove plays JSON with a JSON Schema, not msgpack, so every payload is recorded as JSON:
+the Struct's own fields, except the laser scan (`codec_for`): it is recorded as a
+foxglove.LaserScan carrying every raw field too (`ScanCodec`), so Foxglove's 3D panel draws the
+full-rate channel itself and no second, derived copy of the scan is recorded (it was a third of
+the recording's scan bytes).
 
 Lossless by construction:
 - floats: msgspec writes the shortest repr that parses back to the same float64; JSON has no
@@ -19,14 +23,22 @@ sent (services use the same encoder), which is what `autochair replay` relies on
 
 from __future__ import annotations
 
+import copy
+import json
 import math
+from importlib import resources
 from typing import Any
 
 import msgspec
 
+from autochair_msgs import LaserScan
+
 _NON_FINITE = {math.inf: "Infinity", -math.inf: "-Infinity"}
 _JSON = msgspec.json.Encoder()
 _MSGPACK = msgspec.msgpack.Encoder()
+# Foxglove's own schemas (copied from npm `@foxglove/schemas`), by name.
+FOXGLOVE_SCHEMAS: dict[str, dict[str, Any]] = json.loads(
+    resources.files(__package__).joinpath("foxglove_schemas.json").read_text())
 
 
 def schema_name(type_: type[msgspec.Struct]) -> str:
@@ -104,3 +116,95 @@ class Codec:
     def json_to_wire(self, data: bytes) -> bytes:
         """What replay publishes: the bytes a service would have sent."""
         return _MSGPACK.encode(self.decode_json(data))
+
+    def encode_json(self, msg: msgspec.Struct) -> bytes:
+        """The recorded form (lossless, see the module doc)."""
+        return to_json(msg)
+
+
+class _Time(msgspec.Struct):
+    sec: int
+    nsec: int
+
+
+ORIGIN = {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
+           "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+
+
+class ScanRecord(msgspec.Struct, kw_only=True):
+    """A LaserScan as recorded: a valid foxglove.LaserScan (first seven fields) plus the raw
+    fields. foxglove.LaserScan has no NaN and no range limits: a non-finite beam is 0 m in
+    `ranges` (drawn at the sensor) and its value is kept in `nonfinite`."""
+
+    timestamp: _Time
+    frame_id: str
+    pose: dict[str, Any]
+    start_angle: float
+    end_angle: float
+    ranges: list[float]
+    intensities: list[float]
+    stamp_ns: int
+    angle_min_rad: float
+    angle_increment_rad: float
+    range_min_m: float
+    range_max_m: float
+    scan_seq: int
+    device_time_ms: int
+    nonfinite: dict[int, float]  # beam index → its NaN / ±inf
+
+
+def _finite(v: float) -> float:
+    return v if math.isfinite(v) else 0.0
+
+
+class ScanCodec(Codec):
+    """keys.SCAN recorded (and bridged live) as foxglove.LaserScan, losslessly (`ScanRecord`)."""
+
+    def __init__(self) -> None:
+        super().__init__(LaserScan)
+        self.name = "foxglove.LaserScan"
+        schema = copy.deepcopy(FOXGLOVE_SCHEMAS[self.name])
+        raw = json_schema(ScanRecord)["properties"]
+        schema["properties"].update({k: v for k, v in raw.items()
+                                     if k not in schema["properties"]})
+        schema["description"] += "; autochair: every raw LaserScan field too (lossless)"
+        self.schema = _JSON.encode(schema)
+        self._record = msgspec.json.Decoder(ScanRecord, strict=False)
+
+    def encode_json(self, msg: msgspec.Struct) -> bytes:
+        assert isinstance(msg, LaserScan)
+        ranges, bad = msg.ranges_m, {}
+        if not all(math.isfinite(r) for r in ranges):
+            bad = {i: r for i, r in enumerate(ranges) if not math.isfinite(r)}
+            ranges = [0.0 if i in bad else r for i, r in enumerate(ranges)]
+        sec, nsec = divmod(max(msg.stamp_ns, 0), 1_000_000_000)
+        last = max(len(ranges) - 1, 0)
+        return to_json(ScanRecord(
+            timestamp=_Time(sec, nsec), frame_id=msg.frame_id, pose=ORIGIN,
+            start_angle=_finite(msg.angle_min_rad),
+            end_angle=_finite(msg.angle_min_rad + last * msg.angle_increment_rad),
+            ranges=ranges, intensities=[], stamp_ns=msg.stamp_ns,
+            angle_min_rad=msg.angle_min_rad, angle_increment_rad=msg.angle_increment_rad,
+            range_min_m=msg.range_min_m, range_max_m=msg.range_max_m, scan_seq=msg.scan_seq,
+            device_time_ms=msg.device_time_ms, nonfinite=bad))
+
+    def decode_json(self, data: bytes) -> msgspec.Struct:
+        try:
+            r = self._record.decode(data)
+        except msgspec.ValidationError:
+            return super().decode_json(data)  # recorded before the scan was a ScanRecord
+        ranges = r.ranges
+        for i, v in r.nonfinite.items():
+            if not 0 <= i < len(ranges):
+                raise msgspec.ValidationError(f"nonfinite beam {i} outside the scan")
+            ranges[i] = v
+        return LaserScan(stamp_ns=r.stamp_ns, frame_id=r.frame_id,
+                         angle_min_rad=r.angle_min_rad,
+                         angle_increment_rad=r.angle_increment_rad,
+                         range_min_m=r.range_min_m, range_max_m=r.range_max_m, ranges_m=ranges,
+                         scan_seq=r.scan_seq, device_time_ms=r.device_time_ms)
+
+
+def codec_for(type_: type[msgspec.Struct]) -> Codec:
+    """How messages of `type_` are recorded and bridged to Foxglove."""
+    return ScanCodec() if type_ is LaserScan else Codec(type_)

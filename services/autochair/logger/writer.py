@@ -29,7 +29,7 @@ from autochair.timing import Decimator
 from autochair_msgs import keys
 
 from . import foxglove
-from .schema import Codec, to_json
+from .schema import Codec, codec_for
 
 _JSON = msgspec.json.Encoder()
 DEFAULT_DIR = "recordings/"
@@ -51,10 +51,9 @@ class LoggerConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     chunk_size_kib: Annotated[int, msgspec.Meta(ge=1)] = 1024  # ...or at this much data
     queue_size: Annotated[int, msgspec.Meta(ge=1)] = 100_000  # waiting samples before drops
     compression: Literal["zstd", "lz4", "none"] = "zstd"
-    # Derived foxglove /tf (dynamic) and /pose at most this often, and /scan (their sources,
-    # keys.TF, keys.ODOM and keys.SCAN, are recorded at the full rate); 0 = one per message.
+    # Derived foxglove /tf (dynamic) and /pose at most this often (their sources, keys.TF and
+    # keys.ODOM, are recorded at the full rate); 0 = one per message.
     derived_max_hz: NonNegative = 20.0
-    derived_scan_hz: NonNegative = 5.0
     # Maps (keys.MAP_GRID and its /map, keys.MAP_CLOUD) recorded at most this often (by
     # receive time; the node's intake): each is the whole map (~240 kB), republished every
     # second for live viewers; 0 = every one.
@@ -223,7 +222,7 @@ class Recorder:
                                          "unknown_keys": 0, "flushes": 0, "rotations": 0}
         self.last_error = ""
         self._codecs: dict[str, tuple[Codec, dict[str, str], str]] = {}
-        self._deriver = foxglove.Deriver(cfg.derived_max_hz, cfg.derived_scan_hz)
+        self._deriver = foxglove.Deriver(cfg.derived_max_hz)
 
         self._fox_schemas = {n: _JSON.encode(s) for n, s in foxglove.SCHEMAS.items()}
         self._last_flush = start_mono_s
@@ -243,7 +242,7 @@ class Recorder:
             except KeyError:
                 return None
             meta = {"autochair.type": topic.type.__name__, "autochair.doc": topic.doc}
-            entry = self._codecs[key] = (Codec(topic.type), meta, topic.key)
+            entry = self._codecs[key] = (codec_for(topic.type), meta, topic.key)
         return entry
 
     def write(self, key: str, payload: bytes, recv_ns: int) -> bool:
@@ -267,7 +266,7 @@ class Recorder:
             f = self._rotate()
         stamp = getattr(msg, "stamp_ns", recv_ns)
         cid = f.channel(key, codec.name, codec.schema, meta)
-        f.add(cid, recv_ns, stamp, to_json(msg))
+        f.add(cid, recv_ns, stamp, codec.encode_json(msg))
         self.counters["written"] += 1
         for topic, stamp_ns, obj in self._deriver.derive(row, msg):
             self._add_derived(f, topic, recv_ns, stamp_ns, obj)
