@@ -294,4 +294,4 @@ def test_intake_records_a_whole_map_at_most_every_map_period() -> None:
     assert taken == [0, 5 * s, 10 * s, 15 * s]  # a 1 Hz map: one in five
     assert all(intake.take(keys.ODOM.key, t) for t in range(0, s, 5_000_000))  # all else
     every = Intake(LoggerConfig(map_period_s=0.0))
-    assert all(every.take(keys.MAP_CLOUD.key, t) for t in range(0, 5 * s, s))
+    assert all(every.take(keys.MAP_GRID.key, t) for t in range(0, 5 * s, s))

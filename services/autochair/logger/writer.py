@@ -54,7 +54,7 @@ class LoggerConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # Derived foxglove /tf (dynamic) and /pose at most this often (their sources, keys.TF and
     # keys.ODOM, are recorded at the full rate); 0 = one per message.
     derived_max_hz: NonNegative = 20.0
-    # Maps (keys.MAP_GRID and its /map, keys.MAP_CLOUD) recorded at most this often (by
+    # Maps (keys.MAP_GRID and its /map) recorded at most this often (by
     # receive time; the node's intake): each is the whole map (~240 kB), republished every
     # second for live viewers; 0 = every one.
     map_period_s: NonNegative = 5.0
@@ -81,8 +81,7 @@ class Intake:
     map_period_s of the last one recorded (by receive time)."""
 
     def __init__(self, cfg: LoggerConfig) -> None:
-        self._maps = {k: Decimator(int(cfg.map_period_s * 1e9))
-                      for k in (keys.MAP_GRID.key, keys.MAP_CLOUD.key)}
+        self._maps = {keys.MAP_GRID.key: Decimator(int(cfg.map_period_s * 1e9))}
 
     def take(self, key: str, recv_ns: int) -> bool:
         every = self._maps.get(key)
