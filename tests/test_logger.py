@@ -108,10 +108,14 @@ def test_derived_foxglove_messages(tmp_path: Path) -> None:
             assert m.schema == foxglove.DERIVED[m.topic]
             by_topic.setdefault(m.topic, []).append(json.loads(m.data))
     assert set(by_topic) == set(foxglove.DERIVED)
-    tfs = [t["transforms"][0] for t in by_topic["/tf"]]  # type: ignore[index]
-    assert {(t["parent_frame_id"], t["child_frame_id"]) for t in tfs} == {
-        ("odom", "chair"), ("chair", "laser")}
-    laser = next(t for t in tfs if t["child_frame_id"] == "laser")
+    # Transforms are recorded as foxglove.FrameTransform themselves (no /tf copy).
+    tfs: dict[str, tuple[str, dict[str, object]]] = {}
+    for m in Recording(tmp_path / "run.mcap").messages():
+        if m.topic in (keys.TF.key, keys.TF_STATIC.key):
+            tfs.setdefault(m.topic, (m.schema, json.loads(m.data)))  # the first of each
+    assert {schema for schema, _ in tfs.values()} == {"foxglove.FrameTransform"}
+    laser = tfs[keys.TF_STATIC.key][1]
+    assert (laser["parent_frame_id"], laser["child_frame_id"]) == ("chair", "laser")
     assert laser["translation"] == {"x": 0.8636, "y": 0.2032, "z": 0.3937}
     assert laser["timestamp"] == {"sec": T0 // 10**9, "nsec": T0 % 10**9}
     pose = by_topic["/pose"][0]
@@ -283,6 +287,26 @@ def test_packed_chunk_indexes_give_the_same_file(tmp_path: Path) -> None:
         reader = make_reader(fh)
         assert len(reader.get_summary().chunk_indexes) > 40  # type: ignore[union-attr]
         assert sum(1 for _ in reader.iter_messages()) == 300
+
+
+def test_health_is_recorded_on_change_or_every_period() -> None:
+    from autochair.logger.writer import HealthGate
+
+    s = 1_000_000_000
+    base = Health(stamp_ns=T0, service="gateway", state="ok", uptime_s=1.0, counters={},
+                  rates_hz={}, thresholds={}, detail="connected", last_fault="",
+                  last_fault_stamp_ns=0)
+    gate = HealthGate(5.0)
+    taken = [t for t in range(0, 12 * s, s) if gate.take(base, t)]
+    assert taken == [0, 5 * s, 10 * s]  # a steady 1 Hz health: one in five
+    assert gate.take(msgspec.structs.replace(base, service="pid"), 11 * s)  # per service
+    fault = msgspec.structs.replace(base, state="fault", last_fault="serial lost",
+                                    last_fault_stamp_ns=T0 + 1)
+    assert gate.take(fault, 11 * s)  # a change: at once
+    assert not gate.take(fault, 12 * s)
+    assert gate.take(base, 12 * s + 1)  # and back
+    every = HealthGate(0.0)
+    assert all(every.take(base, t) for t in range(0, 5 * s, s))
 
 
 def test_intake_records_a_whole_map_at_most_every_map_period() -> None:

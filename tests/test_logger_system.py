@@ -18,7 +18,7 @@ import pytest
 import zenoh
 
 from autochair.logger.reader import Recording, is_indexed
-from autochair.logger.schema import Codec
+from autochair.logger.schema import codec_for
 from autochair.logger.writer import LoggerConfig, Recorder
 from autochair_msgs import Health, Odometry, keys
 from tests.helpers import client_session, wait_for
@@ -126,7 +126,7 @@ def test_sigterm_leaves_complete_indexed_file_with_nothing_lost(
     got: dict[str, list[bytes]] = {}
     for m in Recording(logger.path).messages():
         if not m.derived and m.topic in sent and b'"service":"logger"' not in m.data:
-            got.setdefault(m.topic, []).append(Codec(keys.by_key(m.topic).type)
+            got.setdefault(m.topic, []).append(codec_for(keys.by_key(m.topic).type)
                                                .json_to_wire(m.data))
     # Per key, Zenoh keeps publication order; every payload arrives byte-exact.
     assert got == sent

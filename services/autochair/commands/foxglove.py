@@ -1,10 +1,11 @@
 """`autochair foxglove`: a live Foxglove WebSocket bridge (foxglove-sdk) of the chair.
 
 Serves on 127.0.0.1:8765 by default (open Foxglove, "Open connection", ws://127.0.0.1:8765).
-Channels: the well-known /tf, /pose, /map, /log (foxglove.* JSON, converted by the
-logger's autochair.logger.foxglove.Deriver, so recordings and the live view match) and the
-raw autochair messages as JSON on their Zenoh key names, for the Plot panel (odometry, PID
-status, health) and the 3D panel (`autochair/lidar/scan`, a foxglove.LaserScan as recorded).
+Channels: the well-known /pose, /map, /log (foxglove.* JSON, converted by the logger's
+autochair.logger.foxglove.Deriver, so recordings and the live view match) and the raw
+autochair messages as JSON on their Zenoh key names, as recorded, for the Plot panel
+(odometry, PID status, health) and the 3D panel (`autochair/lidar/scan`, a foxglove.LaserScan;
+`autochair/tf` and `autochair/tf_static`, foxglove.FrameTransform).
 The SDK's server speaks the subprotocol `foxglove.sdk.v1`.
 
 Teleop: Foxglove's Teleop panel drives the chair. Set its topic to `autochair/cmd/teleop` and
@@ -30,9 +31,9 @@ if TYPE_CHECKING:
 
     from autochair.commands.teleop_core import TeleopConfig
 
-# Zenoh rows bridged as raw JSON for plots (besides the derived foxglove.* channels).
-PLOT_KEYS = ("ODOM", "PID_STATUS", "HEALTH", "GOAL_STATUS", "SCAN")
-DERIVED_KEYS = ("TF", "TF_STATIC", "ODOM", "MAP_GRID", "LOG", "HEALTH")
+# Zenoh rows bridged as they are recorded (plots; scans and transforms for the 3D panel).
+PLOT_KEYS = ("ODOM", "PID_STATUS", "HEALTH", "GOAL_STATUS", "SCAN", "TF", "TF_STATIC")
+DERIVED_KEYS = ("ODOM", "MAP_GRID", "LOG", "HEALTH")
 TELEOP_TOPIC = "autochair/cmd/teleop"  # the Teleop panel's topic (client publishing)
 OWNER_TOPIC = "autochair/cmd/owner"  # {"owner": "teleop" | "autonomy"}: take over, hand back
 

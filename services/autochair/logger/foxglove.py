@@ -3,7 +3,6 @@ and the map work without any user scripts.
 
 | derived topic    | schema                     | from                               |
 |------------------|----------------------------|------------------------------------|
-| /tf              | foxglove.FrameTransforms   | keys.TF, keys.TF_STATIC            |
 | /pose            | foxglove.PoseInFrame       | keys.ODOM                          |
 | /map             | foxglove.Grid              | keys.MAP_GRID                      |
 | /log             | foxglove.Log               | keys.LOG, new faults in keys.HEALTH |
@@ -12,14 +11,12 @@ and the map work without any user scripts.
 | /loc/map         | foxglove.Grid              | keys.LOC_MAP (frame `map`)         |
 | /loc/pose        | foxglove.PoseInFrame       | keys.LOC_POSE (frame `map`)        |
 
-The scan needs no derived channel: keys.SCAN itself is recorded as a foxglove.LaserScan
-(`schema.ScanCodec`). /tf (from keys.TF) and /pose are duplicates of channels recorded at the
-full rate (keys.TF, keys.ODOM): they are decimated by message stamp to at most `max_hz` (the
-logger's `derived_max_hz`, default 20 Hz), enough for the 3D panel; each transform (parent,
-child) is decimated on its own, so the 10 Hz `map` → `odom` correction is not crowded out by
-the odometry's `odom` → `chair`. Static transforms, maps, localized poses and logs are derived
-from every message. Frames follow REP-105 (`map` → `odom` → `chair` → `laser`): set the 3D
-panel's display frame to `map`.
+Scans and transforms need no derived channel: keys.SCAN, keys.TF and keys.TF_STATIC are
+recorded as foxglove.LaserScan and foxglove.FrameTransform themselves (`schema.codec_for`).
+/pose duplicates keys.ODOM, recorded at the full rate: it is decimated by message stamp to at
+most `max_hz` (the logger's `derived_max_hz`, default 20 Hz), enough for the 3D panel. Maps,
+localized poses and logs are derived from every message. Frames follow REP-105 (`map` →
+`odom` → `chair` → `laser`): set the 3D panel's display frame to `map`.
 
 Times are {sec, nsec}; bytes are base64. The schemas are Foxglove's own (copied from npm
 `@foxglove/schemas` into foxglove_schemas.json).
@@ -37,7 +34,6 @@ import msgspec
 from autochair import geometry
 from autochair.timing import Decimator
 from autochair_msgs import (
-    FrameTransform,
     Health,
     LocalizedPose,
     LogEvent,
@@ -52,10 +48,10 @@ from .schema import FOXGLOVE_SCHEMAS, ORIGIN
 SCHEMAS = FOXGLOVE_SCHEMAS
 LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "fatal": 5}
 
-TOPIC_TF, TOPIC_POSE, TOPIC_MAP, TOPIC_LOG = "/tf", "/pose", "/map", "/log"
+TOPIC_POSE, TOPIC_MAP, TOPIC_LOG = "/pose", "/map", "/log"
 TOPIC_PLAN, TOPIC_SCENE = "/nav/plan", "/nav/scene"
 TOPIC_LOC_MAP, TOPIC_LOC_POSE = "/loc/map", "/loc/pose"
-DERIVED = {TOPIC_TF: "foxglove.FrameTransforms", TOPIC_POSE: "foxglove.PoseInFrame",
+DERIVED = {TOPIC_POSE: "foxglove.PoseInFrame",
            TOPIC_MAP: "foxglove.Grid",
            TOPIC_LOG: "foxglove.Log", TOPIC_PLAN: "foxglove.PosesInFrame",
            TOPIC_SCENE: "foxglove.SceneUpdate", TOPIC_LOC_MAP: "foxglove.Grid",
@@ -75,17 +71,6 @@ def yaw_quaternion(yaw: float) -> dict[str, float]:
 
 def _finite(v: float) -> float:
     return v if math.isfinite(v) else 0.0
-
-
-def _tf(m: FrameTransform) -> dict[str, Any]:
-    t, r = m.translation, m.rotation
-    return {"transforms": [{
-        "timestamp": time_of(m.stamp_ns), "parent_frame_id": m.parent_frame_id,
-        "child_frame_id": m.child_frame_id,
-        "translation": {"x": _finite(t.x), "y": _finite(t.y), "z": _finite(t.z)},
-        "rotation": {"x": _finite(r.x), "y": _finite(r.y), "z": _finite(r.z),
-                     "w": _finite(r.w)},
-    }]}
 
 
 def _pose(m: Odometry) -> dict[str, Any]:
@@ -164,11 +149,7 @@ class Deriver:
         self._faults: dict[str, int] = {}
         # Decimation of the duplicates of full-rate raw channels (0 = every message).
         pose = Decimator.at(max_hz)
-        self._max_hz = max_hz
-        self._tf: dict[tuple[str, str], Decimator] = {}  # one per (parent, child)
         self._by_key: dict[str, Callable[[Any], list[Derived]]] = {
-            keys.TF.key: self._tf_decimated,
-            keys.TF_STATIC.key: lambda m: [(TOPIC_TF, m.stamp_ns, _tf(m))],
             keys.ODOM.key: lambda m: [(TOPIC_POSE, m.stamp_ns, _pose(m))]
             if pose(m.stamp_ns) else [],
             keys.MAP_GRID.key: lambda m: [(TOPIC_MAP, m.stamp_ns, _grid(m))],
@@ -186,14 +167,6 @@ class Deriver:
         if isinstance(msg, Health):
             return self._health(msg)
         return []
-
-    def _tf_decimated(self, m: FrameTransform) -> list[Derived]:
-        pair = (m.parent_frame_id, m.child_frame_id)
-        if pair not in self._tf:
-            if len(self._tf) > 64:  # bounded: frame names come from the wire
-                self._tf.clear()
-            self._tf[pair] = Decimator.at(self._max_hz)
-        return [(TOPIC_TF, m.stamp_ns, _tf(m))] if self._tf[pair](m.stamp_ns) else []
 
     def _log(self, m: LogEvent) -> list[Derived]:
         return [(TOPIC_LOG, m.stamp_ns, log_message(m.stamp_ns, m.level, m.service, m.message))]

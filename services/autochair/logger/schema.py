@@ -1,10 +1,11 @@
 """JSON Schemas from the msgspec types and the msgpack ⇄ JSON transcoding the logger records.
 
 Foxglove plays JSON with a JSON Schema, not msgpack, so every payload is recorded as JSON:
-the Struct's own fields, except the laser scan (`codec_for`): it is recorded as a
-foxglove.LaserScan carrying every raw field too (`ScanCodec`), so Foxglove's 3D panel draws the
-full-rate channel itself and no second, derived copy of the scan is recorded (it was a third of
-the recording's scan bytes).
+the Struct's own fields, except where Foxglove has a well-known type for the message
+(`codec_for`): the laser scan is recorded as a foxglove.LaserScan carrying every raw field too
+(`ScanCodec`), transforms as foxglove.FrameTransform (`TransformCodec`: the fields are the
+same plus a {sec, nsec} timestamp). Foxglove's 3D panel then draws the full-rate channels
+themselves, and no derived copies of them are recorded.
 
 Lossless by construction:
 - floats: msgspec writes the shortest repr that parses back to the same float64; JSON has no
@@ -31,7 +32,7 @@ from typing import Any
 
 import msgspec
 
-from autochair_msgs import LaserScan
+from autochair_msgs import FrameTransform, LaserScan
 
 _NON_FINITE = {math.inf: "Infinity", -math.inf: "-Infinity"}
 _JSON = msgspec.json.Encoder()
@@ -131,6 +132,31 @@ ORIGIN = {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
            "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
 
 
+def _with_schema(name: str, extra: type[msgspec.Struct], note: str) -> bytes:
+    """Foxglove's schema `name` with the properties of `extra` it lacks (our raw fields)."""
+    schema = copy.deepcopy(FOXGLOVE_SCHEMAS[name])
+    raw = json_schema(extra)["properties"]
+    schema["properties"].update({k: v for k, v in raw.items() if k not in schema["properties"]})
+    schema["description"] += f"; autochair: {note}"
+    return _JSON.encode(schema)
+
+
+class TransformCodec(Codec):
+    """keys.TF and keys.TF_STATIC recorded (and bridged) as foxglove.FrameTransform: our JSON
+    with a {sec, nsec} timestamp added; read back by the plain decoder, which ignores it.
+    A non-finite value stays a string (lossless; Foxglove then rejects that one transform)."""
+
+    def __init__(self) -> None:
+        super().__init__(FrameTransform)
+        self.name = "foxglove.FrameTransform"
+        self.schema = _with_schema(self.name, FrameTransform, "with stamp_ns (Unix ns)")
+
+    def encode_json(self, msg: msgspec.Struct) -> bytes:
+        assert isinstance(msg, FrameTransform)
+        sec, nsec = divmod(max(msg.stamp_ns, 0), 1_000_000_000)
+        return b'{"timestamp":{"sec":%d,"nsec":%d},' % (sec, nsec) + to_json(msg)[1:]
+
+
 class ScanRecord(msgspec.Struct, kw_only=True):
     """A LaserScan as recorded: a valid foxglove.LaserScan (first seven fields) plus the raw
     fields. foxglove.LaserScan has no NaN and no range limits: a non-finite beam is 0 m in
@@ -163,12 +189,8 @@ class ScanCodec(Codec):
     def __init__(self) -> None:
         super().__init__(LaserScan)
         self.name = "foxglove.LaserScan"
-        schema = copy.deepcopy(FOXGLOVE_SCHEMAS[self.name])
-        raw = json_schema(ScanRecord)["properties"]
-        schema["properties"].update({k: v for k, v in raw.items()
-                                     if k not in schema["properties"]})
-        schema["description"] += "; autochair: every raw LaserScan field too (lossless)"
-        self.schema = _JSON.encode(schema)
+        self.schema = _with_schema(self.name, ScanRecord,
+                                   "every raw LaserScan field too (lossless)")
         self._record = msgspec.json.Decoder(ScanRecord, strict=False)
 
     def encode_json(self, msg: msgspec.Struct) -> bytes:
@@ -207,4 +229,8 @@ class ScanCodec(Codec):
 
 def codec_for(type_: type[msgspec.Struct]) -> Codec:
     """How messages of `type_` are recorded and bridged to Foxglove."""
-    return ScanCodec() if type_ is LaserScan else Codec(type_)
+    if type_ is LaserScan:
+        return ScanCodec()
+    if type_ is FrameTransform:
+        return TransformCodec()
+    return Codec(type_)
