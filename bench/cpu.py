@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -350,6 +351,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--slices", type=int, default=6, help="slices of the window (medians)")
     ap.add_argument("--cases", default="idle,driving,floor")
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--keep", action="store_true", help="keep the work dir (logs, recordings)")
     ap.add_argument("--floor-role", choices=("pub", "sub"), help=argparse.SUPPRESS)
     ap.add_argument("--endpoint", help=argparse.SUPPRESS)
     ap.add_argument("--spec", help=argparse.SUPPRESS)
@@ -362,18 +364,24 @@ def main(argv: list[str] | None = None) -> int:
                            "window_s": args.window, "warmup_s": args.warmup,
                            "slices": args.slices, "load_before": os.getloadavg()}
     sizes: dict[str, int] = {}
-    for case in cases:
-        print(f"--- {case}", flush=True)
-        if case == "floor":
-            if not sizes:  # no idle case ran: the sizes of a short idle stack
-                run_stack("sizes", argparse.Namespace(**{**vars(args), "window": 2.0,
-                                                         "slices": 1, "warmup": 5.0}),
-                          work, sizes)
-            res["floor"] = run_floor(args, sizes)
+    try:
+        for case in cases:
+            print(f"--- {case}", flush=True)
+            if case == "floor":
+                if not sizes:  # no idle case ran: the sizes of a short idle stack
+                    run_stack("sizes", argparse.Namespace(**{**vars(args), "window": 2.0,
+                                                             "slices": 1, "warmup": 5.0}),
+                              work, sizes)
+                res["floor"] = run_floor(args, sizes)
+            else:
+                res[case] = run_stack(case, args, work, sizes if case == "idle" else None)
+            print(json.dumps({k: v for k, v in res[case].items() if k != "streams"}, indent=1),
+                  flush=True)
+    finally:
+        if args.keep:
+            print(f"work dir kept: {work}")
         else:
-            res[case] = run_stack(case, args, work, sizes if case == "idle" else None)
-        print(json.dumps({k: v for k, v in res[case].items() if k != "streams"}, indent=1),
-              flush=True)
+            shutil.rmtree(work, ignore_errors=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(res, indent=2) + "\n")
     print(table(res))
