@@ -1,4 +1,5 @@
-"""Geometry shared by every service (pure): angles, yaw ↔ quaternion, frame checks.
+"""Geometry shared by every service (pure): angles, planar poses, yaw ↔ quaternion, frame
+checks.
 
 One place for these, so no two services convert differently (REP-103: x forward, y left,
 z up, yaw counter-clockwise about z)."""
@@ -12,6 +13,21 @@ def wrap_angle(a: float) -> float:
     """Wrap an angle to (−π, π] (REP-103 heading range)."""
     r = math.remainder(a, math.tau)
     return r + math.tau if r <= -math.pi else r
+
+
+Pose = tuple[float, float, float]  # a planar pose: x m, y m, yaw rad
+
+
+def compose(a: Pose, b: Pose) -> Pose:
+    """a ∘ b: pose b, given in a's frame, in a's parent frame."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap_angle(a[2] + b[2]))
+
+
+def inverse(a: Pose) -> Pose:
+    """a⁻¹: the parent frame's origin in a's frame (compose(a, inverse(a)) = identity)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (-c * a[0] - s * a[1], s * a[0] - c * a[1], wrap_angle(-a[2]))
 
 
 def yaw_quaternion(yaw: float) -> tuple[float, float, float, float]:
