@@ -439,3 +439,29 @@ def test_sigkill_of_the_wrapper_kills_the_service_too(tmp_path: Path) -> None:
         wait_for(gone, 5, "the service killed with its wrapper")
     finally:
         stop_process(p)
+
+
+def test_a_worker_handles_in_order_and_drops_the_oldest_when_behind() -> None:
+    node = Node("wdtest", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
+    gate, busy, seen = threading.Event(), threading.Event(), []
+
+    def handle(msg: LogEvent) -> None:
+        busy.set()
+        gate.wait(5)
+        seen.append(msg.message)
+
+    put = node.worker("work", handle, maxlen=3, dropped="dropped_busy")
+    try:
+        msgs = [LogEvent(stamp_ns=i, level="info", service="t", message=str(i))
+                for i in range(6)]
+        put(msgs[0])
+        wait_for(busy.is_set, 5, "the first item taken")
+        for m in msgs[1:]:  # the worker is busy with "0": 1..5 wait in a queue of 3
+            put(m)
+        assert node.health.counters["dropped_busy"] == 2  # "1" and "2", the oldest
+        gate.set()
+        wait_for(lambda: len(seen) == 4, 5, "the rest handled")
+        assert seen == ["0", "3", "4", "5"]
+    finally:
+        node.stop_event.set()
+        node.close()

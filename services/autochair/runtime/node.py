@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import faulthandler
 import logging
@@ -311,6 +312,32 @@ class Node:
         t = threading.Thread(target=run, name=f"{self.name}-{name}", daemon=daemon)
         self._threads.append(t)
         t.start()
+
+    def worker(self, name: str, handle: Callable[[T], None], maxlen: int,
+               dropped: str) -> Callable[[T], None]:
+        """A thread of its own for slow work on received messages (scan matching, ray
+        updates), so no Zenoh callback waits on it. Returns `put`, for the callback: never
+        blocks; when the worker is `maxlen` behind, the oldest waiting item is dropped and
+        counted as `dropped`. Items are handled in order; an exception ends the thread, which
+        the watchdog reports (see `thread`)."""
+        pending: collections.deque[T] = collections.deque(maxlen=maxlen)
+        wake = threading.Event()
+
+        def put(item: T) -> None:
+            if len(pending) == maxlen:
+                self.health.count(dropped)
+            pending.append(item)
+            wake.set()
+
+        def run() -> None:
+            while not self.stop_event.is_set():
+                wake.wait(0.2)
+                wake.clear()
+                while pending:
+                    handle(pending.popleft())
+
+        self.thread(run, name)
+        return put
 
     # --- watchdog ------------------------------------------------------------------------------
     def hang(self) -> None:
