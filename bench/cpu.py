@@ -41,7 +41,7 @@ import zenoh
 
 from autochair.launcher import Launcher, free_port
 from autochair.processes import local_values, selected
-from autochair.runtime.client import open_client
+from autochair.runtime.client import Publisher, open_client, subscribe
 from autochair.runtime.config import ZenohSettings
 from autochair.runtime.session import open_session
 from autochair_msgs import GroundTruth, VelocityCommand, keys
@@ -163,13 +163,12 @@ class Driver:
 
     def __init__(self, session: zenoh.Session) -> None:
         self.truth: GroundTruth | None = None
-        dec = msgspec.msgpack.Decoder(GroundTruth)
 
-        def on_truth(s: zenoh.Sample) -> None:
-            self.truth = dec.decode(s.payload.to_bytes())
+        def on_truth(m: GroundTruth) -> None:
+            self.truth = m
 
-        self.sub = session.declare_subscriber(keys.SIM_TRUTH.key, on_truth)
-        self.pub = session.declare_publisher(keys.CMD_VEL.key)
+        self.sub = subscribe(session, keys.SIM_TRUTH, on_truth)
+        self.pub = Publisher(session, keys.CMD_VEL)
         self.phase, self.t_phase, self.cycles = "fwd", time.monotonic(), 0
         self.stream = (self.phase, time.time_ns())
         self.next_t = time.monotonic()
@@ -203,9 +202,8 @@ class Driver:
         if self.stream[0] != self.phase or now - self.moved_at > 2.0:
             self.restarts += self.stream[0] == self.phase
             self.stream, self.moved_at = (self.phase, time.time_ns()), now
-        self.pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v,
-                                                omega_radps=w, source="bench-cpu",
-                                                stream_start_ns=self.stream[1])))
+        self.pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,
+                                     source="bench-cpu", stream_start_ns=self.stream[1]))
 
     def close(self) -> None:
         self.sub.undeclare()

@@ -30,8 +30,8 @@ import psutil
 
 from autochair.launcher import Launcher, free_port
 from autochair.processes import PROCESSES, local_values
-from autochair.runtime.client import open_client
-from autochair_msgs import GroundTruth, Health, VelocityCommand, keys
+from autochair.runtime.client import Publisher, open_client, subscribe
+from autochair_msgs import Health, VelocityCommand, keys
 from bench.faults import Tap, poll
 
 RESULTS = Path(__file__).parent / "results" / "soak.json"
@@ -69,13 +69,14 @@ def main(argv: list[str] | None = None) -> int:
     launcher.env["AUTOCHAIR_CONFIG"] = str(conf)
     launcher.start(ready_timeout_s=60)
     session = open_client(hub, timeout_ms=10000)
-    truth = Tap(session, keys.SIM_TRUTH.key, GroundTruth, keep=200)
+    truth = Tap(session, keys.SIM_TRUTH, keep=200)
     health: dict[str, Health] = {}
-    hdec = msgspec.msgpack.Decoder(Health)
-    sub = session.declare_subscriber(
-        "autochair/health/*",
-        lambda s: health.__setitem__((h := hdec.decode(s.payload.to_bytes())).service, h))
-    pub = session.declare_publisher(keys.CMD_VEL.key)
+
+    def on_health(h: Health) -> None:
+        health[h.service] = h
+
+    sub = subscribe(session, keys.HEALTH, on_health)
+    pub = Publisher(session, keys.CMD_VEL)
     res: dict[str, Any] = {"requested_sim_s": args.duration, "time_scale": args.time_scale}
     try:
         poll(truth.latest, 30, 0.1)
@@ -107,9 +108,8 @@ def main(argv: list[str] | None = None) -> int:
                 w = -0.6
                 if time.monotonic() - t_phase > 3.0 / args.time_scale:
                     phase, cycles = "fwd", cycles + 1
-            pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v,
-                                               omega_radps=w, source="soak",
-                                               stream_start_ns=stream[1])))
+            pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,
+                                    source="soak", stream_start_ns=stream[1]))
             launcher.poll()
             dead = [n for n, c in launcher.children.items() if c.state == "exited"]
             if dead:

@@ -13,7 +13,6 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
-import msgspec
 import pytest
 import zenoh
 
@@ -42,19 +41,24 @@ def client_session(hub: str) -> zenoh.Session:
 
 
 class Recorder:
-    """Collects decoded messages of one key with their receive time (monotonic)."""
+    """Collects the decoded messages of one key-table row with their receive time (monotonic),
+    through the runtime's typed `subscribe`; `key` narrows a per-service row (health)."""
 
-    def __init__(self, session: zenoh.Session, key: str, type_: type[Any]) -> None:
+    def __init__(self, session: zenoh.Session, topic: Any, key: str | None = None) -> None:
+        from autochair.runtime.client import subscribe
+
         self.items: list[tuple[float, Any]] = []
+        self.errors = 0
         self._lock = threading.Lock()
-        dec = msgspec.msgpack.Decoder(type_)
 
-        def cb(sample: zenoh.Sample) -> None:
-            msg = dec.decode(sample.payload.to_bytes())
+        def on_msg(msg: Any) -> None:
             with self._lock:
                 self.items.append((time.monotonic(), msg))
 
-        self._sub = session.declare_subscriber(key, cb)
+        def on_error() -> None:
+            self.errors += 1
+
+        self._sub = subscribe(session, topic, on_msg, key, on_error)
 
     def close(self) -> None:
         self._sub.undeclare()
@@ -75,15 +79,12 @@ def make_stack(names: list[str], hub: str, run_dir: Path, restart: bool = False,
     return Launcher(procs, local_values(run_dir, hub, **values), run_dir, restart=restart)
 
 
-_ENC = msgspec.msgpack.Encoder()
-
-
 def pid_ready(session: zenoh.Session, timeout: float = 15) -> None:
     """Wait until the velocity PID would obey a stream begun now: it hears the e-stop (and the
     safety limit when required), so only the wait for a deliberate act remains."""
-    from autochair_msgs import PidStatus, keys
+    from autochair_msgs import keys
 
-    status = Recorder(session, keys.PID_STATUS.key, PidStatus)
+    status = Recorder(session, keys.PID_STATUS)
     try:
         wait_for(lambda: (lambda m: m is not None and (m.active or m.inhibit.startswith(
             "stopped")))(status.latest()), timeout, "the velocity PID ready for a command")
@@ -95,19 +96,27 @@ class Stream:
     """One command stream (a deliberate act): every command carries the time it began, so the
     velocity PID obeys it only if it began after the PID's last stop."""
 
-    def __init__(self, pub: zenoh.Publisher, v: float, omega: float = 0.0,
-                 source: str = "test") -> None:
-        from autochair_msgs import VelocityCommand
-
+    def __init__(self, pub: Any, v: float, omega: float = 0.0, source: str = "test") -> None:
+        """`pub`: a runtime.client.Publisher of keys.CMD_VEL (or of keys.TELEOP)."""
         self.pub, self.v, self.omega, self.source = pub, v, omega, source
         self.start_ns = time.time_ns()
-        self._type = VelocityCommand
+
+    @classmethod
+    def on(cls, session: zenoh.Session, v: float, omega: float = 0.0,
+           source: str = "test") -> Stream:
+        """A stream on keys.CMD_VEL of `session`."""
+        from autochair.runtime.client import Publisher
+        from autochair_msgs import keys
+
+        return cls(Publisher(session, keys.CMD_VEL), v, omega, source)
 
     def put(self, v: float | None = None, omega: float | None = None) -> None:
-        self.pub.put(_ENC.encode(self._type(
+        from autochair_msgs import VelocityCommand
+
+        self.pub.put(VelocityCommand(
             stamp_ns=time.time_ns(), v_mps=self.v if v is None else v,
             omega_radps=self.omega if omega is None else omega, source=self.source,
-            stream_start_ns=self.start_ns)))
+            stream_start_ns=self.start_ns))
 
 
 @contextlib.contextmanager

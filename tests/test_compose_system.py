@@ -31,7 +31,7 @@ from autochair.launcher import free_port
 from autochair.logger.reader import Recording
 from autochair.processes import PROCESSES
 from autochair.runtime.client import alive_services
-from autochair_msgs import GroundTruth, JoystickOutput, keys
+from autochair_msgs import keys
 from tests.helpers import Recorder, pid_ready, session_when_up, stop_process, wait_for
 
 pytestmark = pytest.mark.slow
@@ -167,8 +167,8 @@ def test_compose_sim_stack_drives_survives_a_killed_pid_and_records(
                            timeout=60)
         assert r.returncode == 0 and r.stdout.startswith("pid: ok"), r.stdout + r.stderr
 
-        out = Recorder(live, keys.JOYSTICK_OUT.key, JoystickOutput)
-        truth = Recorder(live, keys.SIM_TRUTH.key, GroundTruth)
+        out = Recorder(live, keys.JOYSTICK_OUT)
+        truth = Recorder(live, keys.SIM_TRUTH)
         pid_ready(live)
         # The drive starts now, after the PID's start: a deliberate act it obeys.
         old = subprocess.Popen([*AUTOCHAIR, "drive", "0.5", "0", "--connect", hub],

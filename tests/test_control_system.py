@@ -12,7 +12,7 @@ import pytest
 
 from autochair.launcher import Launcher
 from autochair.runtime.client import request
-from autochair_msgs import Empty, GoalReply, GoalRequest, GoalStatus, GroundTruth, Pose2D, keys
+from autochair_msgs import Empty, GoalReply, GoalRequest, GoalStatus, Pose2D, keys
 from tests.helpers import Recorder, client_session, wait_for
 
 pytestmark = pytest.mark.slow
@@ -25,8 +25,8 @@ def test_goal_set_to_arrival_in_the_simulator(
     stack_factory(STACK)
     session = client_session(hub)
     try:
-        status = Recorder(session, keys.GOAL_STATUS.key, GoalStatus)
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+        status = Recorder(session, keys.GOAL_STATUS)
+        truth = Recorder(session, keys.SIM_TRUTH)
         wait_for(lambda: status.latest() and truth.latest(), 15, "goal status and sim truth")
         # a bad goal is refused with a reason
         bad = request(session, keys.GOAL_SET, GoalRequest(waypoints=[Pose2D(math.nan, 0, 0)]),

@@ -13,6 +13,7 @@ import pytest
 from autochair.cli import main as cli
 from autochair.commands.certs import make_all
 from autochair.commands.monitor_core import MonitorState
+from autochair.runtime.client import declare_alive
 from autochair.runtime.node import encode
 from autochair_msgs import Health, LaserScan, LogEvent, Odometry, keys
 from tests.test_deploy_tls import Chair
@@ -68,7 +69,7 @@ def chair(tmp_path: Path) -> Iterator[Chair]:
 def test_monitor_once_over_tls_as_view_only_laptop(chair: Chair, tmp_path: Path,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     svc = chair.service
-    token = svc.liveliness().declare_token(f"{keys.PREFIX}/alive/odometry")
+    token = declare_alive(svc, "odometry")
     stop = threading.Event()
     h, o, s, e = sample_msgs()
 

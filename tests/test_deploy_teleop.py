@@ -10,11 +10,10 @@ import queue
 import threading
 import time
 
-import msgspec
-
 from autochair.commands.teleop import TeleopLink, loop
 from autochair.commands.teleop_core import Teleop, TeleopLimits
 from autochair.launcher import free_port
+from autochair.runtime.client import declare_alive, subscribe
 from autochair_msgs import CommandOwner, VelocityCommand, keys
 from tests.test_deploy_tls import open_json, wait_for
 
@@ -73,12 +72,15 @@ def test_teleop_over_zenoh_takes_over_and_deadman_stops() -> None:
     chair, laptop = open_json(client), open_json(client)
     got: list[tuple[float, VelocityCommand]] = []
     owners: list[str] = []
-    dec, odec = msgspec.msgpack.Decoder(VelocityCommand), msgspec.msgpack.Decoder(CommandOwner)
-    chair.declare_subscriber(keys.TELEOP.key, lambda s: got.append(
-        (time.monotonic(), dec.decode(s.payload.to_bytes()))))
-    chair.declare_subscriber(keys.CMD_OWNER.key, lambda s: owners.append(
-        odec.decode(s.payload.to_bytes()).owner))
-    token = chair.liveliness().declare_token(f"{keys.PREFIX}/alive/pid")
+    def on_teleop(m: VelocityCommand) -> None:
+        got.append((time.monotonic(), m))
+
+    def on_owner(m: CommandOwner) -> None:
+        owners.append(m.owner)
+
+    subscribe(chair, keys.TELEOP, on_teleop)
+    subscribe(chair, keys.CMD_OWNER, on_owner)
+    token = declare_alive(chair, "pid")
     events: queue.Queue[str] = queue.Queue()
     stop = threading.Event()
     link = TeleopLink(laptop, Teleop(TeleopLimits(deadman_s=0.3, **NO_RAMP)))

@@ -14,12 +14,11 @@ from pathlib import Path
 
 import msgspec
 import pytest
-import zenoh
 
 from autochair.estop.core import EStopCore
 from autochair.estop.node import EStopConfig, start
 from autochair.runtime import Node
-from autochair.runtime.client import request
+from autochair.runtime.client import request, subscribe
 from autochair.runtime.config import ZenohSettings
 from autochair_msgs import EStopAssert, EStopRelease, EStopReply, EStopState, LogEvent, keys
 from tests.helpers import wait_for
@@ -133,19 +132,17 @@ class EStopNode:
         self.events: list[LogEvent] = []
         self._lock = threading.Lock()
         s = self.node.session
-        dec_state = msgspec.msgpack.Decoder(EStopState)
-        dec_log = msgspec.msgpack.Decoder(LogEvent)
 
-        def on_state(x: zenoh.Sample) -> None:
+        def on_state(m: EStopState) -> None:
             with self._lock:
-                self.states.append(dec_state.decode(x.payload.to_bytes()))
+                self.states.append(m)
 
-        def on_log(x: zenoh.Sample) -> None:
+        def on_log(m: LogEvent) -> None:
             with self._lock:
-                self.events.append(dec_log.decode(x.payload.to_bytes()))
+                self.events.append(m)
 
-        s.declare_subscriber(keys.ESTOP_STATE.key, on_state)
-        s.declare_subscriber(keys.LOG.key, on_log)
+        subscribe(s, keys.ESTOP_STATE, on_state)
+        subscribe(s, keys.LOG, on_log)
         start(self.node, EStopConfig(state_file=str(state_file), rate_hz=50.0))
 
     def put(self, topic: keys.Topic[EStopAssert], source: str, active: bool) -> None:

@@ -8,11 +8,11 @@ import sys
 import time
 from collections.abc import Callable
 
-import msgspec
 import pytest
 
 from autochair.launcher import Launcher
-from autochair_msgs import EStopAssert, EStopState, JoystickCommand, JoystickOutput, keys
+from autochair.runtime.client import Publisher
+from autochair_msgs import EStopAssert, JoystickCommand, keys
 from tests.helpers import Recorder, client_session, wait_for
 
 pytestmark = pytest.mark.slow
@@ -28,13 +28,12 @@ def test_estop_latches_holds_neutral_and_releases(stack_factory: Callable[..., L
     stack_factory(["estop", "sim", "gateway"])
     session = client_session(hub)
     try:
-        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
-        pub = session.declare_publisher(keys.JOYSTICK.key)
-        enc = msgspec.msgpack.Encoder()
+        out = Recorder(session, keys.JOYSTICK_OUT)
+        pub = Publisher(session, keys.JOYSTICK)
 
         def reason() -> str:  # a joystick command keeps coming, as from a running PID
-            pub.put(enc.encode(JoystickCommand(stamp_ns=time.time_ns(), longitudinal_v=3.0,
-                                               angular_v=2.5)))
+            pub.put(JoystickCommand(stamp_ns=time.time_ns(), longitudinal_v=3.0,
+                                    angular_v=2.5))
             latest = out.latest()
             return latest.reason if latest else ""
 
@@ -56,17 +55,20 @@ def test_cli_clear_of_a_held_cause_then_release(stack_factory: Callable[..., Lau
     stack_factory(["estop"])
     session = client_session(hub)
     try:
-        states = Recorder(session, keys.ESTOP_STATE.key, EStopState)
-        pub = session.declare_publisher(keys.ESTOP_ASSERT.key)
+        states = Recorder(session, keys.ESTOP_STATE)
+        pub = Publisher(session, keys.ESTOP_ASSERT)
 
         def held() -> bool:
             latest = states.latest()
             return latest is not None and any(c.source == "safety" and c.active
                                               for c in latest.causes)
 
-        wait_for(lambda: (pub.put(msgspec.msgpack.encode(EStopAssert(
-            stamp_ns=time.time_ns(), source="safety", reason="imminent collision"))),
-            held())[1], 5, "the safety cause held", interval=0.1)
+        def asserted() -> bool:
+            pub.put(EStopAssert(stamp_ns=time.time_ns(), source="safety",
+                                reason="imminent collision"))
+            return held()
+
+        wait_for(asserted, 5, "the safety cause held", interval=0.1)
         refused = cli(hub, "release")
         assert refused.returncode == 2 and "safety: imminent collision" in refused.stderr
         nobody = cli(hub, "estop", "--clear", "nobody")

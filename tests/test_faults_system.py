@@ -7,11 +7,11 @@ from collections.abc import Callable
 
 import msgspec
 import pytest
-import zenoh
 from bench.faults import decode_errors, junk_every_key, sim_fault
 
 from autochair.launcher import Launcher
-from autochair_msgs import GroundTruth, Health, JoystickOutput, keys
+from autochair.runtime.client import subscribe
+from autochair_msgs import GroundTruth, Health, keys
 from autochair_msgs.sim import SimFault
 from tests.helpers import Recorder, Stream, client_session, pid_ready, wait_for
 
@@ -28,16 +28,11 @@ def test_junk_on_every_key_is_counted_and_kills_nothing(
     session = client_session(hub)
     try:
         health: dict[str, Health] = {}
-        dec = msgspec.msgpack.Decoder(Health)
 
-        def on_health(s: zenoh.Sample) -> None:
-            try:
-                h = dec.decode(s.payload.to_bytes())
-            except msgspec.DecodeError:
-                return  # our own junk on the health key
+        def on_health(h: Health) -> None:  # (our own junk on the health key is skipped)
             health[h.service] = h
 
-        session.declare_subscriber("autochair/health/*", on_health)
+        subscribe(session, keys.HEALTH, on_health)
         wait_for(lambda: set(DRIVE_CHAIN) <= set(health), 10, "health of every service")
         used = junk_every_key(session)
         assert len(used) == sum(1 for t in keys.TOPICS if t.kind == "pub")
@@ -57,10 +52,10 @@ def test_serial_unplug_gives_neutral_then_reconnects(
     stack_factory(DRIVE_CHAIN)
     session = client_session(hub)
     try:
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
-        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
+        truth = Recorder(session, keys.SIM_TRUTH)
+        out = Recorder(session, keys.JOYSTICK_OUT)
         pid_ready(session)
-        old = Stream(session.declare_publisher(keys.CMD_VEL.key), 0.0, 0.5)
+        old = Stream.on(session, 0.0, 0.5)
 
         def driving_since(stream: Stream, t_ns: int) -> bool:
             stream.put()

@@ -17,9 +17,7 @@ from autochair_msgs import (
     EStopReply,
     GoalReply,
     GoalRequest,
-    GoalStatus,
     GroundTruth,
-    JoystickOutput,
     Pose2D,
     keys,
 )
@@ -45,9 +43,9 @@ def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
     stack_factory(STACK)
     session = client_session(hub)
     try:
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
-        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
-        status = Recorder(session, keys.GOAL_STATUS.key, GoalStatus)
+        truth = Recorder(session, keys.SIM_TRUTH)
+        out = Recorder(session, keys.JOYSTICK_OUT)
+        status = Recorder(session, keys.GOAL_STATUS)
         pid_ready(session)
         goal = GoalRequest(waypoints=[Pose2D(8.0, 0.0, 0.0)])
         assert request(session, keys.GOAL_SET, goal, GoalReply).ok

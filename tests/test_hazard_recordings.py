@@ -20,8 +20,9 @@ from autochair.logger.writer import (
     suffixed,
 )
 from autochair.runtime import Node
+from autochair.runtime.client import Publisher, subscribe
 from autochair.runtime.config import ZenohSettings
-from autochair_msgs import keys
+from autochair_msgs import LogEvent, keys
 from tests.helpers import wait_for
 from tests.logger_samples import T0, samples
 
@@ -125,12 +126,15 @@ def test_logger_restart_starts_a_new_file(tmp_path: Path) -> None:
     def run_logger(n: int) -> tuple[Node, list[str]]:
         node = Node("logger", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
         events: list[str] = []
-        node.session.declare_subscriber(keys.LOG.key, lambda s: events.append(
-            s.payload.to_bytes().decode(errors="replace")))
+
+        def on_log(m: LogEvent) -> None:
+            events.append(m.message)
+
+        subscribe(node.session, keys.LOG, on_log)
         start(node, LoggerConfig(path=str(path)))
-        pub = node.session.declare_publisher(keys.ODOM.key)
+        pub = Publisher(node.session, keys.ODOM)
         for _ in range(n):
-            pub.put(ODOM)
+            pub.put_raw(ODOM)
         return node, events
 
     node, _ = run_logger(3)

@@ -22,6 +22,7 @@ import zenoh
 from autochair.launcher import Launcher
 from autochair.logger.replay import drive_chain_alive, refusal
 from autochair.logger.writer import LoggerConfig, Recorder
+from autochair.runtime.client import declare_alive
 from autochair.runtime.config import ZenohSettings
 from autochair.runtime.session import open_session
 from autochair_msgs import keys
@@ -53,11 +54,11 @@ def test_watch_sees_tokens_and_fails_closed_when_it_cannot_ask(
 
     session = isolated_session()
     try:
-        session.liveliness().declare_token(f"{keys.PREFIX}/alive/odometry")
+        declare_alive(session, "odometry")
         quiet = DriveChainWatch(session)  # control: no drive chain, nothing to refuse
         assert not quiet.appeared.is_set() and not quiet.unsure
         quiet.close()
-        pid = session.liveliness().declare_token(f"{keys.PREFIX}/alive/pid")
+        pid = declare_alive(session, "pid")
         watch = DriveChainWatch(session)
         assert watch.appeared.is_set() and "autochair/alive/pid" in watch.refusal()
         watch.close()
@@ -168,7 +169,7 @@ def test_replay_stops_when_a_drive_chain_service_appears(
         # Positive control: with no drive chain alive a plain replay publishes as before.
         wait_for(lambda: len(got.snapshot()) >= 5, 15, "replay publishing")
         appeared = time.monotonic()
-        token = session.liveliness().declare_token(f"{keys.PREFIX}/alive/pid")  # a PID starts
+        token = declare_alive(session, "pid")  # a PID starts
         _, err = proc.communicate(timeout=10)
         exited = time.monotonic()
         assert proc.returncode == 2, err

@@ -14,22 +14,20 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-import msgspec
 import pytest
-import zenoh
 
 from autochair.launcher import Launcher
+from autochair.runtime.client import Publisher
 from autochair.sim.lidar.node import BLIND_SIGNAL
-from autochair_msgs import EStopAssert, GroundTruth, Health, SafetyLimit, VelocityCommand, keys
+from autochair_msgs import Health, VelocityCommand, keys
 from tests.helpers import Recorder, Spawn, client_session, spawned, stop_process, wait_for
 
 pytestmark = pytest.mark.slow
 
 STACK = ["estop", "sim", "gateway", "odometry", "pid", "lidar-sim", "lidar", "safety"]
-ENC = msgspec.msgpack.Encoder()
 
 
-def drive(pub: zenoh.Publisher, truth: Recorder, v: float, seconds: float,
+def drive(pub: Publisher, truth: Recorder, v: float, seconds: float,
           until_moved_m: float = float("inf")) -> tuple[float, float]:
     """Command `v` forward at 20 Hz as ONE new stream (begun now) for up to `seconds` or until
     the chair has moved `until_moved_m`; returns (x at the start, largest x seen)."""
@@ -38,16 +36,16 @@ def drive(pub: zenoh.Publisher, truth: Recorder, v: float, seconds: float,
     x_max = x0
     t0 = time.monotonic()
     while time.monotonic() - t0 < seconds:
-        pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=0.0,
-                                           source="test", stream_start_ns=start_ns)))
+        pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=0.0,
+                                source="test", stream_start_ns=start_ns))
         latest = truth.latest()
         x_max = max(x_max, latest.x_m)
         if x_max - x0 > until_moved_m:
             break
         time.sleep(0.05)  # the 20 Hz rate of the command stream itself, not a sync
     for _ in range(3):  # and stop it
-        pub.put(ENC.encode(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.0, omega_radps=0.0,
-                                           source="test", stream_start_ns=start_ns)))
+        pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=0.0, omega_radps=0.0,
+                                source="test", stream_start_ns=start_ns))
     return x0, max(x_max, truth.latest().x_m)
 
 
@@ -58,10 +56,10 @@ def test_blinded_laser_does_not_drive_forward(stack_factory: Callable[..., Launc
     assert pid is not None
     session = client_session(hub)
     try:
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
-        limits = Recorder(session, keys.SAFETY_LIMIT.key, SafetyLimit)
-        health = Recorder(session, keys.HEALTH.key, Health)
-        pub = session.declare_publisher(keys.CMD_VEL.key)
+        truth = Recorder(session, keys.SIM_TRUTH)
+        limits = Recorder(session, keys.SAFETY_LIMIT)
+        health = Recorder(session, keys.HEALTH)
+        pub = Publisher(session, keys.CMD_VEL)
 
         def safety_detail(text: str) -> Health | None:
             return next((h for h in reversed(health.messages())
@@ -119,10 +117,10 @@ def test_laser_mount_mismatch_stops_until_they_agree(spawn: tuple[str, Spawn],
     link = str(tmp_path / "lidar")
     session = client_session(hub)
     try:
-        limits = Recorder(session, keys.SAFETY_LIMIT.key, SafetyLimit)
-        health = Recorder(session, keys.HEALTH.key, Health)
-        clears = Recorder(session, keys.ESTOP_CLEAR.key, EStopAssert)
-        asserts = Recorder(session, keys.ESTOP_ASSERT.key, EStopAssert)
+        limits = Recorder(session, keys.SAFETY_LIMIT)
+        health = Recorder(session, keys.HEALTH)
+        clears = Recorder(session, keys.ESTOP_CLEAR)
+        asserts = Recorder(session, keys.ESTOP_ASSERT)
         start("autochair.sim.lidar.node", "--set", f"pty_link={link}")
         start("autochair.safety.node")
         wrong = start("autochair.lidar.node", "--set", f"url={link}",

@@ -15,7 +15,7 @@ import pytest
 
 from autochair.launcher import free_port
 from autochair.lidar.core import WRAP
-from autochair_msgs import FrameTransform, Health, LaserScan, OccupancyGrid, keys
+from autochair_msgs import Health, LaserScan, keys
 from tests.helpers import Recorder, Spawn, client_session, spawned, wait_for
 
 pytestmark = pytest.mark.slow
@@ -51,9 +51,9 @@ def test_sim_to_ingest_over_pty(spawn: tuple[str, Spawn], tmp_path: Path) -> Non
     hub, start = spawn
     session = client_session(hub)
     try:
-        scans = Recorder(session, keys.SCAN.key, LaserScan)
-        tf = Recorder(session, keys.TF_STATIC.key, FrameTransform)
-        health = Recorder(session, keys.HEALTH.key, Health)
+        scans = Recorder(session, keys.SCAN)
+        tf = Recorder(session, keys.TF_STATIC)
+        health = Recorder(session, keys.HEALTH)
         link = tmp_path / "lidar"
         # Boot the device clock 3 s before its 24-bit wrap so the run crosses it.
         start("autochair.sim.lidar.node", "--set", f"pty_link={link}",
@@ -88,7 +88,7 @@ def test_sim_to_ingest_over_tcp(spawn: tuple[str, Spawn]) -> None:
     hub, start = spawn
     session = client_session(hub)
     try:
-        scans = Recorder(session, keys.SCAN.key, LaserScan)
+        scans = Recorder(session, keys.SCAN)
         port = free_port()
         start("autochair.sim.lidar.node", "--set", f"tcp_port={port}")
         start("autochair.lidar.node", "--set", f"url=tcp://127.0.0.1:{port}")
@@ -102,8 +102,8 @@ def test_reconnect_after_unplug(spawn: tuple[str, Spawn], tmp_path: Path) -> Non
     hub, start = spawn
     session = client_session(hub)
     try:
-        scans = Recorder(session, keys.SCAN.key, LaserScan)
-        health = Recorder(session, keys.HEALTH.key, Health)
+        scans = Recorder(session, keys.SCAN)
+        health = Recorder(session, keys.HEALTH)
         link = tmp_path / "lidar"
         sim = start("autochair.sim.lidar.node", "--set", f"pty_link={link}",
                     "--set", "unplug_s=2.0")
@@ -130,9 +130,9 @@ def test_40_scans_per_second_none_lost_with_mapping(spawn: tuple[str, Spawn],
     hub, start = spawn
     session = client_session(hub)
     try:
-        scans = Recorder(session, keys.SCAN.key, LaserScan)
-        grids = Recorder(session, keys.MAP_GRID.key, OccupancyGrid)
-        health = Recorder(session, keys.HEALTH.key, Health)
+        scans = Recorder(session, keys.SCAN)
+        grids = Recorder(session, keys.MAP_GRID)
+        health = Recorder(session, keys.HEALTH)
         link = tmp_path / "lidar"
         start("autochair.sim.lidar.node", "--set", f"pty_link={link}",
               "--set", "scan_rate_hz=40")

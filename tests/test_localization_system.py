@@ -11,7 +11,6 @@ import pytest
 from autochair.mapping.mapfile import load_map
 from autochair.runtime.client import request
 from autochair_msgs import (
-    FrameTransform,
     LocalizedPose,
     LocalizeReply,
     LocalizeRequest,
@@ -44,8 +43,8 @@ def test_map_save_restart_and_localize(tmp_path: Path) -> None:
         loc = start("autochair.localization.node", "--set", f"maps_dir={maps}")
         session = session_when_up(hub)
         try:
-            poses = Recorder(session, keys.LOC_POSE.key, LocalizedPose)
-            tfs = Recorder(session, keys.TF.key, FrameTransform)
+            poses = Recorder(session, keys.LOC_POSE)
+            tfs = Recorder(session, keys.TF)
             wait_for(lambda: len(poses.items) >= 10, 40, "mapping-mode poses")
             assert poses.items[-1][1].mode == "mapping"
             wait_for(lambda: any(t.parent_frame_id == "map" and t.child_frame_id == "odom"

@@ -55,14 +55,14 @@ def test_two_chairs_on_one_hub_driven_and_recorded_apart(hub: str, tmp_path: Pat
         plain.declare_subscriber(f"{keys.PREFIX}/**", lambda s: leaked.append(str(s.key_expr)))
         for chair in CHAIRS:
             sessions[chair] = open_client(hub, chair=chair)
-        odom = {c: Recorder(sessions[c], keys.ODOM.key, Odometry) for c in CHAIRS}
+        odom = {c: Recorder(sessions[c], keys.ODOM) for c in CHAIRS}
         status = subprocess.Popen(
             [sys.executable, "-m", "autochair.cli", "status", "--json", "--connect", hub],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL)
         for chair in CHAIRS:
             pid_ready(sessions[chair])
-        pubs = {c: sessions[c].declare_publisher(keys.CMD_VEL.key) for c in CHAIRS}
-        streams = {c: Stream(pubs[c], v, w, source=f"test-{c}") for c, (v, w) in CHAIRS.items()}
+        streams = {c: Stream.on(sessions[c], v, w, source=f"test-{c}")
+                   for c, (v, w) in CHAIRS.items()}
 
         def moved() -> bool:
             for s in streams.values():

@@ -15,7 +15,7 @@ import zenoh
 from autochair.launcher import Launcher
 from autochair.runtime.client import request
 from autochair.sim.world import DEFAULT_WORLD
-from autochair_msgs import GoalReply, GoalRequest, GoalStatus, GroundTruth, Health, Pose2D, keys
+from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
 from tests.helpers import Recorder, client_session, wait_for
 
 pytestmark = pytest.mark.slow
@@ -35,14 +35,14 @@ def world_config(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, world: str) ->
 
 def map_ready(session: zenoh.Session) -> Recorder:
     """Wait until the control service has built a navigation field from the live map."""
-    health = Recorder(session, keys.HEALTH.for_service("control"), Health)
+    health = Recorder(session, keys.HEALTH, keys.HEALTH.for_service("control"))
     wait_for(lambda: (lambda h: h is not None and h.counters.get("nav_fields", 0) >= 1)(
         health.latest()), 30, "a navigation field from the live map")
     return health
 
 
 def drive_to(session: zenoh.Session, goal: Pose2D, timeout_s: float) -> list[GoalStatus]:
-    status = Recorder(session, keys.GOAL_STATUS.key, GoalStatus)
+    status = Recorder(session, keys.GOAL_STATUS)
     reply = request(session, keys.GOAL_SET, GoalRequest(waypoints=[goal]), GoalReply)
     assert reply.ok, reply.error
     wait_for(lambda: any(s.goal_id == reply.goal_id and s.state not in ACTIVE
@@ -90,7 +90,7 @@ def test_around_a_corner(stack_factory: Callable[..., Launcher], hub: str, tmp_p
     stack_factory(STACK)
     session = client_session(hub)
     try:
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+        truth = Recorder(session, keys.SIM_TRUTH)
         map_ready(session)
         # Round the corner into the second leg, 1.5 m short of the pillar: a goal whose final
         # turn in place would sweep the pillar (e.g. 8, 4) ends blocked, a known shortfall.

@@ -27,11 +27,10 @@ def test_odometry_rerun_on_replayed_encoders_matches_the_recording(
                          record_path=str(rec_path))
     session = client_session(hub)
     try:
-        odom = Recorder(session, keys.ODOM.key, Odometry)
+        odom = Recorder(session, keys.ODOM)
         wait_for(lambda: odom.latest(), 10, "odometry")
-        pub = session.declare_publisher(keys.CMD_VEL.key)
         pid_ready(session)
-        stream = Stream(pub, 0.4, 0.5)
+        stream = Stream.on(session, 0.4, 0.5)
         t0 = time.monotonic()
         while time.monotonic() - t0 < 3.0:  # an arc: both wheels, both signs of change
             stream.put()
@@ -58,7 +57,7 @@ def test_odometry_rerun_on_replayed_encoders_matches_the_recording(
     rerun.start(ready_timeout_s=30)
     session = client_session(hub2)
     try:
-        again = Recorder(session, keys.ODOM.key, Odometry)
+        again = Recorder(session, keys.ODOM)
         proc = subprocess.run(
             [sys.executable, "-m", "autochair.cli", "replay", str(rec_path), "--rate", "2",
              "--keys", keys.ENCODERS.key, "--connect", hub2, "--quiet",

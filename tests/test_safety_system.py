@@ -13,7 +13,7 @@ import pytest
 from autochair.launcher import Launcher
 from autochair.runtime import ChairGeometry
 from autochair.sim.world import DEFAULT_WORLD, World, parse_world
-from autochair_msgs import EStopState, GroundTruth, SafetyLimit, keys
+from autochair_msgs import keys
 from tests.helpers import Recorder, Stream, client_session, make_stack, pid_ready, wait_for
 
 pytestmark = pytest.mark.slow
@@ -63,13 +63,13 @@ def test_drive_at_the_dead_end_stops_without_touching(safe_stack: Launcher, hub:
     world = parse_world(DEFAULT_WORLD.read_text())
     session = client_session(hub)
     try:
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
-        limits = Recorder(session, keys.SAFETY_LIMIT.key, SafetyLimit)
-        estop = Recorder(session, keys.ESTOP_STATE.key, EStopState)
+        truth = Recorder(session, keys.SIM_TRUTH)
+        limits = Recorder(session, keys.SAFETY_LIMIT)
+        estop = Recorder(session, keys.ESTOP_STATE)
         wait_for(lambda: truth.latest() and limits.latest()
                  and limits.latest().reason != "scan stale", 30, "truth and scan-based limits")
         pid_ready(session)
-        stream = Stream(session.declare_publisher(keys.CMD_VEL.key), 1.2)
+        stream = Stream.on(session, 1.2)
         t0 = time.monotonic()
         stopped_since = math.inf
         while time.monotonic() - t0 < 45:

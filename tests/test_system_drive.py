@@ -11,7 +11,7 @@ import pytest
 
 from autochair.launcher import Launcher
 from autochair.protocol import arduino
-from autochair_msgs import EncoderSample, GroundTruth, JoystickOutput, keys
+from autochair_msgs import keys
 from tests.helpers import Recorder, Stream, client_session, pid_ready, wait_for
 
 pytestmark = pytest.mark.slow
@@ -24,15 +24,15 @@ def test_velocity_step_settles_within_3_s(stack_factory: Callable[..., Launcher]
     stack_factory(DRIVE_CHAIN)
     session = client_session(hub)
     try:
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
-        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
-        enc = Recorder(session, keys.ENCODERS.key, EncoderSample)
+        truth = Recorder(session, keys.SIM_TRUTH)
+        out = Recorder(session, keys.JOYSTICK_OUT)
+        enc = Recorder(session, keys.ENCODERS)
         wait_for(lambda: truth.latest() and out.latest(), 10, "truth and joystick output")
         assert out.latest().reason.startswith("neutral"), "output must be neutral before a command"
         # The firmware ignores commands for its first second (ST_BOOT), as a real one would.
         wait_for(lambda: enc.latest() and not enc.latest().status & arduino.ST_BOOT, 10,
                  "the chair's MCU out of boot")
-        stream = Stream(session.declare_publisher(keys.CMD_VEL.key), 0.5)
+        stream = Stream.on(session, 0.5)
         t0 = time.monotonic()
         sim_t0 = truth.latest().sim_time_s
         while time.monotonic() - t0 < 5.0:
@@ -58,10 +58,10 @@ def test_a_drive_service_killed_mid_drive_stops_the_chair_until_a_new_command(
     stack = stack_factory(DRIVE_CHAIN, restart=True)
     session = client_session(hub)
     try:
-        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
-        truth = Recorder(session, keys.SIM_TRUTH.key, GroundTruth)
+        out = Recorder(session, keys.JOYSTICK_OUT)
+        truth = Recorder(session, keys.SIM_TRUTH)
         pid_ready(session)
-        old = Stream(session.declare_publisher(keys.CMD_VEL.key), 0.5)
+        old = Stream.on(session, 0.5)
 
         def driving() -> bool:
             old.put()

@@ -26,8 +26,8 @@ from autochair import deploy
 from autochair.commands.certs import make_all
 from autochair.commands.teleop_core import TeleopConfig
 from autochair.launcher import Launcher, free_port
-from autochair.runtime.node import encode
-from autochair_msgs import CommandOwner, GroundTruth, PidStatus, VelocityCommand, keys
+from autochair.runtime.client import Publisher
+from autochair_msgs import CommandOwner, VelocityCommand, keys
 from tests.helpers import JS, Recorder, client_session, npm_ready, pid_ready, stop_process, wait_for
 
 pytest.importorskip("foxglove", reason="foxglove-sdk (the `remote` extra) missing")
@@ -127,9 +127,9 @@ class Chair:
 
     def __init__(self, hub: str) -> None:
         self.session = client_session(hub)
-        self.cmds = Recorder(self.session, keys.TELEOP.key, VelocityCommand)
-        self.pid = Recorder(self.session, keys.PID_STATUS.key, PidStatus)
-        self.truth = Recorder(self.session, keys.SIM_TRUTH.key, GroundTruth)
+        self.cmds = Recorder(self.session, keys.TELEOP)
+        self.pid = Recorder(self.session, keys.PID_STATUS)
+        self.truth = Recorder(self.session, keys.SIM_TRUTH)
 
     def handed_to_teleop(self) -> bool:
         st = self.pid.latest()
@@ -229,10 +229,13 @@ def test_a_view_only_laptop_cannot_drive_through_the_panel(
     try:
         pid_ready(chair.session)
         # The drive is already teleop's: only the identity can refuse the panel now.
-        owner = chair.session.declare_publisher(keys.CMD_OWNER.key)
-        wait_for(lambda: (owner.put(encode(CommandOwner(
-            stamp_ns=time.time_ns(), owner="teleop", by="test"))), chair.handed_to_teleop())[1],
-            10, "the drive handed to teleop")
+        owner = Publisher(chair.session, keys.CMD_OWNER)
+
+        def handed() -> bool:
+            owner.put(CommandOwner(stamp_ns=time.time_ns(), owner="teleop", by="test"))
+            return chair.handed_to_teleop()
+
+        wait_for(handed, 10, "the drive handed to teleop")
         viewer = bridges(tls_hub, "bob")
         url = viewer.url
         viewer.line("link to the chair's velocity PID ok")  # bob sees the chair ...

@@ -19,7 +19,7 @@ import pytest
 from autochair.commands.teleop import Event, TeleopLink, loop
 from autochair.commands.teleop_core import PadConfig, Teleop, TeleopConfig
 from autochair.launcher import Launcher
-from autochair_msgs import EStopState, keys
+from autochair_msgs import keys
 from tests.helpers import Recorder, client_session, pid_ready, wait_for
 from tests.test_teleop_foxglove import CFG, DRIVE_CHAIN, STALE_S, Chair, stream_figures
 
@@ -102,7 +102,7 @@ def test_a_gamepad_sampled_every_tick_drives_steadily_and_its_buttons_stop(
         stack_factory: Callable[..., Launcher], hub: str) -> None:
     stack_factory(DRIVE_CHAIN)
     chair = Chair(hub)
-    estop = Recorder(chair.session, keys.ESTOP_STATE.key, EStopState)
+    estop = Recorder(chair.session, keys.ESTOP_STATE)
     state: dict[str, tuple[Mapping[str, float], Collection[str]]] = {"now": ({}, set())}
     laptop: Laptop | None = None
 

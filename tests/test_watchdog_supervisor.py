@@ -12,9 +12,8 @@ from pathlib import Path
 import msgspec
 import psutil
 import pytest
-import zenoh
 
-from autochair.runtime.client import alive_services, open_client
+from autochair.runtime.client import Publisher, alive_services, open_client
 from autochair_msgs import EncoderSample, keys
 from tests.helpers import supervised, supervisorctl, wait_for
 
@@ -50,16 +49,16 @@ def test_supervisord_restarts_a_hung_service(stack: tuple[Path, str, Path]) -> N
     session = open_client(hub, timeout_ms=15000)
     seq = 0
 
-    def feed(pub: zenoh.Publisher) -> None:
+    def feed(pub: Publisher) -> None:
         """Encoder samples, as the gateway sends them: the service's callbacks run."""
         nonlocal seq
         seq += 1
-        pub.put(ENC.encode(EncoderSample(stamp_ns=time.time_ns(), seq=seq & 0xFFFF,
-                                         mcu_time_us=seq * 5000, left_counts=seq,
-                                         right_counts=seq, status=0)))
+        pub.put(EncoderSample(stamp_ns=time.time_ns(), seq=seq & 0xFFFF,
+                              mcu_time_us=seq * 10000, left_counts=seq, right_counts=seq,
+                              status=0))
 
     try:
-        pub = session.declare_publisher(keys.ENCODERS.key)
+        pub = Publisher(session, keys.ENCODERS)
         wait_for(lambda: "odometry" in alive_services(session, 0.5), 60, "odometry alive")
         old = wait_for(lambda: service_pid(conf), 10, "the wrapper and its child")
         # the watchdog has armed: the service pinged (its log has no hang yet)

@@ -10,11 +10,11 @@ from collections.abc import Callable
 
 import msgspec
 import pytest
-import zenoh
 
 from autochair.launcher import Child, Launcher
 from autochair.protocol import arduino
-from autochair_msgs import EncoderSample, JoystickOutput, VelocityCommand, keys
+from autochair.runtime.client import Publisher
+from autochair_msgs import JoystickOutput, VelocityCommand, keys
 from tests.helpers import Recorder, client_session, wait_for
 
 pytestmark = pytest.mark.slow
@@ -29,7 +29,7 @@ class Driver:
     """A command stream at 20 Hz (paced by the caller) that also runs the launcher's poll,
     as `autochair up` does every 0.1 s."""
 
-    def __init__(self, pub: zenoh.Publisher, stack: Launcher) -> None:
+    def __init__(self, pub: Publisher, stack: Launcher) -> None:
         self.pub, self.stack = pub, stack
         self.stream_start_ns = time.time_ns()
         self._next = 0.0
@@ -42,9 +42,9 @@ class Driver:
         now = time.monotonic()
         if now >= self._next:
             self._next = now + 0.05
-            self.pub.put(ENC.encode(VelocityCommand(
+            self.pub.put(VelocityCommand(
                 stamp_ns=time.time_ns(), v_mps=0.3, omega_radps=0.0, source="test",
-                stream_start_ns=self.stream_start_ns)))
+                stream_start_ns=self.stream_start_ns))
 
 
 def test_a_hung_pid_is_killed_restarted_and_the_chair_holds_neutral(
@@ -60,11 +60,11 @@ def test_a_hung_pid_is_killed_restarted_and_the_chair_holds_neutral(
     pid_child = stack.children["pid"]
     session = client_session(hub)
     try:
-        out = Recorder(session, keys.JOYSTICK_OUT.key, JoystickOutput)
-        enc = Recorder(session, keys.ENCODERS.key, EncoderSample)
+        out = Recorder(session, keys.JOYSTICK_OUT)
+        enc = Recorder(session, keys.ENCODERS)
         wait_for(lambda: enc.latest() and not enc.latest().status & arduino.ST_BOOT, 15,
                  "the chair's MCU out of boot")
-        drive = Driver(session.declare_publisher(keys.CMD_VEL.key), stack)
+        drive = Driver(Publisher(session, keys.CMD_VEL), stack)
         drive.new_stream()  # begun after the stack is up: the PID obeys it
 
         def driving() -> bool:

@@ -121,6 +121,11 @@ class Publisher:
         self._pub.undeclare()
 
 
+def declare_alive(session: zenoh.Session, service: str) -> zenoh.LivelinessToken:
+    """The liveliness token that says `service` is up (a Node's own; tests fake a service)."""
+    return session.liveliness().declare_token(f"{keys.PREFIX}/alive/{service}")
+
+
 def watch_alive(session: zenoh.Session, on_change: Callable[[str, bool], None],
                 service: str = "*") -> zenoh.Subscriber[None]:
     """`on_change(service, alive)` whenever a liveliness token of this chair's `service`

@@ -118,7 +118,7 @@ class Node:
         self._closers: list[Callable[[], Any]] = []
         settings = settings or ZenohSettings()
         self.session = open_session(settings)
-        self._token = self.session.liveliness().declare_token(f"{keys.PREFIX}/alive/{name}")
+        self._token = client.declare_alive(self.session, name)
         self._health_pub = self.publisher(keys.HEALTH, keys.HEALTH.for_service(name))
         self._log_pub = self.publisher(keys.LOG)
         self.every(1.0, self.publish_health, "health")
