@@ -1,13 +1,13 @@
 """Control-law evaluation: a fixed suite of start/goal pairs driven in the simulator, in process
 and in lockstep (deterministic, faster than real time).
 
-Loop at the encoder rate (200 Hz): ChairModel (sim/model.py) → encoder counts → OdometryCore →
-ControlCore (stepped at its own configured rate, 50 Hz, like the node) → VelocityPidCore →
-joystick volts → ChairModel. Comfort is measured from the odometry, not from the commands:
-v and ω are smoothed with a centred moving average (0.1 s), then a, jerk and ω̇ are central
-differences over ±0.05 s (odometry velocities are quantised: 1 count ≈ 31 µm, so raw 5 ms
-differences would report noise, not motion). The same peaks at the chair itself, from the
-simulator's ground truth (true v and ω, 5 ms exact; smoothed 50 ms for the jerk), are the
+Loop at the drive chain's rate (autochair.tune.lockstep.DT): ChairModel (sim/model.py) → encoder
+counts → OdometryCore → ControlCore (stepped at its own configured rate, 50 Hz, like the node) →
+VelocityPidCore → joystick volts → ChairModel. Comfort is measured from the odometry, not from the
+commands: v and ω are smoothed with a centred moving average (0.1 s), then a, jerk and ω̇ are
+central differences over ±0.05 s (odometry velocities are quantised: 1 count ≈ 31 µm, so raw
+one-tick differences would report noise, not motion). The same peaks at the chair itself, from the
+simulator's ground truth (true v and ω, exact each tick; smoothed 50 ms for the jerk), are the
 goal's measure ("truth_*"); the commanded (limiter) peaks are reported too.
 
 The velocity PID is configured as the [pid] section (tuned gains and feed-forward model);
@@ -34,9 +34,9 @@ from autochair.geometry import wrap_angle as wrap
 from autochair.odometry.core import OdometryCore
 from autochair.pid.core import Command, PidConfig, VelocityPidCore, make_core
 from autochair.sim.chair.model import ChairModel
+from autochair.tune.lockstep import DT  # the drive chain's rate, one constant for all benches
 from autochair_msgs import GoalRequest, Pose2D
 
-DT = 0.005  # encoder rate
 SETTLE_S = 2.0  # keep simulating after arrival to measure the final error at rest
 TIMEOUT_S = 60.0
 FINAL_APPROACH_M = 1.0
@@ -123,7 +123,7 @@ def make_pid(which: str) -> VelocityPidCore:
 
 
 def truth_peaks(v: np.ndarray[Any, Any], w: np.ndarray[Any, Any]) -> tuple[float, float, float]:
-    """|a|, |jerk|, |ω̇| peaks of the chair's true velocities (exact 5 ms samples)."""
+    """|a|, |jerk|, |ω̇| peaks of the chair's true velocities (exact, one sample a tick)."""
     acc = np.diff(v) / DT
     jerk = np.diff(smooth(acc, round(0.05 / DT))) / DT
     wdot = np.diff(w) / DT

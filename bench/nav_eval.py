@@ -1,17 +1,16 @@
 """Navigation evaluation: MPEPC + the graceful law through the simulator's worlds, in process and
 in lockstep (deterministic, faster than real time).
 
-Loop at the encoder rate (200 Hz), as bench/control_eval.py: ChairModel (sim/chair/model.py) →
-encoder counts → OdometryCore → ControlCore (50 Hz; MPEPC at its plan rate, timed) → the
-velocity PID as [pid] configures it → joystick volts → ChairModel. The navigation field is the
-world rasterised at 0.05 m (what a perfect map would hold); people are given to the planner from
-the world's ground truth (a perfect tracker: the stack has none yet). Metrics come from the
-simulator's ground truth: footprint clearance against the exact world (people included) every
-0.05 s, collisions (any contact), the true final pose error, time and path length against the
+Loop at the drive chain's rate (autochair.tune.lockstep.DT), as bench/control_eval.py: ChairModel
+(sim/chair/model.py) → encoder counts → OdometryCore → ControlCore (50 Hz; MPEPC at its plan rate,
+timed) → the velocity PID as [pid] configures it → joystick volts → ChairModel. The navigation
+field is the world rasterised at 0.05 m (what a perfect map would hold); people are given to the
+planner from the world's ground truth (a perfect tracker: the stack has none yet). Metrics come
+from the simulator's ground truth: footprint clearance against the exact world (people included)
+every 0.05 s, collisions (any contact), the true final pose error, time and path length against the
 shortest feasible path (fast marching on the same grid at uniform speed, driven at the comfort
-limits: a trapezoid at vmax 1.2 m/s, 1.0 m/s²), comfort peaks from the odometry (as
-control_eval), and the wall time of each planning cycle. Goals that cannot be reached must be
-refused (< 1 s).
+limits: a trapezoid at vmax 1.2 m/s, 1.0 m/s²), comfort peaks from the odometry (as control_eval),
+and the wall time of each planning cycle. Goals that cannot be reached must be refused (< 1 s).
 
     .venv/bin/python -m bench.nav_eval [--quick] [--only SUBSTRING]
 """
@@ -31,19 +30,20 @@ import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
 from autochair.geometry import wrap_angle as wrap
+from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
-from autochair.nav.mpepc import Person
+from autochair.nav.mpepc import MpepcParams, Person
 from autochair.nav.planner import compute
 from autochair.odometry.core import OdometryCore
 from autochair.pid.core import Command, PidConfig, make_core
 from autochair.sim.chair.model import ChairModel
 from autochair.sim.world import DEFAULT_WORLD, World, load_world
+from autochair.tune.lockstep import DT  # the drive chain's rate
 from bench.control_eval import deriv, smooth, trapezoid_time
 
-DT = 0.005
 SETTLE_S = 1.5
 TIMEOUT_S = 90.0
-TRUTH_EVERY = 10  # ground-truth clearance every 10 steps (0.05 s)
+TRUTH_EVERY = max(1, round(0.05 / DT))  # ground-truth clearance every 0.05 s
 WORLDS = DEFAULT_WORLD.parent
 RESULTS = Path(__file__).parent / "results" / "nav_eval.json"
 D = math.radians
@@ -128,7 +128,7 @@ def people_at(world: World, t: float) -> list[Person]:
 
 
 def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig,
-             fp: Footprint) -> dict[str, Any]:
+             fp: Footprint, params: MpepcParams | None = None) -> dict[str, Any]:
     from autochair_msgs import GoalRequest, Pose2D
 
     model = ChairModel()
@@ -165,7 +165,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
             req = core.plan_request(t)
             if req is not None:
                 t0 = time.perf_counter()
-                res = compute(req)
+                res = compute(req, params)
                 plan_ms.append((time.perf_counter() - t0) * 1e3)
                 core.on_plan(res, t)
             states.add(core.state)
@@ -285,7 +285,11 @@ def summarise(runs: list[dict[str, Any]], refused: list[dict[str, Any]], wall: f
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="one case per world")
-    ap.add_argument("--only", default="", help="cases whose name contains this")
+    ap.add_argument("--only", default="",
+                    help="cases whose name contains this (several: separated by |)")
+    ap.add_argument("--no-save", action="store_true", help="do not write the results file")
+    ap.add_argument("--seed", type=int, default=MpepcParams().seed,
+                    help="MPEPC's sampler seed (another seed: the results file is not written)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [control] setting")
     args = ap.parse_args(argv)
@@ -294,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     cfg = load_section(ControlConfig, "control", None, args.set)
     chair = ChairGeometry()
     fp = Footprint(chair.front_m, chair.rear_m, chair.half_width_m)
-    cases = [c for c in CASES if args.only in c[0]]
+    cases = [c for c in CASES if any(s in c[0] for s in args.only.split("|"))]
     if args.quick:
         seen: set[str] = set()
         cases = [c for c in cases if not (c[1] in seen or seen.add(c[1]))]  # type: ignore[func-returns-value]
@@ -305,7 +309,8 @@ def main(argv: list[str] | None = None) -> int:
         if wname not in fields:
             fields[wname] = build(wname, fp)
         world, fld = fields[wname]
-        r = run_case(world, fld, start, goal, cfg, fp)
+        planner._planners.clear()  # a fresh planner (and sampler) per case: order-independent
+        r = run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=args.seed))
         r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
         runs.append(r)
         if r["state"] == "refused":
@@ -329,8 +334,9 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarise(ok_runs, refused or [{"refused": True, "seconds": 0.0}], wall) \
         if ok_runs else {}
     summary["refused_reachable"] = len(runs) - len(ok_runs)
+    summary["seed"] = args.seed
     print(json.dumps(summary, indent=1))
-    if not (args.only or args.quick):
+    if not (args.only or args.quick or args.no_save or args.seed != MpepcParams().seed):
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         for r in runs:
             r.pop("plan_ms", None)

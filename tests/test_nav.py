@@ -10,7 +10,7 @@ import pytest
 from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
 from autochair.nav.field import Footprint, GridMap, NavField
 from autochair.nav.mpepc import LawParams, Mpepc, Person
-from autochair.nav.planner import PlanRequest, compute
+from autochair.nav.planner import PlanRequest, blocker, compute, free_field
 from autochair.sim.world import WorldError, parse_world
 from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
 
@@ -126,6 +126,32 @@ def test_a_person_in_the_way_blocks_and_says_so() -> None:
     assert free.blocked_by == "" and free.plan is not None  # positive control
 
 
+@pytest.mark.parametrize("goal", [(-0.5, 0.0, 0.0), (0.0, 0.1, 0.0)], ids=["behind", "aside"])
+def test_a_goal_just_behind_or_beside_in_open_space_is_not_blocked(
+        goal: tuple[float, float, float]) -> None:
+    # Turning in place to face it is progress (forward only: turn, drive, turn); standing
+    # still at the goal's yaw used to be the cheapest plan, reported as "blocked".
+    fld = free_field([(0.0, 0.0), goal[:2]], FP)
+    res = compute(PlanRequest(1, 0, (0.0, 0.0, 0.0), 0.0, 0.0, goal, fld, None, None))
+    assert res.plan is not None and res.blocked_by == "", res.blocked_by
+    assert abs(res.plan.path[-1, 2]) > 0.5  # it turns (towards the goal)
+    # (taken as the goal itself, or better than standing still)
+    assert res.plan.is_goal or res.plan.cost < res.plan.stop_cost - 0.1
+
+
+def test_blocked_names_only_an_obstacle_that_is_there() -> None:
+    fld = free_field([(0.0, 0.0), (-0.5, 0.0)], FP)
+    ctg = fld.cost_to_go(-0.5, 0.0)
+    assert ctg is not None
+    why = blocker(fld, ctg, (0.0, 0.0, 0.0), [])
+    assert "obstacle" not in why and "no motion found" in why
+    walled = corridor_with_wall()  # positive control: the wall at x = 4 (y 0..1.4) is named
+    ctg = walled.cost_to_go(6.0, 2.0)
+    assert ctg is not None
+    why = blocker(walled, ctg, (3.3, 1.0, 0.0), [])
+    assert why.startswith("blocked by an obstacle at (4.0"), why
+
+
 # --- goal handling in the core ---------------------------------------------------------------
 def core_with(fld: NavField, x: float, y: float, yaw: float = 0.0,
               cfg: ControlConfig | None = None) -> ControlCore:
@@ -163,6 +189,45 @@ def test_a_goal_blocked_on_the_way_is_reported_then_aborted_with_what_blocks() -
     assert BLOCKED in seen
     assert core.state == ABORTED and "blocked by a person" in core.reason, core.reason
     assert x < 3.4  # never drove into the person
+
+
+def test_a_no_progress_abort_says_what_blocked_the_chair_last() -> None:
+    # Blocked, driving round, blocked again can outlast blocked_abort_s without ever being
+    # blocked that long; the no-progress backstop then fires and must still say why (a live
+    # system test ended "no progress for 15 s (27.95 m left)").
+    cfg = ControlConfig(blocked_wait_s=1.0, blocked_abort_s=100.0, no_progress_s=3.0)
+    core = core_with(corridor_with_wall(), 2.5, 2.0, cfg=cfg)
+    core.people = [Person(4.2, 2.0, radius_m=0.55)]  # standing in the opening
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 2.0, 0.0)]), 0.0).ok
+    t, x, y, yaw, v, w = 0.0, 2.5, 2.0, 0.0, 0.0, 0.0
+    while core.active and t < 10.0:
+        core.on_odom(OdomSample(x, y, yaw, v, w, t))
+        v, w = core.step(t) or (0.0, 0.0)  # a chair that follows at once
+        x, y, yaw = x + v * math.cos(yaw) * 0.02, y + v * math.sin(yaw) * 0.02, yaw + w * 0.02
+        t += 0.02
+    assert core.state == ABORTED and core.reason.startswith("no progress for 3 s"), core.reason
+    assert "last blocked by a person at (4.20, 2.00)" in core.reason, core.reason
+
+
+def test_people_are_planned_at_the_time_of_the_predicted_pose() -> None:
+    # MPEPC plans from the pose predicted predict_s ahead (the drive chain's lag); a person
+    # planned against at their present position let the chair be planned past a crossing
+    # person it had not yet passed (bench nav_eval "person: to the side": a contact).
+    core = core_with(corridor_with_wall(), 1.0, 2.0)
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 2.0, 0.0)]), 0.0).ok
+    t, x, v = 0.0, 1.0, 0.0
+    while t < 2.0:
+        core.on_odom(OdomSample(x, 2.0, 0.0, v, 0.0, t))
+        v = (core.step(t) or (0.0, 0.0))[0]  # a chair that follows at once
+        x += v * 0.02
+        t += 0.02
+    core.people = [Person(3.0, 3.5, 0.0, -0.8)]
+    req = core.plan_request(t + 1.0)
+    assert req is not None
+    lead = sum(h[0] for h in core._history)
+    assert lead > 0.5 and req.pose[0] > x + 0.3  # positive control: planned from ahead
+    assert req.people[0].y_m == pytest.approx(3.5 - 0.8 * lead)
+    assert req.people[0].x_m == 3.0 and core.people[0].y_m == 3.5  # the input is kept
 
 
 def test_a_map_that_closes_the_way_blocks_then_aborts_with_no_path() -> None:

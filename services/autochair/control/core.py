@@ -213,6 +213,7 @@ class ControlCore:
         self._plan_t = -math.inf
         self._blocked_since: float | None = None
         self._replanned = False
+        self._last_blocked = ("", -math.inf)  # the latest blocked reason of this goal, when
         self._still_since: float | None = None  # commanded to move, measured at rest, since
         self._best_left = math.inf  # least remaining cost seen, and when
         self._best_t = 0.0
@@ -289,6 +290,7 @@ class ControlCore:
         self.aligning = self.straight = self.final = False
         self.ctg, self._ctg_key, self.plan = ctg, (id(fld), 0), None
         self._plan_t, self._blocked_since = -math.inf, None
+        self._last_blocked = ("", -math.inf)
         self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
         self._count("goals")
@@ -367,10 +369,14 @@ class ControlCore:
         fld = self._field_for(o, self.waypoints) if self.field is None else self.field
         ctg = self.ctg if self._ctg_key == (id(fld), self.index) else None
         prev = None if self.plan is None else (*self.plan.target, self.plan.vmax_mps)
+        # The plan starts from the pose predicted `lead` s ahead; people are moved on as far
+        # (else the chair is planned past a crossing person it has not yet passed).
+        lead = sum(h[0] for h in self._history)
+        people = [Person(q.x_m + q.vx_mps * lead, q.y_m + q.vy_mps * lead, q.vx_mps, q.vy_mps,
+                         q.radius_m) for q in self.people]
         return PlanRequest(self.goal_id, self.index, (p.x, p.y, p.yaw), self.limiter.v.value,
                            self.limiter.w.value, (wp.x_m, wp.y_m, wp.yaw_rad), fld, ctg, prev,
-                           self.cfg.law(self.tol_m * self.cfg.capture_fraction),
-                           list(self.people))
+                           self.cfg.law(self.tol_m * self.cfg.capture_fraction), people)
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""
@@ -391,7 +397,7 @@ class ControlCore:
         if not res.blocked_by or self.final:
             self.state, self.reason, self._blocked_since = DRIVING, "", None
             return
-        self._blocked(f"blocked by {res.blocked_by}", now)
+        self._blocked(res.blocked_by, now)
 
     def _blocked(self, why: str, now: float) -> None:
         """Wait at rest; replan on the newest map after `blocked_wait_s`; abort, saying why,
@@ -400,6 +406,7 @@ class ControlCore:
             self._blocked_since, self._replanned = now, False
             self._count("blocked")
         self.state, self.reason = BLOCKED, why
+        self._last_blocked = (why, now)
         waited = now - self._blocked_since
         if waited >= self.cfg.blocked_abort_s:
             self._stopped(ABORTED, f"{why} (for {waited:.0f} s)", now)
@@ -425,8 +432,11 @@ class ControlCore:
         if left < self._best_left - 0.05:
             self._best_left, self._best_t = left, now
         elif now - self._best_t > cfg.no_progress_s:
+            # Blocked, driving round, blocked again...: say what blocked it last.
+            why, t = self._last_blocked
+            also = f"; last {why}" if why and now - t <= cfg.no_progress_s else ""
             self._stopped(ABORTED, f"no progress for {cfg.no_progress_s:g} s "
-                                   f"({self.status().distance_left_m:.2f} m left)", now)
+                                   f"({self.status().distance_left_m:.2f} m left{also})", now)
 
     def _stopped(self, state: str, reason: str, now: float) -> None:
         """End the goal for a stop the chair did not ask for: the command restarts from the

@@ -37,6 +37,11 @@ class Footprint:
     rear_m: float = 0.25
     half_width_m: float = 0.35
 
+    @property
+    def reach_m(self) -> float:
+        """Radius of the disc the body sweeps turning in place round the axle."""
+        return math.hypot(max(self.front_m, self.rear_m), self.half_width_m)
+
     def outline(self, spacing_m: float = 0.1) -> F64:
         """(P, 2) points on the rectangle's outline, in the chair frame."""
         xs = np.linspace(-self.rear_m, self.front_m,
@@ -173,7 +178,8 @@ class NavField:
         self.map, self.footprint = gm, footprint
         res = gm.resolution_m
         # Distance from each cell centre to the nearest obstacle cell's edge.
-        edt = ndi.distance_transform_edt(~gm.occupied) * res
+        edt, self._nearest = ndi.distance_transform_edt(~gm.occupied, return_indices=True)
+        edt = edt * res
         self.clearance: F64 = np.maximum(np.asarray(edt, dtype=np.float64) - res / 2, 0.0)
         if not gm.occupied.any():
             self.clearance[:] = 1e3
@@ -191,6 +197,16 @@ class NavField:
     def clearance_at(self, pts: F64) -> F64:
         """Clearance (m) at world points (..., 2); 0 outside the map."""
         return bilinear(self.clearance, self.map, pts, 0.0)
+
+    def nearest_obstacle(self, x: float, y: float) -> tuple[float, float] | None:
+        """Centre of the obstacle cell nearest to (x, y); None without obstacles or outside."""
+        c = self.cell(x, y)
+        if c is None or not self.map.occupied.any():
+            return None
+        iy, ix = int(self._nearest[0][c]), int(self._nearest[1][c])
+        gm = self.map
+        return (gm.origin_x_m + (ix + 0.5) * gm.resolution_m,
+                gm.origin_y_m + (iy + 0.5) * gm.resolution_m)
 
     def footprint_clearance(self, x: F64 | float, y: F64 | float, yaw: F64 | float) -> F64:
         """Least clearance of the footprint outline at poses (...)."""

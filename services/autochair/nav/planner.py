@@ -40,7 +40,7 @@ class PlanResult:
     ctg: CostToGo | None
     plan: Plan | None
     error: str = ""  # no path: why
-    blocked_by: str = ""  # what stops progress, when the plan makes none
+    blocked_by: str = ""  # why the plan makes no progress ("blocked by …"); "" if it does
 
 
 _planners: dict[int, tuple[NavField, Mpepc]] = {}
@@ -81,22 +81,29 @@ def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, fl
 
 def blocker(fld: NavField, ctg: CostToGo, pose: tuple[float, float, float],
             people: list[Person]) -> str:
-    """What keeps the chair from progressing: the nearest person within 3 m, else the
-    tightest spot on the way down the navigation function (2 m ahead)."""
+    """Why the chair cannot progress, naming only what is really there: the nearest person
+    within 3 m, else the obstacle nearest to the chair or to the way down the navigation
+    function (2 m ahead) if the body could touch it (within its turning reach + 0.2 m). With
+    nothing that close, the planner found no motion that makes progress and says so."""
     x, y, _ = pose
     near = [(math.hypot(p.x_m - x, p.y_m - y), p) for p in people]
     near = [n for n in near if n[0] < 3.0]
     if near:
         d, p = min(near, key=lambda n: n[0])
-        return f"a person at ({p.x_m:.2f}, {p.y_m:.2f}), {d:.1f} m away"
-    pts, px, py = [], x, y
+        return f"blocked by a person at ({p.x_m:.2f}, {p.y_m:.2f}), {d:.1f} m away"
+    pts, px, py = [(x, y)], x, y
     for _ in range(20):
         heading = float(ctg.descent(fld.map, np.array([px, py])))
         px, py = px + 0.1 * math.cos(heading), py + 0.1 * math.sin(heading)
         pts.append((px, py))
     arr = np.array(pts)
-    i = int(np.argmin(fld.clearance_at(arr)))
-    return f"an obstacle near ({arr[i, 0]:.2f}, {arr[i, 1]:.2f})"
+    clr = fld.clearance_at(arr)
+    i = int(np.argmin(clr))
+    ob = fld.nearest_obstacle(float(arr[i, 0]), float(arr[i, 1]))
+    if ob is None or clr[i] > fld.footprint.reach_m + 0.2:
+        return ("no motion found that makes progress (nothing within "
+                f"{fld.footprint.reach_m + 0.2:.1f} m of the way)")
+    return f"blocked by an obstacle at ({ob[0]:.2f}, {ob[1]:.2f})"
 
 
 def compute(req: PlanRequest, params: MpepcParams | None = None,
