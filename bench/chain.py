@@ -6,7 +6,9 @@ ack (gateway → odometry → velocity PID → gateway: three Zenoh hops and two
 Baseline, same run, same hub: this process publishes an equal-size payload that two relay
 processes pass on (three Zenoh hops) back to it.
 
-    python -m bench.chain [--duration 60] [--rates 200,400,800,1600] [--samples 3000]
+    python -m bench.chain [--duration 60] [--rates 100,200,400,800,1600] [--samples 3000]
+
+Latency runs at the drive chain's rate (keys.DRIVE_RATE_HZ); the sustained rates go above it.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from autochair_msgs import EncoderSample, Health, VelocityCommand, keys
 
 RESULTS = Path(__file__).parent / "results" / "chain.json"
 BLOCKS = 6  # latency runs alternate chain / baseline blocks
+RATE = keys.DRIVE_RATE_HZ  # the Arduino's telemetry rate
 
 
 def percentile(xs: list[float], q: float) -> float:
@@ -56,7 +59,11 @@ def paced(n: int, rate_hz: float) -> Iterator[int]:
 
 
 class FakeArduino:
-    """The bench side of the pty: writes telemetry, reads joystick frames with their acks."""
+    """The bench side of the pty: writes telemetry, reads joystick frames with their acks.
+    Between runs it goes on sending at 20 Hz, as a real MCU never stops: a silent link is an
+    odometry gap (a stop for the PID) and, after 2 s, a reopen by the gateway."""
+
+    IDLE_S = 0.05
 
     def __init__(self) -> None:
         self.master, slave = os.openpty()
@@ -68,9 +75,12 @@ class FakeArduino:
         self.frames_in = 0
         self.frame_index = 0
         self.mcu_us = 0.0
+        self.counts = 0
         self._stop = threading.Event()
+        self._busy = threading.Lock()  # held by a run; the idle sender yields to it
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
+        threading.Thread(target=self._idle, daemon=True).start()
 
     def _read(self) -> None:
         dec = arduino.FrameDecoder()
@@ -90,19 +100,34 @@ class FakeArduino:
                     if f.enable and idx not in self.acked:
                         self.acked[idx] = now
 
+    def _write(self, period_s: float, counts: int) -> None:
+        """The next telemetry frame, `period_s` of MCU time after the last, wheels `counts`
+        further."""
+        self.frame_index += 1
+        self.mcu_us += period_s * 1e6
+        self.counts += counts
+        seq = self.frame_index & 0xFFFF
+        frame = arduino.encode(arduino.Telemetry(seq, int(self.mcu_us), self.counts,
+                                                 self.counts, 0))
+        os.write(self.master, frame)
+
+    def _idle(self) -> None:
+        while not self._stop.wait(self.IDLE_S):
+            if self._busy.acquire(blocking=False):
+                try:
+                    self._write(self.IDLE_S, 0)
+                finally:
+                    self._busy.release()
+
     def run(self, rate_hz: float, n: int, counts_per_frame: int = 50) -> None:
         """Write `n` telemetry frames at `rate_hz`. Sequence, clock and counters carry on
         from the previous run, as a real MCU's would."""
-        self.sent.clear()
-        self.acked.clear()
-        for _ in paced(n, rate_hz):
-            self.frame_index += 1
-            self.mcu_us += 1e6 / rate_hz
-            seq = self.frame_index & 0xFFFF
-            counts = self.frame_index * counts_per_frame
-            frame = arduino.encode(arduino.Telemetry(seq, int(self.mcu_us), counts, counts, 0))
-            self.sent[self.frame_index] = time.perf_counter_ns()
-            os.write(self.master, frame)
+        with self._busy:
+            self.sent.clear()
+            self.acked.clear()
+            for _ in paced(n, rate_hz):
+                self.sent[self.frame_index + 1] = time.perf_counter_ns()
+                self._write(1.0 / rate_hz, counts_per_frame)
 
     def close(self) -> None:
         self._stop.set()
@@ -134,7 +159,13 @@ class Baseline:
             [sys.executable, "-m", "bench.relay", f"bench/k{i}", f"bench/k{i + 1}"], env=env,
             stdout=subprocess.PIPE, text=True) for i in (0, 1)]
         for r in self.relays:
-            assert r.stdout is not None and r.stdout.readline().strip() == "relay ready"
+            # Zenoh's own log lines may come first on stdout (open_session initialises them),
+            # and more may follow: drain the pipe so a relay never blocks on it.
+            lines = iter(r.stdout.readline, "") if r.stdout is not None else iter(())
+            if not any(line.strip() == "relay ready" for line in lines):
+                self._stop_relays()
+                raise RuntimeError("a baseline relay did not start")
+            threading.Thread(target=lambda it=lines: all(True for _ in it), daemon=True).start()
         self.session = zenoh.open(ZenohSettings(connect=[hub]).to_zenoh())
         self.got: dict[int, int] = {}
         self.session.declare_subscriber(
@@ -159,6 +190,9 @@ class Baseline:
 
     def close(self) -> None:
         self.session.close()
+        self._stop_relays()
+
+    def _stop_relays(self) -> None:
         for r in self.relays:
             r.terminate()
             r.wait(5)
@@ -187,7 +221,8 @@ def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.chain", description=__doc__)
     ap.add_argument("--samples", type=int, default=3000, help="frames for the latency runs")
     ap.add_argument("--duration", type=float, default=60.0, help="seconds per sustained rate")
-    ap.add_argument("--rates", default="200,400,800,1600", help="sustained rates to try, Hz")
+    ap.add_argument("--rates", default=f"{RATE},200,400,800,1600",
+                    help="sustained rates to try, Hz")
     args = ap.parse_args(argv)
 
     hub = f"tcp/127.0.0.1:{free_port()}"
@@ -215,7 +250,7 @@ def main(argv: list[str]) -> int:
                                                        stream_start_ns=start_ns)))
 
         threading.Thread(target=command, daemon=True).start()
-        fake.run(200, 400)  # warm-up: connections, caches, the PID becoming active
+        fake.run(RATE, 2 * RATE)  # warm-up: connections, caches, the PID becoming active
         time.sleep(0.5)
 
         # Chain and baseline alternate in blocks, so both see the same machine noise.
@@ -225,16 +260,16 @@ def main(argv: list[str]) -> int:
         lat, base = [], []
         try:
             for _ in range(BLOCKS):
-                fake.run(200, args.samples // BLOCKS)
+                fake.run(RATE, args.samples // BLOCKS)
                 time.sleep(0.5)
                 lat += chain_latencies(fake)
-                base += base_run.run(args.samples // BLOCKS, 200)
+                base += base_run.run(args.samples // BLOCKS, RATE)
         finally:
             base_run.close()
         chain_p50, chain_p99 = statistics.median(lat), percentile(lat, 0.99)
         base_p50, base_p99 = statistics.median(base), percentile(base, 0.99)
         results["latency_us"] = {
-            "rate_hz": 200, "samples": args.samples, "blocks": BLOCKS, "answered": len(lat),
+            "rate_hz": RATE, "samples": args.samples, "blocks": BLOCKS, "answered": len(lat),
             "baseline_answered": len(base),
             "chain_p50": round(chain_p50, 1), "chain_p99": round(chain_p99, 1),
             "baseline_3hop_p50": round(base_p50, 1), "baseline_3hop_p99": round(base_p99, 1),
@@ -245,8 +280,6 @@ def main(argv: list[str]) -> int:
 
         sustained: list[dict[str, Any]] = []
         for rate in (float(r) for r in args.rates.split(",")):
-            # Idle gaps stay under the gateway's 2 s stall timeout (a real MCU never stops
-            # sending; a reopen while frames flow would lose some).
             before = health_counters(session, time.time_ns())
             n = int(rate * args.duration)
             print(f"sustained {rate:.0f} Hz for {args.duration:.0f} s ...", flush=True)

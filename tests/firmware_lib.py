@@ -72,6 +72,7 @@ def build_protocol_lib(out_dir: Path) -> ctypes.CDLL:
                                         ctypes.POINTER(Frame)]),
         "ac_fw_init": (None, [ctypes.POINTER(Fw), ctypes.c_uint16]),
         "ac_fw_rx_byte": (None, [ctypes.POINTER(Fw), ctypes.c_uint8, ctypes.c_uint32]),
+        "ac_fw_watch": (None, [ctypes.POINTER(Fw), ctypes.c_uint32]),
         "ac_fw_tick": (ctypes.c_uint8, [ctypes.POINTER(Fw), ctypes.c_uint32, ctypes.c_uint32,
                                         ctypes.c_uint32, ctypes.c_uint8, u8p]),
     }

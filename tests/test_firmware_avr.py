@@ -7,6 +7,7 @@ is measured in MCU time, independent of how loaded this machine is.
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import subprocess
@@ -23,7 +24,7 @@ import zenoh
 
 from autochair.launcher import free_port
 from autochair.protocol import arduino as proto
-from autochair_msgs import EncoderSample, JoystickCommand, keys
+from autochair_msgs import JoystickCommand, keys
 from tests.firmware_lib import build_firmware
 from tests.helpers import Recorder, session_when_up, stop_process, wait_for
 
@@ -44,8 +45,9 @@ def test_avr_build_fits_atmega328p(built: tuple[Path, Path]) -> None:
     assert data + bss <= 2048 - 768, out  # leave >= 768 B of the 2 KiB SRAM for the stack
     syms = subprocess.run(["avr-nm", str(elf)], check=True, capture_output=True,
                           text=True).stdout
-    for vector in ("__vector_4", "__vector_11", "__vector_18", "__vector_19"):
-        assert vector in syms, f"{vector} (PCINT1, TIMER1_COMPA, USART_RX, USART_UDRE) missing"
+    for vector in ("__vector_4", "__vector_11", "__vector_12", "__vector_18", "__vector_19"):
+        assert vector in syms, \
+            f"{vector} (PCINT1, TIMER1_COMPA/B, USART_RX, USART_UDRE) missing"
 
 
 class Harness:
@@ -107,7 +109,7 @@ def rig(built: tuple[Path, Path]) -> Iterator[tuple[Harness, zenoh.Session,
 def test_gateway_talks_to_simulated_firmware(
         rig: tuple[Harness, zenoh.Session, subprocess.Popen[bytes]]) -> None:
     harness, session, gateway = rig
-    enc = Recorder(session, keys.ENCODERS.key, EncoderSample)
+    enc = Recorder(session, keys.ENCODERS)
     # Telemetry from the real firmware reaches Zenoh through the real gateway.
     wait_for(lambda: any(not m.status & proto.ST_BOOT for m in enc.messages()), 30,
              "telemetry past the firmware's boot second")
@@ -118,7 +120,11 @@ def test_gateway_talks_to_simulated_firmware(
     msgs = enc.messages()[start:]
     last = msgs[-1]
     dt = (last.mcu_time_us - first.mcu_time_us) / 1e6
-    assert (last.seq - first.seq) % 65536 == round(dt * 200)  # 200 Hz, 5 ms apart on the MCU
+    # The key table's rate (100 Hz, 10 ms apart on the MCU): AC_FRAME_US matches it.
+    assert (last.seq - first.seq) % 65536 == round(dt * keys.DRIVE_RATE_HZ)
+    periods = {b.mcu_time_us - a.mcu_time_us for a, b in itertools.pairwise(msgs)
+               if b.seq == a.seq + 1}
+    assert periods == {1_000_000 // keys.DRIVE_RATE_HZ}, periods
     assert sum(m.dropped for m in msgs) <= 2
     left_rate = proto.wrap_delta(first.left_counts, last.left_counts) / dt
     right_rate = proto.wrap_delta(first.right_counts, last.right_counts) / dt
@@ -157,8 +163,10 @@ def test_gateway_talks_to_simulated_firmware(
                                 if e[0] > last_rx_us and e[1:] == [2500, 2500]], 20,
                        "DAC back at neutral")
     delay_us = neutral[0][0] - last_rx_us
-    print(f"firmware neutral {delay_us} µs (MCU time) after the last host byte")
-    # 200 ms watchdog, checked on the 5 ms frame tick; + the last frame still draining from the
+    phase_us = neutral[0][0] % (1_000_000 // keys.DRIVE_RATE_HZ)
+    print(f"firmware neutral {delay_us} µs (MCU time) after the last host byte, "
+          f"{phase_us} µs into a frame")
+    # 200 ms watchdog, checked every half frame (5 ms); + the last frame still draining from the
     # UART (< 1.3 ms) + simavr's SPI model (~100 µs per byte, 4 bytes) before /LDAC.
     assert 200_000 <= delay_us <= 200_000 + 5_000 + 1_300 + 1_000, delay_us
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import binascii
 import ctypes
 import random
+import re
 from pathlib import Path
 
 import pytest
@@ -19,7 +20,21 @@ from hypothesis import strategies as st
 
 from autochair.protocol import arduino as proto
 from autochair.sim.chair.firmware import Firmware
-from tests.firmware_lib import Command, Frame, Fw, Rx, Telemetry, buf, build_protocol_lib
+from autochair_msgs import keys
+from tests.firmware_lib import (
+    FIRMWARE_DIR,
+    Command,
+    Frame,
+    Fw,
+    Rx,
+    Telemetry,
+    buf,
+    build_protocol_lib,
+)
+
+# The firmware's telemetry period, read from its config header.
+FRAME_US = int(re.search(r"#define AC_FRAME_US (\d+)UL",
+                         (FIRMWARE_DIR / "ac_config.h").read_text())[1])  # type: ignore[index]
 
 u16 = st.integers(0, 0xFFFF)
 u32 = st.integers(0, 0xFFFFFFFF)
@@ -198,6 +213,9 @@ class CFirmware:
         for b in data:
             self.lib.ac_fw_rx_byte(ctypes.byref(self.fw), b, now_us & 0xFFFFFFFF)
 
+    def watch(self, now_us: int) -> None:
+        self.lib.ac_fw_watch(ctypes.byref(self.fw), now_us & 0xFFFFFFFF)
+
     def tick(self, now_us: int, left: int, right: int, extra: int = 0) -> bytes:
         out = buf()
         n = self.lib.ac_fw_tick(ctypes.byref(self.fw), now_us & 0xFFFFFFFF, left & 0xFFFFFFFF,
@@ -221,13 +239,13 @@ def test_firmware_rules_match_python_emulation(lib: ctypes.CDLL, seed: int) -> N
     left = right = 0
     host_seq = 0
     silent_until = 0
-    for k in range(1, 1200):  # 6 s of 5 ms ticks
-        t_tick = k * 5000
+    for k in range(1, 6 * keys.DRIVE_RATE_HZ):  # 6 s of frame ticks
+        t_tick = k * FRAME_US
         if t_tick > silent_until and rng.random() < 0.01:
             silent_until = t_tick + rng.randint(50_000, 400_000)  # host goes quiet
         if t_tick > silent_until and rng.random() < 0.8:
             # off the tick grid, so no event lands exactly on the 200 ms boundary
-            t_rx = t_tick - rng.randint(1, 4999)
+            t_rx = t_tick - rng.randint(1, FRAME_US - 1)
             r = rng.random()
             if r < 0.7:
                 data = cmd(host_seq, rng.randint(1100, 3900), rng.randint(1100, 3900))
@@ -247,6 +265,11 @@ def test_firmware_rules_match_python_emulation(lib: ctypes.CDLL, seed: int) -> N
             host_seq += 1
             c_fw.receive(data, t_rx)
             py_fw.receive(data, t_rx / 1e6)
+        if rng.random() < 0.5:  # the mid-frame watchdog check (the board's Timer1 compare B)
+            t_mid = t_tick - FRAME_US // 2 + rng.randint(-1, 1)
+            c_fw.watch(t_mid)
+            py_fw.watch(t_mid / 1e6)
+            assert c_fw.mv == (py_fw.longitudinal_mv, py_fw.angular_mv)
         left += rng.randint(-40, 200)
         right -= rng.randint(-40, 200)
         c_wire = c_fw.tick(t_tick, left, right)
@@ -289,6 +312,27 @@ def test_watchdog_fires_after_exactly_200ms(lib: ctypes.CDLL) -> None:
     assert fw.fw.counters.host_timeouts == 1
     fw.receive(cmd(2, 3100, 2500), 2_300_000)  # the next valid enabled command resumes
     assert _status(fw.tick(2_300_000, 0, 0)) == proto.ST_OUTPUT_ENABLED
+
+
+def test_watchdog_checked_between_frames(lib: ctypes.CDLL) -> None:
+    """The board checks the watchdog in mid-frame too (ac_fw_watch): neutral 200 ms after the
+    last host frame without waiting for the next telemetry tick."""
+    fw = CFirmware(lib)
+    fw.receive(cmd(1, 3000, 2000), 2_000_000)
+    fw.tick(2_000_000, 0, 0)
+    fw.watch(2_200_000)
+    assert fw.mv == (3000, 2000)  # positive control: exactly 200 ms is still fresh
+    fw.watch(2_200_001)
+    assert fw.mv == (2500, 2500) and fw.fw.counters.host_timeouts == 1
+    assert _status(fw.tick(2_205_000, 0, 0)) == proto.ST_HOST_TIMEOUT
+    assert fw.fw.counters.host_timeouts == 1  # one transition, however often it is checked
+
+
+def test_frame_period_is_the_key_tables_drive_rate() -> None:
+    """AC_FRAME_US (ac_config.h) and keys.DRIVE_RATE_HZ say the same rate, and Timer1's TOP
+    (2 counts per µs) fits its 16 bits."""
+    assert FRAME_US * keys.DRIVE_RATE_HZ == 1_000_000
+    assert FRAME_US * 2 - 1 <= 0xFFFF
 
 
 def test_watchdog_across_clock_wrap(lib: ctypes.CDLL) -> None:

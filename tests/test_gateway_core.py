@@ -7,6 +7,9 @@ import pytest
 from autochair.gateway.core import GatewayCore
 from autochair.protocol import arduino
 from autochair.protocol.arduino import Command, FrameDecoder, Telemetry
+from autochair_msgs import keys
+
+FRAME_MS = 1000 // keys.DRIVE_RATE_HZ  # the firmware's telemetry period
 
 
 def decode_one(data: bytes) -> Command:
@@ -37,6 +40,20 @@ def test_command_then_stale_after_timeout() -> None:
     assert core.output(10.09).reason == "command"
     out = core.output(10.101)
     assert out.reason == "neutral:stale" and (out.longitudinal_v, out.angular_v) == (2.5, 2.5)
+
+
+def test_ticked_core_is_neutral_no_later_than_the_stale_timeout() -> None:
+    """Checked every tick_s, a command is neutral at the last tick before it would be older
+    than stale_s (so the timeout holds whatever the tick), and the e-stop heartbeat likewise."""
+    core = running(stale_s=0.1, tick_s=0.01)
+    assert core.on_command(3.0, 2.0, True, now_s=10.0)
+    assert core.output(10.089).reason == "command"  # positive control: still fresh
+    assert core.output(10.0905).reason == "neutral:stale"  # the next tick would be 0.1005 s
+    core = GatewayCore(estop_stale_s=0.5, tick_s=0.01)
+    core.on_estop(False, now_s=0.0)
+    core.on_command(3.0, 2.0, True, now_s=0.45)
+    assert core.output(0.489).reason == "command"
+    assert core.output(0.4905).reason == "neutral:estop_silent"
 
 
 def test_clamps_to_window() -> None:
@@ -150,12 +167,12 @@ def test_a_parked_chairs_telemetry_is_passed_on_at_20_hz_and_motion_at_once() ->
     still = Telemetry(seq=0, t_us=0, left=100, right=200, status=0)
 
     def frames(t0: float, t1: float, frame: Telemetry = still) -> list[float]:
-        return [t / 1000 for t in range(int(t0 * 1000), int(t1 * 1000), 5)
+        return [t / 1000 for t in range(round(t0 * 1000), round(t1 * 1000), FRAME_MS)
                 if core.pass_on(frame, 0, t / 1000)]
 
     # Positive control: a frame that moved keeps the full rate for hold_s.
     assert core.pass_on(still, 0, 0.0)
-    assert len(frames(0.005, 1.0)) == 199  # every 5 ms frame within the hold
+    assert len(frames(FRAME_MS / 1000, 1.0)) == 1000 // FRAME_MS - 1  # every frame in the hold
     parked = frames(1.0, 2.0)
     assert 19 <= len(parked) <= 21  # parked: 20 Hz
     # A wheel turning by one count, a lost frame, a status change: passed on at once.
@@ -169,4 +186,4 @@ def test_a_parked_chairs_telemetry_is_passed_on_at_20_hz_and_motion_at_once() ->
     out = core2.due(5.0)
     assert out is not None and out.enable
     core2.sent(out, 5.0)
-    assert all(core2.pass_on(still, 0, 5.0 + k * 0.005) for k in range(40))
+    assert all(core2.pass_on(still, 0, 5.0 + k * FRAME_MS / 1000) for k in range(40))

@@ -9,12 +9,14 @@ import pytest
 from autochair.geometry import wrap_angle
 from autochair.odometry.core import OdometryCore
 from autochair.protocol.arduino import ST_BOOT
+from autochair_msgs import keys
 
 R, B, CPR = 0.049, 0.367, 10000
 M_PER_COUNT = 2 * math.pi * R / CPR
+HZ = keys.DRIVE_RATE_HZ  # the encoder rate
 
 
-def drive(core: OdometryCore, v: float, omega: float, seconds: float, hz: float = 200,
+def drive(core: OdometryCore, v: float, omega: float, seconds: float, hz: float = HZ,
           start: tuple[int, int, int] = (0, 0, 0)) -> None:
     """Feed samples of an exact constant-(v, ω) motion; counts are rounded like an encoder."""
     left = right = 0.0
@@ -52,8 +54,11 @@ def test_full_circle_returns_home() -> None:
     core = OdometryCore()
     omega = 0.5
     drive(core, 0.5, omega, 2 * math.pi / omega)
-    assert math.hypot(core.x, core.y) < 1e-3
-    assert abs(wrap_angle(core.yaw)) < 1e-3
+    # Whole samples end within half a sample of the full circle: compare with that point.
+    t = round(2 * math.pi / omega * HZ) / HZ
+    home = (0.5 / omega * math.sin(omega * t), 0.5 / omega * (1 - math.cos(omega * t)))
+    assert math.hypot(core.x - home[0], core.y - home[1]) < 1e-3
+    assert abs(wrap_angle(core.yaw - omega * t)) < 1e-3
     assert core.distance == pytest.approx(2 * math.pi * 1.0, rel=1e-3)
 
 
@@ -90,8 +95,8 @@ def test_velocity_from_mcu_clock() -> None:
 def _next_sample(core: OdometryCore, v: float, omega: float) -> tuple[int, int, int]:
     assert core._prev is not None
     left, right, t = core._prev
-    return (left + round((v - omega * B / 2) / 200 / M_PER_COUNT),
-            right + round((v + omega * B / 2) / 200 / M_PER_COUNT), t + 5000)
+    return (left + round((v - omega * B / 2) / HZ / M_PER_COUNT),
+            right + round((v + omega * B / 2) / HZ / M_PER_COUNT), t + round(1e6 / HZ))
 
 
 @pytest.mark.parametrize("a,expected", [(math.pi, math.pi), (-math.pi, math.pi),

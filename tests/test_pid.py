@@ -18,6 +18,10 @@ from autochair.pid.core import (
     effort_to_volts,
 )
 from autochair.tune.core import ChainModel, Probe, ProbeKind, ProbeState
+from autochair_msgs import keys
+
+DT = 1.0 / keys.DRIVE_RATE_HZ  # the PID runs once per odometry sample
+HALF_S = round(0.5 / DT)  # samples in 0.5 s
 
 
 def test_proportional_and_integral() -> None:
@@ -96,27 +100,37 @@ def drive(core: VelocityPidCore, v: float, w: float, t: float, source: str = "au
 def test_stale_desired_gives_exact_neutral() -> None:
     core = core_(stale_s=0.3)
     assert drive(core, 0.5, 0.0, 0.0) is Verdict.OK
-    out = core.update(0.0, 0.0, 0.005, 0.1, ns(0.1))
+    out = core.update(0.0, 0.0, DT, 0.1, ns(0.1))
     assert out.active and out.longitudinal_v > 2.5 and out.desired == (0.5, 0.0)
-    out = core.update(0.0, 0.0, 0.005, 0.31, ns(0.31))
+    out = core.update(0.0, 0.0, DT, 0.31, ns(0.31))
     assert not out.active
     assert (out.longitudinal_v, out.angular_v, out.v_effort) == (2.5, 2.5, 0.0)
     assert out.desired == (0.0, 0.0)
 
 
+def test_stale_is_judged_one_sample_ahead() -> None:
+    """A stream that would be stale by the next odometry sample is stale now: neutral no later
+    than stale_s after the last command, whatever the sample rate."""
+    core = core_(stale_s=0.3)
+    drive(core, 0.5, 0.0, 0.0)
+    assert core.update(0.0, 0.0, DT, 0.3 - 1.5 * DT, ns(0.3 - 1.5 * DT)).active  # control
+    assert not core.update(0.0, 0.0, DT, 0.3 - 0.5 * DT, ns(0.3 - 0.5 * DT)).active
+    assert core.stop_reason == "command stream stale"
+
+
 def test_never_commanded_is_neutral() -> None:
-    out = core_().update(0.0, 0.0, 0.005, 0.1, ns(0.1))
+    out = core_().update(0.0, 0.0, DT, 0.1, ns(0.1))
     assert (out.longitudinal_v, out.angular_v, out.active) == (2.5, 2.5, False)
 
 
 def test_parked_is_exact_neutral_and_integrator_cleared() -> None:
     core = core_()
-    for i in range(100):
-        drive(core, 0.5, 0.0, i * 0.005)
-        core.update(0.1, 0.0, 0.005, i * 0.005, ns(i * 0.005))
+    for i in range(HALF_S):
+        drive(core, 0.5, 0.0, i * DT)
+        core.update(0.1, 0.0, DT, i * DT, ns(i * DT))
     assert core.v_pid.integral > 0
     drive(core, 0.0, 0.0, 0.5)
-    out = core.update(0.0, 0.0, 0.005, 0.5, ns(0.5))
+    out = core.update(0.0, 0.0, DT, 0.5, ns(0.5))
     assert (out.longitudinal_v, out.angular_v) == (2.5, 2.5)
     assert core.v_pid.integral == 0.0
 
@@ -188,25 +202,25 @@ def test_absolute_caps_whatever_the_source() -> None:
 def driving_core(**kw: Any) -> VelocityPidCore:
     """A core obeying a stream begun at t = 0, driving at 0.5 m/s until t = 1 s."""
     core = core_(**kw)
-    for i in range(200):
-        t = i * 0.005
+    for i in range(2 * HALF_S):
+        t = i * DT
         core.set_estop(False, t, ns(t))
         if core.require_limit:
             core.set_limit(1.0, 0.5, 1.0, t, 0.5)
         assert drive(core, 0.5, 0.0, t) is Verdict.OK
-        assert core.update(0.4, 0.0, 0.005, t, ns(t)).active
+        assert core.update(0.4, 0.0, DT, t, ns(t)).active
     return core
 
 
 def continue_old_stream(core: VelocityPidCore, t0: float) -> list[bool]:
     """The old stream simply goes on (estop released, odometry flowing): is it obeyed?"""
     active = []
-    for i in range(100):
-        t = t0 + i * 0.005
+    for i in range(HALF_S):
+        t = t0 + i * DT
         core.set_estop(False, t, ns(t))
         core.set_limit(1.0, 0.5, 1.0, t, 0.5)
         drive(core, 0.5, 0.0, t)
-        active.append(core.update(0.0, 0.0, 0.005, t, ns(t)).active)
+        active.append(core.update(0.0, 0.0, DT, t, ns(t)).active)
     return active
 
 
@@ -218,12 +232,12 @@ STOPS: dict[str, Callable[[VelocityPidCore, float], object]] = {
     "gateway lost": lambda c, t: c.stop("gateway lost", ns(t)),
     "safety monitor gone": lambda c, t: c.limit_gone(ns(t)),
     "safety stop": lambda c, t: (c.set_limit(0.0, 0.0, 0.0, t),
-                                 c.update(0.4, 0.0, 0.005, t, ns(t)),
+                                 c.update(0.4, 0.0, DT, t, ns(t)),
                                  c.set_limit(1.0, 0.5, 1.0, t + 0.01, 0.5)),
-    "odometry gap": lambda c, t: c.update(0.0, 0.0, 0.005, t + 0.5, ns(t + 0.5)),
-    "non-finite measurement": lambda c, t: c.update(float("nan"), 0.0, 0.005, t, ns(t)),
-    "chair MCU restarted": lambda c, t: c.update(0.0, 0.0, 0.005, t, ns(t), link=(1, 0)),
-    "serial link renewed": lambda c, t: c.update(0.0, 0.0, 0.005, t, ns(t), link=(0, 1)),
+    "odometry gap": lambda c, t: c.update(0.0, 0.0, DT, t + 0.5, ns(t + 0.5)),
+    "non-finite measurement": lambda c, t: c.update(float("nan"), 0.0, DT, t, ns(t)),
+    "chair MCU restarted": lambda c, t: c.update(0.0, 0.0, DT, t, ns(t), link=(1, 0)),
+    "serial link renewed": lambda c, t: c.update(0.0, 0.0, DT, t, ns(t), link=(0, 1)),
     "odometry lost": lambda c, t: c.stop("odometry lost", ns(t)),
 }
 
@@ -231,15 +245,15 @@ STOPS: dict[str, Callable[[VelocityPidCore, float], object]] = {
 @pytest.mark.parametrize("kind", list(STOPS))
 def test_after_a_stop_only_a_stream_begun_later_drives(kind: str) -> None:
     core = driving_core(require_limit=kind in ("safety stop", "safety monitor gone"))
-    assert continue_old_stream(driving_core(), 1.0) == [True] * 100  # positive control
+    assert continue_old_stream(driving_core(), 1.0) == [True] * HALF_S  # positive control
     STOPS[kind](core, 1.0)
     assert core.obeying is False and core.stop_reason != "started"
     assert not any(continue_old_stream(core, 1.6))  # the old stream goes on: refused
-    t = 2.15  # (the old stream's odometry ran to 2.095: no gap)
+    t = 2.15  # (the old stream's odometry ran to 2.1 − DT: no gap)
     core.set_estop(False, t, ns(t))
     core.set_limit(1.0, 0.5, 1.0, t, 0.5)
     assert drive(core, 0.5, 0.0, t, began=2.12) is Verdict.OK  # a new act after the stop
-    assert core.update(0.0, 0.0, 0.005, t, ns(t)).active
+    assert core.update(0.0, 0.0, DT, t, ns(t)).active
 
 
 def test_restarted_core_obeys_nothing_begun_before_it_started() -> None:
@@ -251,7 +265,7 @@ def test_restarted_core_obeys_nothing_begun_before_it_started() -> None:
 
 def test_estop_silent_is_a_stop() -> None:
     core = driving_core()
-    assert not core.update(0.4, 0.0, 0.005, 1.6, ns(1.6)).active  # no e-stop state for 0.6 s
+    assert not core.update(0.4, 0.0, DT, 1.6, ns(1.6)).active  # no e-stop state for 0.6 s
     assert "e-stop silent" in core.inhibit(1.6)
 
 
@@ -268,9 +282,9 @@ def test_old_and_future_stamps_are_rejected() -> None:
 
 def test_non_finite_measurement_does_not_poison_the_integrators() -> None:
     core = driving_core()
-    core.update(float("inf"), 0.0, 0.005, 1.0, ns(1.0))
+    core.update(float("inf"), 0.0, DT, 1.0, ns(1.0))
     assert math.isfinite(core.v_pid.integral) and core.v_pid.integral == 0.0
-    out = core.update(0.0, 0.0, float("nan"), 1.005, ns(1.005))
+    out = core.update(0.0, 0.0, float("nan"), 1.0 + DT, ns(1.0 + DT))
     assert (out.longitudinal_v, out.angular_v) == (2.5, 2.5)
 
 
@@ -282,11 +296,11 @@ MODEL = ChainModel(1.85, 0.05, 0.36, 0.36, 0.37)
 def test_saturation_is_decided_in_the_core() -> None:
     core = core_(v_gains=(5.0, 0.0, 0.0))
     drive(core, 1.0, 0.0, 0.0)
-    out = core.update(0.0, 0.0, 0.005, 0.005, ns(0.005))
+    out = core.update(0.0, 0.0, DT, DT, ns(DT))
     assert out.saturated and out.longitudinal_v == pytest.approx(3.9)
     gentle = core_(v_gains=(0.1, 0.0, 0.0))  # positive control: far from the window's edge
     drive(gentle, 1.0, 0.0, 0.0)
-    assert not gentle.update(0.0, 0.0, 0.005, 0.005, ns(0.005)).saturated
+    assert not gentle.update(0.0, 0.0, DT, DT, ns(DT)).saturated
 
 
 def test_feedforward_holds_the_model_effort_and_feedback_only_trims() -> None:
@@ -296,37 +310,55 @@ def test_feedforward_holds_the_model_effort_and_feedback_only_trims() -> None:
     ff = Feedforward(MODEL, core.prefilter_s)  # a twin: the "chair" is the model itself
     y = 0.0
     out = None
-    for i in range(1, 1200):  # 6 s at 200 Hz
-        t = i * 0.005
+    for i in range(1, 12 * HALF_S):  # 6 s
+        t = i * DT
         core.set_estop(False, t, ns(t))
         drive(core, 0.5, 0.0, t)
-        out = core.update(y, 0.0, 0.005, t, ns(t))
-        y = ff.reference(out.v_effort, 0.005)
+        out = core.update(y, 0.0, DT, t, ns(t))
+        y = ff.reference(out.v_effort, DT)
     assert out is not None and out.active
     assert y == pytest.approx(0.5, abs=1e-3)
     assert out.v_effort == pytest.approx(MODEL.effort_for(0.5), abs=1e-3)
     assert abs(core.v_pid.integral) < 1e-3  # the integrator had nothing to do
 
 
+def test_the_prefilter_is_governed_by_the_effort_window() -> None:
+    """Where the inverse would leave the effort window, the prefilter advances only as far as
+    the window allows (it does not run ahead of a saturated chair); inside it, nothing changes."""
+    free, governed = Feedforward(MODEL, 0.15), Feedforward(MODEL, 0.15)
+    u_free = [free.effort(0.5, DT) for _ in range(HALF_S)]
+    u_gov = [governed.effort(0.5, DT, -0.9, 0.9) for _ in range(HALF_S)]
+    assert max(u_free) > 1.0  # positive control: the plain inverse asks for more than 0.9
+    assert max(u_gov) == pytest.approx(0.9) and u_gov[0] == pytest.approx(0.9)
+    assert governed._x2 < free._x2  # the governed reference waits for the chair
+    for _ in range(12 * HALF_S):  # ... and still arrives, at the effort that holds 0.5
+        u = governed.effort(0.5, DT, -0.9, 0.9)
+    assert governed._x2 == pytest.approx(0.5, abs=1e-3) and u == pytest.approx(
+        MODEL.effort_for(0.5), abs=1e-3)
+    small, plain = Feedforward(MODEL, 0.15), Feedforward(MODEL, 0.15)
+    assert [small.effort(0.05, DT, -0.9, 0.9) for _ in range(HALF_S)] == \
+        [plain.effort(0.05, DT) for _ in range(HALF_S)]  # inside the window: the same
+
+
 def test_without_a_model_the_loop_is_the_thesis_pid() -> None:
     plain, modelled = core_(), core_(v_model=MODEL)
     for core in (plain, modelled):
         drive(core, 0.5, 0.0, 0.0)
-    a = plain.update(0.0, 0.0, 0.005, 0.005, ns(0.005)).v_effort
-    b = modelled.update(0.0, 0.0, 0.005, 0.005, ns(0.005)).v_effort
-    assert a == pytest.approx(0.9 * 0.5 + 1.03 * 0.5 * 0.005)  # Kp·e + Ki·e·dt
+    a = plain.update(0.0, 0.0, DT, DT, ns(DT)).v_effort
+    b = modelled.update(0.0, 0.0, DT, DT, ns(DT)).v_effort
+    assert a == pytest.approx(0.9 * 0.5 + 1.03 * 0.5 * DT)  # Kp·e + Ki·e·dt
     assert b != pytest.approx(a)  # positive control: the model changes the first output
 
 
 def test_a_stale_stream_aborts_a_probe_and_stops() -> None:
     core = driving_core()
     assert core.start_probe(Probe(ProbeKind.RELAY, "longitudinal", 0.2), 1.0) == ""
-    out = core.update(0.5, 0.0, 0.005, 1.005, ns(1.005))
+    out = core.update(0.5, 0.0, DT, 1.0 + DT, ns(1.0 + DT))
     assert out.active and out.probe == "relay longitudinal"
-    for i in range(2, 100):  # e-stop and odometry fresh, no command for 0.5 s
-        t = 1.0 + i * 0.005
+    for i in range(2, HALF_S):  # e-stop and odometry fresh, no command for 0.5 s
+        t = 1.0 + i * DT
         core.set_estop(False, t, ns(t))
-        out = core.update(0.5, 0.0, 0.005, t, ns(t))
+        out = core.update(0.5, 0.0, DT, t, ns(t))
     assert not out.active and out.longitudinal_v == 2.5
     assert core.probe is not None and core.probe.is_(ProbeState.ABORTED)
     assert "stale" in core.probe.reason

@@ -6,8 +6,9 @@ import itertools
 
 from autochair.protocol import arduino as proto
 from autochair.sim.chair.firmware import Firmware
+from autochair_msgs import keys
 
-DT = 0.005
+DT = 1.0 / keys.DRIVE_RATE_HZ  # the telemetry period
 
 
 def cmd(seq: int, lmv: int, amv: int, enable: bool = True) -> bytes:
@@ -101,7 +102,7 @@ def test_seq_clock_and_counter_wrap() -> None:
     assert proto.seq_gap(tels[1].seq, tels[2].seq) == 0
     us = [t.t_us for t in tels]
     assert us[0] > us[1] or us[1] > us[2]  # the 32-bit clock wrapped in here
-    assert all(proto.wrap_delta(a, b) == 5000 for a, b in itertools.pairwise(us))
+    assert all(proto.wrap_delta(a, b) == round(DT * 1e6) for a, b in itertools.pairwise(us))
     assert tels[0].left == 0xFFFFFFFF and tels[1].left == 0xFFFFFFFE
     assert tels[0].right == 0 and tels[3].right == 3
     assert proto.wrap_delta(tels[0].left, tels[3].left) == -3

@@ -16,8 +16,9 @@ from autochair.sim.chair.model import (
     volts,
     ziegler_nichols,
 )
+from autochair_msgs import keys
 
-DT = 0.005
+DT = 1.0 / keys.DRIVE_RATE_HZ  # the simulator's model step
 THESIS = {"longitudinal": (1.5, 1.75), "angular": (1.2, 1.33)}
 ZN_PID = {"longitudinal": (0.90, 1.03, 0.20), "angular": (0.72, 1.08, 0.12)}
 

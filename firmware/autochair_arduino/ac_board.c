@@ -3,7 +3,8 @@
  *   D10 = MCP4922 /CS, D11 = MOSI -> SDI, D13 = SCK, D9 = MCP4922 /LDAC   (hardware SPI)
  *   D8  = joystick relay driver (high = DAC drives the chair; low / MCU off = real joystick)
  *   D0/D1 = UART to the host (USB serial on Uno/Nano)
- * Timer1 (CTC, /8) gives the 200 Hz frame tick and the µs clock; Timer0 is left to Arduino. */
+ * Timer1 (CTC, /8) gives the frame tick (AC_FRAME_US, 100 Hz) and the µs clock; its compare B
+ * wakes the loop in mid-frame for a watchdog check. Timer0 is left to Arduino. */
 #include "ac_config.h"
 #include "ac_board.h"
 #include "ac_protocol.h"
@@ -38,6 +39,7 @@ static volatile uint32_t ticks;        /* Timer1 periods since reset */
 static volatile uint8_t tick_pending;  /* frames due and not yet sent */
 static volatile uint32_t snap_left, snap_right, snap_us;
 static volatile uint8_t snap_fault;
+static volatile uint8_t watch_pending; /* mid-frame watchdog check due */
 
 ISR(TIMER1_COMPA_vect) {
     /* Sample counters on the timer, not in the main loop: t_us is exact and jitter-free. */
@@ -49,6 +51,10 @@ ISR(TIMER1_COMPA_vect) {
     enc_fault = 0;
     if (tick_pending < 255) tick_pending++;
 }
+
+/* Mid-frame: the host watchdog is checked every half frame period (5 ms at 100 Hz), so the
+ * output is neutral 200-205 ms after the last host frame, as it was with 5 ms frames. */
+ISR(TIMER1_COMPB_vect) { watch_pending = 1; }
 
 static uint32_t now_us(void) {
     uint8_t sreg = SREG;
@@ -139,6 +145,17 @@ static void dac_write(uint16_t longitudinal_mv, uint16_t angular_mv) {
     PORTB |= _BV(PB1);
 }
 
+static uint16_t dac_long_mv = AC_NEUTRAL_MV, dac_ang_mv = AC_NEUTRAL_MV; /* last written */
+
+/* Write the DAC when the firmware's output changed: a command or a neutral applies at once,
+ * not at the next frame tick. */
+static void dac_update(uint16_t longitudinal_mv, uint16_t angular_mv, uint8_t always) {
+    if (!always && longitudinal_mv == dac_long_mv && angular_mv == dac_ang_mv) return;
+    dac_write(longitudinal_mv, angular_mv);
+    dac_long_mv = longitudinal_mv;
+    dac_ang_mv = angular_mv;
+}
+
 /* --- application ------------------------------------------------------------------------- */
 static ac_fw_t fw;
 
@@ -161,10 +178,11 @@ void ac_app_setup(void) {
     TCCR1A = 0;
     TCCR1B = _BV(WGM12); /* CTC first (stopped), then TOP, then the clock: F_CPU/8 */
     OCR1A = TIMER_TOP;
+    OCR1B = TIMER_TOP / 2;
     TCNT1 = 0;
     TCCR1B |= _BV(CS11);
-    TIFR1 = _BV(OCF1A);
-    TIMSK1 = _BV(OCIE1A);
+    TIFR1 = _BV(OCF1A) | _BV(OCF1B);
+    TIMSK1 = _BV(OCIE1A) | _BV(OCIE1B);
 
     uart_init();
     set_sleep_mode(SLEEP_MODE_IDLE);
@@ -179,6 +197,11 @@ void ac_app_loop_once(void) {
         rx_tail = (uint8_t)((rx_tail + 1) & (RX_SIZE - 1));
         ac_fw_rx_byte(&fw, b, now_us());
     }
+    if (watch_pending) {
+        watch_pending = 0;
+        ac_fw_watch(&fw, now_us());
+    }
+    dac_update(fw.longitudinal_mv, fw.angular_mv, 0);
     if (tick_pending) {
         cli();
         uint32_t t = snap_us, l = snap_left, r = snap_right;
@@ -188,12 +211,12 @@ void ac_app_loop_once(void) {
         sei();
         uint8_t wire[AC_TELEMETRY_WIRE];
         uint8_t n = ac_fw_tick(&fw, t, l, r, fault ? AC_ST_ENCODER_FAULT : 0, wire);
-        dac_write(fw.longitudinal_mv, fw.angular_mv); /* every tick: also refreshes after glitches */
+        dac_update(fw.longitudinal_mv, fw.angular_mv, 1); /* every tick: also refreshes after glitches */
         uart_write(wire, n);
     }
     /* Sleep until the next interrupt unless work arrived meanwhile (sei+sleep is atomic). */
     cli();
-    if (rx_tail == rx_head && !tick_pending) {
+    if (rx_tail == rx_head && !tick_pending && !watch_pending) {
         sleep_enable();
         sei();
         sleep_cpu();

@@ -236,8 +236,7 @@ void ac_fw_rx_byte(ac_fw_t *fw, uint8_t byte, uint32_t now_us) {
     fw->counters.host_bad_frames = ac_rx_bad_frames(&fw->rx);
 }
 
-uint8_t ac_fw_tick(ac_fw_t *fw, uint32_t now_us, uint32_t left, uint32_t right,
-                   uint8_t extra_status, uint8_t *wire) {
+void ac_fw_watch(ac_fw_t *fw, uint32_t now_us) {
     if (fw->booting && now_us < AC_BOOT_US) {
         fw->status |= AC_ST_BOOT;
         neutral(fw);
@@ -257,6 +256,11 @@ uint8_t ac_fw_tick(ac_fw_t *fw, uint32_t now_us, uint32_t left, uint32_t right,
         fw->status &= (uint8_t)~AC_ST_HOST_TIMEOUT;
     }
     fw->timed_out = timed_out;
+}
+
+uint8_t ac_fw_tick(ac_fw_t *fw, uint32_t now_us, uint32_t left, uint32_t right,
+                   uint8_t extra_status, uint8_t *wire) {
+    ac_fw_watch(fw, now_us);
     if (fw->seq_started) fw->seq++;
     fw->seq_started = 1;
     fw->counters.telemetry_frames++;

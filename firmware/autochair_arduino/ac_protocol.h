@@ -120,6 +120,9 @@ uint32_t ac_rx_bad_frames(const ac_rx_t *rx);
 void ac_fw_init(ac_fw_t *fw, uint16_t seq_start);
 /* One byte from the host, arrived at MCU time now_us. */
 void ac_fw_rx_byte(ac_fw_t *fw, uint8_t byte, uint32_t now_us);
+/* Apply the boot and watchdog rules at now_us (every tick, and between ticks so the watchdog's
+ * resolution does not depend on the frame period). */
+void ac_fw_watch(ac_fw_t *fw, uint32_t now_us);
 /* Apply boot and watchdog rules at now_us and write one telemetry frame into wire (returns 20).
  * extra_status is OR-ed into this frame's status (e.g. AC_ST_ENCODER_FAULT). */
 uint8_t ac_fw_tick(ac_fw_t *fw, uint32_t now_us, uint32_t left, uint32_t right,

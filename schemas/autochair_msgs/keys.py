@@ -60,12 +60,15 @@ class Topic(Generic[T]):
 
 
 # --- drive chain ---------------------------------------------------------------------------
-ENCODERS = Topic("autochair/chair/encoders", EncoderSample, 200, True,
+# The drive chain's one rate (telemetry, odometry, PID, joystick frames); the thesis's xPC
+# Target ran its controller at 100 Hz. The firmware's AC_FRAME_US must match (test_firmware_*).
+DRIVE_RATE_HZ = 100
+ENCODERS = Topic("autochair/chair/encoders", EncoderSample, DRIVE_RATE_HZ, True,
                  "Encoder telemetry from the chair (gateway)")
-JOYSTICK = Topic("autochair/chair/joystick", JoystickCommand, 200, False,
+JOYSTICK = Topic("autochair/chair/joystick", JoystickCommand, DRIVE_RATE_HZ, False,
                  "Joystick voltages wanted (velocity PID → gateway); not recorded: the PID's "
                  "effort is in pid/status and what reached the chair in joystick_out")
-JOYSTICK_OUT = Topic("autochair/chair/joystick_out", JoystickOutput, 200, True,
+JOYSTICK_OUT = Topic("autochair/chair/joystick_out", JoystickOutput, DRIVE_RATE_HZ, True,
                      "Joystick frames actually written to the chair (gateway)")
 CMD_VEL = Topic("autochair/cmd/vel", VelocityCommand, 20, True,
                 "Desired velocity (control law, CLI, teleop → velocity PID)")
@@ -76,7 +79,7 @@ CMD_OWNER = Topic("autochair/cmd/owner", CommandOwner, 1, True,
                   "Who drives: \"autonomy\" (PID obeys CMD_VEL, the default) or \"teleop\" "
                   "(PID obeys TELEOP only). Teleop takes over and hands back explicitly and "
                   "repeats its claim ~1 Hz; a lost link leaves \"teleop\" (stale → stop)")
-ODOM = Topic("autochair/odom", Odometry, 200, True, "Encoder odometry (odometry)")
+ODOM = Topic("autochair/odom", Odometry, DRIVE_RATE_HZ, True, "Encoder odometry (odometry)")
 ODOM_SLOW = Topic("autochair/odom/slow", Odometry, 50, False,
                   "The same odometry decimated to 50 Hz for consumers that need no more "
                   "(safety, control, tools); not recorded: autochair/odom is, at full rate")
@@ -85,7 +88,7 @@ TF = Topic("autochair/tf", FrameTransform, 20, True,
            "decimated) and map → odom (localization)")
 TF_STATIC = Topic("autochair/tf_static", FrameTransform, 1, True,
                   "Static transforms, e.g. chair → laser, repeated for late joiners")
-PID_STATUS = Topic("autochair/pid/status", PidStatus, 200, True,
+PID_STATUS = Topic("autochair/pid/status", PidStatus, DRIVE_RATE_HZ, True,
                    "Velocity loops: desired, measured, effort (velocity PID)")
 PID_PROBE = Topic("autochair/pid/probe", PidProbeRequest, None, False,
                   "Tuning probe of a velocity loop, run inside the PID under all its gates "
@@ -113,8 +116,9 @@ NAV_PLAN = Topic("autochair/nav/plan", NavPlan, 2, True,
 # --- lidar and map -------------------------------------------------------------------------
 SCAN = Topic("autochair/lidar/scan", LaserScan, 10, True, "Checked laser scans (lidar ingest)")
 MAP_GRID = Topic("autochair/map/grid", OccupancyGrid, 1, True, "Occupancy grid (mapping)")
-MAP_CLOUD = Topic("autochair/map/cloud", PointCloud, 1, True,
-                  "Accumulated odom-frame points (mapping)")
+MAP_CLOUD = Topic("autochair/map/cloud", PointCloud, 1, False,
+                  "Accumulated odom-frame points (mapping), for live viewers; not recorded: "
+                  "the grid is, and the scans and odometry it is made from are")
 LOC_POSE = Topic("autochair/localization/pose", LocalizedPose, 10, True,
                  "Chair pose in `map` with covariance, quality and state (localization)")
 LOC_MAP = Topic("autochair/localization/map", OccupancyGrid, 0.2, True,

@@ -168,7 +168,8 @@ def stack_axis(args: argparse.Namespace, session: Any, axis: str) -> dict[str, A
         time.sleep(args.settle)
         step = probe(session, axis, "step", args.step, 0.0, 4.0, args.speed_bound)
         time.sleep(args.settle)
-        eps = args.hysteresis if args.hysteresis is not None else noise_band(measured[-200:])
+        last_s = measured[-keys.DRIVE_RATE_HZ:]  # the last second of odometry
+        eps = args.hysteresis if args.hysteresis is not None else noise_band(last_s)
         relay = probe(session, axis, "relay", args.relay, eps, 30.0, args.speed_bound)
     finally:
         want[0] = (0.0, 0.0)  # an explicit stop, not just silence
@@ -238,14 +239,16 @@ def report(args: argparse.Namespace, results: dict[str, dict[str, Any]]) -> int:
                                      tyreus_luyben(rr.ku, rr.tu_s), simc(model))}
         chosen[axis], models[axis] = gains[rules[args.rule]], model
         mku, mtu = model.ultimate()
-        print(f"{axis}: relay d {args.relay:g} ε {res['hysteresis']:.3f}: Ku {rr.ku:.3f}, "
+        print(f"{axis}: relay d {args.relay:g} ε {res['hysteresis']:.3f}: Ku {rr.ku:.3f} "
+              f"(first harmonic {rr.ku_h1:.3f}), "
               f"Tu {rr.tu_s:.3f} s (a {rr.amplitude:.3f}, {rr.cycles} periods, spread "
               f"{rr.period_spread:.1%}); SOPDT K {model.gain:.3f}, u_db {model.dead_band:.3f}, "
               f"τ1 {model.tau1_s:.3f} s, τ2 {model.tau2_s:.3f} s, θ {model.delay_s:.3f} s "
               f"(its Ku {mku:.3f}, Tu {mtu:.3f} s)")
         for g in gains.values():
             print(f"  {g.rule:4s} Kp {g.kp:.3f}  Ki {g.ki:.3f}/s  Kd {g.kd:.3f} s")
-        out[axis] = {"ku": rr.ku, "tu_s": rr.tu_s, "model": model.__dict__,
+        out[axis] = {"ku": rr.ku, "ku_first_harmonic": rr.ku_h1, "tu_s": rr.tu_s,
+                     "model": model.__dict__,
                      "gains": {k: g.as_tuple() for k, g in gains.items()},
                      "step_before_after": before_after(axis, model, gains[rules[args.rule]])}
     text = snippet(chosen, models)

@@ -55,9 +55,14 @@ class GatewayCore:
     rx_stall_s: float = 2.0
     _sent: Output | None = None
     _sent_t: float = -math.inf
+    # The period at which the node calls `due` (its watchdog tick). A command or heartbeat
+    # that would be stale before the next tick counts as stale now, so neutral is written no
+    # later than stale_s (estop_stale_s) after the last one, whatever the tick; 0: exact.
+    tick_s: float = 0.0
     # A parked chair's telemetry (no motion, output not enabled, for hold_s) is passed on
     # every parked_period_s, not at the frame rate: absolute counters and the MCU clock lose
-    # nothing in between, and the whole chain downstream idles at 20 Hz instead of 200.
+    # nothing in between, and the whole chain downstream idles at 20 Hz instead of the
+    # frame rate (keys.DRIVE_RATE_HZ).
     parked_period_s: float = 0.05
     hold_s: float = 1.0
     _passed: tuple[int, int, int] | None = None  # (left, right, status) last passed on
@@ -131,7 +136,7 @@ class GatewayCore:
         """`out` was written: (its reason changed, the new reason is a fault, report it).
         Neutral because nothing is asked (startup, parked) is normal; any other neutral is a
         fault. A frame is reported when it differs from the last reported or report_s after
-        it: a parked chair's identical neutral frames are not 200 records a second."""
+        it: a parked chair's identical neutral frames are not a record per frame."""
         changed = self._sent is None or out.reason != self._sent.reason
         self._sent, self._sent_t = out, now_s
         report = out != self._reported or now_s - self._reported_t >= self.report_s
@@ -162,11 +167,12 @@ class GatewayCore:
     def output(self, now_s: float) -> Output:
         if self._estop_latched:
             return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:estop")
-        if self.require_estop and now_s - self._estop_t > self.estop_stale_s:
+        ahead = now_s + self.tick_s  # when the next tick would look
+        if self.require_estop and ahead - self._estop_t > self.estop_stale_s:
             return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:estop_silent")
         if self._cmd is None:
             return NEUTRAL_STARTUP
-        if now_s - self._cmd_t > self.stale_s:
+        if ahead - self._cmd_t > self.stale_s:
             return Output(NEUTRAL_V, NEUTRAL_V, False, "neutral:stale")
         lon, ang, enable, _ = self._cmd
         if not enable:

@@ -19,6 +19,9 @@ from autochair_msgs import EncoderSample, EStopState, JoystickCommand, JoystickO
 from .core import GatewayCore, Output
 
 Positive = Annotated[float, msgspec.Meta(gt=0)]
+# Watchdog and keepalive tick: once per telemetry frame. The core looks one tick ahead, so the
+# stale timeouts hold exactly (neutral no later than [stale] joystick_s after the last command).
+TICK_S = 1.0 / keys.DRIVE_RATE_HZ
 
 
 class GatewayConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -44,7 +47,8 @@ class Gateway:
         self.core = GatewayCore(stale_s=stale.joystick_s, estop_stale_s=stale.estop_s,
                                 skew_s=stale.clock_skew_s,
                                 require_estop=cfg.require_estop, min_v=cfg.min_v, max_v=cfg.max_v,
-                                keepalive_s=1.0 / cfg.keepalive_hz, rx_stall_s=cfg.rx_stall_s)
+                                keepalive_s=1.0 / cfg.keepalive_hz, rx_stall_s=cfg.rx_stall_s,
+                                tick_s=TICK_S)
         self.lock = threading.Lock()  # core + port writes: command callback vs tick vs reader
         self.port: serial.SerialBase | None = None
         self.backoff = Backoff(cfg.reconnect_min_s, 2.0, cfg.reconnect_max_s, 0.2)
@@ -60,7 +64,7 @@ class Gateway:
         node.subscribe(keys.ESTOP_STATE, self.on_estop)
         # A hung e-stop is still caught by the heartbeat; a dead one by its token at once.
         node.watch_alive("estop", self.on_estop_alive)
-        node.every(0.005, self.tick, "tick")
+        node.every(TICK_S, self.tick, "tick")
         node.thread(self.serial_loop, "serial")
 
     # --- host → chair ----------------------------------------------------------------------

@@ -68,7 +68,13 @@ class Feedforward:
     """One axis's 2-DOF part: the desired velocity through a prefilter (two lags of
     `prefilter_s`), the SOPDT inverse of that as feed-forward effort, and the model's response
     to the effort actually sent (after saturation) as the feedback's reference (IMC): the PID
-    corrects only what the model does not explain."""
+    corrects only what the model does not explain.
+
+    The prefilter is a reference governor: where its inverse would leave the effort window, it
+    advances only as far as the window allows. Otherwise it would run ahead of a saturated
+    chair, and once the effort came back into the window the chair would close the gap
+    open-loop, at its own slow lags (the model's reference has the same gap, so the PID would
+    not help): the slow ±5 % tail of a large step."""
 
     model: ChainModel
     prefilter_s: float = 0.1
@@ -85,15 +91,27 @@ class Feedforward:
         self._x1 = self._x2 = self._m1 = self._m2 = self._due = y
         self._queue.clear()
 
-    def effort(self, r: float, dt: float) -> float:
-        """Feed-forward effort for desired r over the next dt."""
+    def effort(self, r: float, dt: float, lo: float = -math.inf, hi: float = math.inf) -> float:
+        """Feed-forward effort in [lo, hi] for desired r over the next dt."""
         m, tf = self.model, max(self.prefilter_s, 1e-3)
         a = 1.0 - math.exp(-dt / tf)
-        self._x1 += (r - self._x1) * a
-        self._x2 += (self._x1 - self._x2) * a
-        d1 = (self._x1 - self._x2) / tf  # ṙ of the prefiltered desired
-        d2 = ((r - self._x1) / tf - d1) / tf  # r̈
-        return m.effort_for(self._x2 + (m.tau1_s + m.tau2_s) * d1 + m.tau1_s * m.tau2_s * d2)
+        x1o, x2o = self._x1, self._x2
+
+        def wanted(ri: float) -> float:
+            """The velocity the inverse asks for with prefilter input ri (affine in ri)."""
+            x1 = x1o + (ri - x1o) * a
+            x2 = x2o + (x1 - x2o) * a
+            d1 = (x1 - x2) / tf  # ṙ of the prefiltered desired
+            d2 = ((ri - x1) / tf - d1) / tf  # r̈
+            return x2 + (m.tau1_s + m.tau2_s) * d1 + m.tau1_s * m.tau2_s * d2
+
+        u = m.effort_for(wanted(r))
+        if not lo <= u <= hi:  # govern: the input that puts the inverse on the window's edge
+            w0 = wanted(0.0)
+            r = (m.output_for(min(max(u, lo), hi)) - w0) / (wanted(1.0) - w0)
+        self._x1 = x1o + (r - x1o) * a
+        self._x2 = x2o + (self._x1 - x2o) * a
+        return min(max(m.effort_for(wanted(r)), lo), hi)
 
     def reference(self, u: float, dt: float) -> float:
         """Advance the model by dt with effort u applied; its output is the reference."""
@@ -333,7 +351,10 @@ class VelocityPidCore:
         if self._link is not None and link != self._link:
             self.stop("serial link or chair MCU restarted", now_ns)
         self._link = link
-        if self.require_estop and now_s - self._estop_t > self.estop_stale_s:
+        # Freshness is judged as of the next sample (one dt ahead): a stream or heartbeat that
+        # would be stale by then is stale now, so each timeout holds whatever the sample rate.
+        ahead = now_s + dt if 0 < dt <= 1.0 else now_s
+        if self.require_estop and ahead - self._estop_t > self.estop_stale_s:
             self.stop("e-stop silent", now_ns)
         elif self._estop_latched:
             self.stop("e-stop latched", now_ns)
@@ -341,7 +362,7 @@ class VelocityPidCore:
             # A bad measurement must not poison the integrators: a stop, nothing learned.
             self.stop("non-finite measurement", now_ns)
             v_meas = omega_meas = 0.0
-        desired = self.desired(now_s, now_ns)
+        desired = self.desired(ahead, now_ns)
         at_rest = desired is not None and desired == (0.0, 0.0) and \
             abs(v_meas) < self.stop_eps and abs(omega_meas) < self.stop_eps
         # (a first sample has dt 0; a non-finite or absurd dt is skipped the same way)
@@ -407,7 +428,7 @@ class VelocityPidCore:
         lo, hi = self._window
         if ff is None:
             return pid.update(r, y, dt)
-        u_ff = min(max(ff.effort(r, dt), lo), hi)
+        u_ff = ff.effort(r, dt, lo, hi)
         pid.out_min, pid.out_max = lo - u_ff, hi - u_ff
         # The reference is the model's response to the feed-forward alone (advanced by the
         # previous one, which is what acted over the last dt): the feedback's correction must
@@ -467,16 +488,18 @@ Gains3 = tuple[Annotated[float, msgspec.Meta(ge=0)], Annotated[float, msgspec.Me
 
 
 class PidConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    """[pid] section. Gains and models as `autochair tune` identified them on the simulated
-    stack (real processes: the dead time includes the Zenoh hops; SIMC on the SOPDT fit). ZN,
+    """[pid] section. Gains (SIMC) and models (SOPDT) as `autochair tune --lockstep` identifies
+    them at 100 Hz: deterministic, and on the real process stack the same probes found the same
+    chain within their scatter (θ 0.357–0.370 s against 0.372 s; K, τ within 0.5 %), so the
+    Zenoh hops add no dead time worth modelling at this rate. ZN,
     the thesis's table 5.1, is (0.90, 1.03, 0.20) / (0.72, 1.08, 0.12) with no model."""
 
     # (Kp, Ki 1/s, Kd s)
-    v_gains: Gains3 = (0.513, 0.717, 0.092)
-    omega_gains: Gains3 = (0.409, 0.845, 0.049)
+    v_gains: Gains3 = (0.523, 0.731, 0.094)
+    omega_gains: Gains3 = (0.401, 0.832, 0.048)
     # Drive chain per axis (see autochair.tune.core.ChainModel); None = feedback only.
-    v_model: Model | None = (1.850, 0.051, 0.358, 0.358, 0.377)
-    omega_model: Model | None = (1.885, 0.048, 0.242, 0.242, 0.314)
+    v_model: Model | None = (1.839, 0.049, 0.358, 0.358, 0.372)
+    omega_model: Model | None = (1.888, 0.049, 0.241, 0.241, 0.318)
     prefilter_s: Annotated[float, msgspec.Meta(gt=0, le=2)] = 0.15
     min_v: float = 1.1
     max_v: float = 3.9

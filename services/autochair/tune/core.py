@@ -135,6 +135,15 @@ class RelayResult:
     amplitude: float  # a: half peak-to-peak of y
     cycles: int  # periods used
     period_spread: float  # (max − min)/median of those periods: < ~0.1 = a steady limit cycle
+    # The chain's frequency response at the cycle's frequency, from the first harmonics of y
+    # and u over those whole periods: exact for a linear chain in a periodic cycle, where
+    # Ku = 4d/(πa) is the describing function's approximation (harmonics inflate a).
+    point: complex = complex(math.nan, math.nan)
+
+    @property
+    def ku_h1(self) -> float:
+        """1/|G(jω)| at the cycle's frequency: the ultimate gain without the approximation."""
+        return 1.0 / abs(self.point)
 
 
 def relay_result(trace: list[tuple[float, float, float]], d: float, skip: int = 2) -> RelayResult:
@@ -151,8 +160,12 @@ def relay_result(trace: list[tuple[float, float, float]], d: float, skip: int = 
     amps = [0.5 * float(np.ptp(y[a:b + 1])) for a, b in itertools.pairwise(rises)]
     tu = float(np.median(periods))
     a = float(np.median(amps))
+    first, last = rises[0] + 1, rises[-1] + 1  # whole periods, rising switch to rising switch
+    w = 2.0 * math.pi * len(periods) / float(t[last] - t[first])
+    e = np.exp(-1j * w * t[first:last])
+    point = complex(np.sum(y[first:last] * e) / np.sum(u[first:last] * e))
     return RelayResult(4.0 * d / (math.pi * a), tu, a, len(periods),
-                       float(np.ptp(periods) / tu))
+                       float(np.ptp(periods) / tu), point)
 
 
 @dataclass(frozen=True)

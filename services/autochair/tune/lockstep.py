@@ -13,6 +13,7 @@ from typing import Any
 from autochair.odometry.core import OdometryCore
 from autochair.pid.core import Command, VelocityPidCore
 from autochair.sim.chair.model import ChairModel
+from autochair_msgs import keys
 
 from .core import (
     AXES,
@@ -25,7 +26,7 @@ from .core import (
     relay_result,
 )
 
-DT = 0.005  # the encoder rate
+DT = 1.0 / keys.DRIVE_RATE_HZ  # the drive chain's rate: encoders, odometry, PID (0.01 s)
 
 
 class Rig:
@@ -146,8 +147,9 @@ def metrics(t: list[float], y: list[float], size: float) -> StepMetrics:
     def first(frac: float) -> float:
         return next((tt for tt, yy in zip(t, y, strict=True) if yy / size >= frac), math.nan)
 
+    k = max(1, round(0.02 / (t[1] - t[0]))) if len(t) > 1 else 1  # differences over 20 ms
     acc = [abs(b - a) / (tb - ta) for (ta, a), (tb, b) in
-           zip(zip(t[::4], y[::4], strict=True), zip(t[4::4], y[4::4], strict=False),
+           zip(zip(t[::k], y[::k], strict=True), zip(t[k::k], y[k::k], strict=False),
                strict=False)]
     return StepMetrics(max(0.0, max(yy / size for yy in y) - 1.0), settle(0.05), settle(0.10),
                        first(0.9) - first(0.1), max(acc, default=0.0), t, y)

@@ -90,8 +90,9 @@ class Firmware:
         else:
             self._neutral()
 
-    def tick(self, now_s: float, left_counts: int, right_counts: int) -> bytes:
-        """Apply boot and watchdog rules at `now_s`, return one encoded Telemetry frame."""
+    def watch(self, now_s: float) -> None:
+        """Apply the boot and watchdog rules at `now_s` (the firmware does so every tick and
+        in mid-frame)."""
         if now_s < self.boot_s:
             self.status |= proto.ST_BOOT
             self._neutral()
@@ -106,6 +107,10 @@ class Firmware:
         else:
             self.status &= ~proto.ST_HOST_TIMEOUT
         self._timed_out = timed_out
+
+    def tick(self, now_s: float, left_counts: int, right_counts: int) -> bytes:
+        """Apply boot and watchdog rules at `now_s`, return one encoded Telemetry frame."""
+        self.watch(now_s)
         self._seq = (self.seq_start if self._seq < 0 else self._seq + 1) & 0xFFFF
         self.counters.telemetry_frames += 1
         t_us = (self.clock_offset_us + round(now_s * 1e6)) & 0xFFFFFFFF

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from autochair.geometry import wrap_angle
+from autochair_msgs.keys import DRIVE_RATE_HZ  # the thesis's controller ran at 100 Hz too
 
 NEUTRAL_V = 2.5
 VOLTS_PER_EFFORT = 1.5
@@ -256,7 +257,7 @@ def _period(trace: list[float], dt: float) -> float:
 
 
 def ziegler_nichols(model_factory: Callable[[], ChairModel], axis: Axis, *,
-                    setpoint: float = 0.5, step: float = 0.1, dt: float = 0.005,
+                    setpoint: float = 0.5, step: float = 0.1, dt: float = 1.0 / DRIVE_RATE_HZ,
                     duration_s: float = 30.0, kp_lo: float = 0.1, kp_hi: float = 10.0,
                     iterations: int = 16) -> tuple[float, float]:
     """Ultimate gain and period (Ku, Tu) of `axis`, found like the thesis did it: raise Kp

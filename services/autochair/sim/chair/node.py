@@ -32,7 +32,8 @@ class SimConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """[sim] section."""
 
     pty_link: str  # symlink created to point at the pty slave (the "serial port")
-    telemetry_rate_hz: Positive = 200.0  # telemetry frames per simulated second (= model rate)
+    # Telemetry frames per simulated second (= model rate; the firmware's AC_FRAME_US).
+    telemetry_rate_hz: Positive = float(keys.DRIVE_RATE_HZ)
     time_scale: Positive = 1.0  # simulated seconds per wall second (>1: faster than real time)
     truth_rate_hz: Positive = 100.0  # ground truth per simulated second
     seed: int = 0  # noise and garbage bytes
@@ -165,6 +166,9 @@ class Simulator:
                 self.fw.receive(data, self.t)
         else:
             self._host_present = False
+        # The firmware also checks its watchdog in mid-frame; the model holds one output over
+        # the whole tick, so that check is applied now: neutral never later than the MCU's.
+        self.fw.watch(self.t + 0.5 * self.dt)
         self.model.step(*self.fw.output_volts, self.dt)
         self.t += self.dt
         wire = self.fw.tick(self.t, self.model.left_counts, self.model.right_counts)
