@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import pytest
 from hypothesis import given, settings
@@ -11,7 +12,9 @@ from hypothesis import strategies as st
 from autochair.control.core import ControlConfig, ControlCore, OdomSample
 from autochair.control.law import Gains, braking_speed, egocentric, park_kuipers
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
+from autochair.geometry import compose, inverse
 from autochair.geometry import wrap_angle as wrap
+from autochair.nav.planner import compute
 from autochair_msgs import GoalRequest, Pose2D
 
 DT = 0.005
@@ -433,3 +436,90 @@ def test_turns_are_planned_within_the_monitors_turn_rate_bound() -> None:
 
     assert peak_omega(None) > 0.5  # positive control: the comfort limit (0.9 × 0.6)
     assert peak_omega(0.35) == pytest.approx(0.35, abs=1e-9)
+
+
+# --- goals in map (nav/frames.py), the stale-plan stop --------------------------------------
+INSTANT = ControlConfig(predict_s=0.02)  # a chair that follows at once: nothing to predict
+
+
+def run_unicycle(core: ControlCore, t: float, until: float, pose: list[float],
+                 on_tick: Callable[[float], None] | None = None) -> float:
+    """Step the core against a chair that follows at the commanded speed (50 Hz)."""
+    while t < until and core.active:
+        if on_tick is not None:
+            on_tick(t)
+        out = core.step(t) or (0.0, 0.0)
+        pose[2] = wrap(pose[2] + out[1] * 0.02)
+        pose[0] += out[0] * math.cos(pose[2]) * 0.02
+        pose[1] += out[0] * math.sin(pose[2]) * 0.02
+        core.on_odom(OdomSample(pose[0], pose[1], pose[2], out[0], out[1], t))
+        t += 0.02
+    return t
+
+
+def test_a_goal_in_map_is_refused_without_a_tracking_localization() -> None:
+    core = fresh_core()
+    req = GoalRequest(waypoints=[Pose2D(2, 0, 0)], frame_id="map")
+    reply = core.set_goal(req, 0.0)
+    assert not reply.ok and "needs localization: no localization heard" in reply.error
+    core.on_correction((0.0, 0.0, 0.0))
+    core.on_loc_state("lost", 0.0)
+    assert "localization is lost" in core.set_goal(req, 0.0).error
+    core.on_loc_state("tracking", 0.0)
+    assert core.set_goal(req, 0.0).ok  # positive control
+
+
+def test_a_goal_in_map_ends_where_the_correction_puts_it() -> None:
+    """Odometry has drifted: map → odom is (0.5, -0.3, 5°). The chair must stop at the map
+    goal's place in odom, not at the map goal's numbers."""
+    corr = (0.5, -0.3, math.radians(5))
+    core = fresh_core(INSTANT)
+    core.on_correction(corr)
+    core.on_loc_state("tracking", 0.0)
+    goal = (2.5, 0.0, 0.0)
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)], frame_id="map"), 0.0).ok
+    pose = [0.0, 0.0, 0.0]
+    run_unicycle(core, 0.0, 40.0, pose, lambda t: core.on_loc_state("tracking", t))
+    assert core.state == "arrived"
+    want = compose(inverse(corr), goal)
+    assert math.hypot(pose[0] - want[0], pose[1] - want[1]) < 0.05
+    assert abs(wrap(pose[2] - want[2])) < math.radians(3)
+    assert math.hypot(pose[0] - goal[0], pose[1] - goal[1]) > 0.3  # not the raw numbers
+
+
+def test_lost_localization_stops_a_map_goal_then_it_resumes_or_aborts() -> None:
+    core = fresh_core(ControlConfig(blocked_abort_s=6.0, predict_s=0.02))
+    core.on_correction((0.0, 0.0, 0.0))
+    core.on_loc_state("tracking", 0.0)
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6, 0, 0)], frame_id="map"), 0.0).ok
+    pose = [0.0, 0.0, 0.0]
+    tracking = run_unicycle(core, 0.0, 2.0, pose, lambda t: core.on_loc_state("tracking", t))
+    assert core.state == "driving" and core.limiter.v.value > 0.3  # control: driving
+    t = run_unicycle(core, tracking, tracking + 2.0, pose,
+                     lambda t: core.on_loc_state("lost", t))
+    assert core.state == "blocked" and core.reason == "localization: localization is lost, " \
+                                                      "not tracking"
+    assert core.limiter.at_rest  # braked to rest within the comfort limits
+    x_stop = pose[0]
+    t = run_unicycle(core, t, t + 2.0, pose, lambda t: core.on_loc_state("tracking", t))
+    assert core.active and core.state != "blocked" and pose[0] > x_stop + 0.1  # resumed
+    run_unicycle(core, t, t + 8.0, pose, lambda t: core.on_loc_state("lost", t))
+    assert core.state == "aborted" and "localization is lost" in core.reason
+
+
+def test_a_stale_plan_stops_the_chair_until_a_new_one_comes() -> None:
+    core = fresh_core(INSTANT)
+    core.inline_planning = False  # as in the node: plans come from a thread
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6, 0, 0)]), 0.0).ok
+    pose, t = [0.0, 0.0, 0.0], 0.0
+
+    def planner(now: float) -> None:
+        req = core.plan_request(now)
+        if req is not None and now < 3.0:  # the planning thread starves after 3 s
+            core.on_plan(compute(req), now)
+
+    t = run_unicycle(core, 0.0, 3.0, pose, planner)
+    assert core.final and core.limiter.v.value > 0.3  # control: driving on fresh plans
+    run_unicycle(core, t, 6.0, pose, planner)  # (the final approach too needs fresh plans)
+    assert core.active and core.limiter.at_rest  # stopped: the plan is 3 s old
+    assert core.counters["stale_plan_stops"] > 0 and pose[0] < 5.8

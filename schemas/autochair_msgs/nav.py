@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import msgspec
 
 
 class Pose2D(msgspec.Struct, frozen=True):
-    """A pose in `odom` (REP-105: the odometry origin, where the chair started): metres and
-    radians."""
+    """A planar pose, metres and radians, in the frame its message names (`odom`, REP-105's
+    odometry origin where the chair started, unless said otherwise)."""
 
     x_m: float
     y_m: float
@@ -18,6 +20,9 @@ class GoalRequest(msgspec.Struct, kw_only=True):
     """Set a goal: one pose, or several waypoints driven in order (the last is the goal)."""
 
     waypoints: list[Pose2D]
+    # "odom", or "map": driven on localization's map (re-expressed in odom with its newest
+    # correction, only while it is tracking)
+    frame_id: Literal["odom", "map"] = "odom"
     tolerance_m: float = 0.05
     tolerance_rad: float = 0.05235987755982988  # 3°
     vmax_mps: float | None = None

@@ -1,7 +1,10 @@
 """`autochair goal X Y YAW_DEG` / `autochair goal --waypoints FILE`: drive to a pose.
 
-Poses are in the `odom` frame (REP-105; its origin is where the chair started): x forward, y left,
-metres; yaw in DEGREES, counter-clockwise (people think in degrees; the wire uses radians).
+Poses are x forward, y left, metres; yaw in DEGREES, counter-clockwise (people think in
+degrees; the wire uses radians), in the `map` frame when a localization service is running (the
+map it loaded or builds; Foxglove's display frame), else in `odom` (REP-105; its origin is where
+the chair started); `--frame` chooses. A goal in `map` is driven only while localization is
+tracking: the chair stops and says why when it is lost.
 Waypoints file: one `x, y, yaw_deg` per line (CSV), `#` comments and blank lines ignored; the
 chair passes through the intermediate ones without stopping and stops at the last.
 Shows progress until arrival; Ctrl-C cancels the goal.
@@ -31,6 +34,8 @@ def register(sub: Any) -> None:
     p.add_argument("--tolerance-cm", type=float, default=5.0, help="position tolerance, cm")
     p.add_argument("--tolerance-deg", type=float, default=3.0, help="heading tolerance, °")
     p.add_argument("--vmax", type=float, default=None, help="speed limit for this goal, m/s")
+    p.add_argument("--frame", choices=("auto", "map", "odom"), default="auto",
+                   help="frame of the poses (auto: map when localization runs, else odom)")
     p.add_argument("--no-wait", action="store_true", help="set the goal and return")
     add_link_args(p)
     p.set_defaults(func=run)
@@ -61,7 +66,7 @@ def read_waypoints(path: str) -> list[tuple[float, float, float]]:
 def run(args: argparse.Namespace) -> int:
 
     from autochair.commands.link import tool_session
-    from autochair.runtime.client import request, subscribe
+    from autochair.runtime.client import alive_services, request, subscribe
     from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
 
     if args.waypoints and args.pose:
@@ -72,11 +77,15 @@ def run(args: argparse.Namespace) -> int:
         rows = [(args.pose[0], args.pose[1], args.pose[2])]
     else:
         raise CliError("want X Y YAW_DEG (metres, metres, degrees) or --waypoints FILE")
-    req = GoalRequest(waypoints=[Pose2D(x, y, math.radians(yaw)) for x, y, yaw in rows],
-                      tolerance_m=args.tolerance_cm / 100.0,
-                      tolerance_rad=math.radians(args.tolerance_deg), vmax_mps=args.vmax)
     session = tool_session(args)
     try:
+        frame = args.frame
+        if frame == "auto":
+            frame = "map" if "localization" in alive_services(session) else "odom"
+        req = GoalRequest(waypoints=[Pose2D(x, y, math.radians(yaw)) for x, y, yaw in rows],
+                          tolerance_m=args.tolerance_cm / 100.0,
+                          tolerance_rad=math.radians(args.tolerance_deg), vmax_mps=args.vmax,
+                          frame_id=frame)
         status: list[GoalStatus] = []
         cond = threading.Condition()
 
@@ -90,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
         if not reply.ok:
             raise CliError(f"goal rejected: {reply.error}")
         print(f"goal {reply.goal_id} set: {len(rows)} waypoint(s), last "
-              f"({rows[-1][0]:.2f} m, {rows[-1][1]:.2f} m, {rows[-1][2]:.1f}°)", flush=True)
+              f"({rows[-1][0]:.2f} m, {rows[-1][1]:.2f} m, {rows[-1][2]:.1f}°) in {frame}",
+              flush=True)
         if args.no_wait:
             sub.undeclare()
             return 0

@@ -20,8 +20,11 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+import msgspec
+
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav.field import CostToGo, Footprint, NavField
+from autochair.nav.frames import MapFrame
 from autochair.nav.mpepc import ALIGNED_RAD, LawParams, MpepcParams, Person, Plan
 from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error
 from autochair_msgs import GoalReply, GoalRequest, Pose2D
@@ -32,6 +35,7 @@ from .limits import ComfortLimiter, ComfortLimits
 IDLE, ARRIVED, ABORTED, CANCELLED = "idle", "arrived", "aborted", "cancelled"
 PLANNING, DRIVING, BLOCKED = "planning", "driving", "blocked"
 IN_PLACE_R_M = MpepcParams().in_place_r_m
+GOAL_SHIFT_M = 0.05  # a map goal moved this far in odom (the field's cell): new costs-to-go
 LINEUP_M, LINEUP_RAD = 0.2, 0.3  # a line-up pose before a door counts as reached within these
 ACTIVE_STATES = (PLANNING, DRIVING, BLOCKED)
 
@@ -209,8 +213,13 @@ class ControlCore:
         self.lineups = 0  # line-up poses before doors, inserted ahead of the goal's waypoints
         self.final = False  # MPEPC took the goal itself: the law's own final approach
         self.people: list[Person] = []
+        # Goals in `map` (nav/frames.py): the requested waypoints, re-expressed in `odom` on
+        # every step with localization's newest correction; None for goals in `odom`.
+        self.frames = MapFrame()
+        self.map_waypoints: list[Pose2D] | None = None
         self.inline_planning = True  # plan inside step(); the node plans in a thread instead
         self._plan_t = -math.inf
+        self._plan_got_t = -math.inf  # when the current plan arrived
         self._blocked_since: float | None = None
         self._replanned = False
         self._last_blocked = ("", -math.inf)  # the latest blocked reason of this goal, when
@@ -254,6 +263,15 @@ class ControlCore:
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
 
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
+        map_waypoints = None
+        if req.frame_id == "map":
+            why = self.frames.why_not(now)
+            if why:
+                self._count("rejected_goals")
+                return GoalReply(ok=False, error=f"a goal in map needs localization: {why}")
+            map_waypoints = list(req.waypoints)
+            req = msgspec.structs.replace(req, frame_id="odom", waypoints=[
+                Pose2D(*self.frames.to_odom((p.x_m, p.y_m, p.yaw_rad))) for p in req.waypoints])
         o = self.odom
         error = validate(req, self.cfg, *((o.x, o.y) if o is not None else (0.0, 0.0)))
         if not error and (o is None or now - o.t > self.odom_timeout_s):
@@ -277,6 +295,7 @@ class ControlCore:
             # earlier goal last commanded: nothing lunges.
             self.limiter.reset(o.v, o.omega)
         self.goal_id += 1
+        self.map_waypoints = map_waypoints
         self.waypoints = [Pose2D(p.x_m, p.y_m, wrap(p.yaw_rad)) for p in req.waypoints]
         assert ctg is not None
         lineups = [Pose2D(*a) for a in fld.door_approaches(ctg, o.x, o.y)]
@@ -342,7 +361,7 @@ class ControlCore:
                     req = self.plan_request(now)
                     if req is not None:
                         self.on_plan(compute(req), now)
-                if self.active:
+                if self.active and self._in_odom(now):
                     v_des, w_des = self._desired(self._predicted(self.odom), now)
                     self._watch_progress(self.odom, now)
         if not self.active and self.limiter.at_rest \
@@ -363,6 +382,8 @@ class ControlCore:
         o = self.odom
         if not self.active or o is None or now - self._plan_t < 1.0 / self.cfg.plan_rate_hz:
             return None
+        if self.map_waypoints is not None and self.frames.why_not(now):
+            return None  # where the goal is in odom is unknown: nothing to plan to
         self._plan_t = now
         p = self._predicted(o)
         wp = self.waypoints[self.index]
@@ -390,6 +411,7 @@ class ControlCore:
             self._blocked(res.error, now)
             return
         plan = self.plan = res.plan
+        self._plan_got_t = now
         if plan.is_goal and self.index == len(self.waypoints) - 1:
             self.final = True
         elif self.final and plan.goal_clearance_m < 0.02:
@@ -398,6 +420,38 @@ class ControlCore:
             self.state, self.reason, self._blocked_since = DRIVING, "", None
             return
         self._blocked(res.blocked_by, now)
+
+    def on_correction(self, map_to_odom: tuple[float, float, float]) -> None:
+        """Localization's `map` → `odom` (keys.TF)."""
+        self.frames.on_correction(map_to_odom)
+
+    def on_loc_state(self, state: str, now: float) -> None:
+        """Localization's state (keys.LOC_POSE)."""
+        self.frames.on_state(state, now)
+
+    def _in_odom(self, now: float) -> bool:
+        """For a goal in `map`: its waypoints re-expressed in `odom` with the newest
+        correction; False (blocked at rest, aborted after `blocked_abort_s`) while
+        localization is not trusted (H33). A goal in `odom`: True."""
+        if self.map_waypoints is None:
+            return True
+        why = self.frames.why_not(now)
+        if why:
+            self._blocked(f"localization: {why}", now)
+            return False
+        n = len(self.map_waypoints)
+        moved = 0.0
+        for i, p in enumerate(self.map_waypoints, len(self.waypoints) - n):
+            q = Pose2D(*self.frames.to_odom((p.x_m, p.y_m, p.yaw_rad)))
+            moved = max(moved, math.hypot(q.x_m - self.waypoints[i].x_m,
+                                          q.y_m - self.waypoints[i].y_m))
+            self.waypoints[i] = q
+        if moved > GOAL_SHIFT_M:  # the correction jumped (a relocalization): plan anew
+            self._ctg_key, self.plan = (0, -1), None
+            self._count("map_goal_shifts")
+        if self.state == BLOCKED and self.reason.startswith("localization:"):
+            self.state, self.reason, self._blocked_since = PLANNING, "", None
+        return True
 
     def _blocked(self, why: str, now: float) -> None:
         """Wait at rest; replan on the newest map after `blocked_wait_s`; abort, saying why,
@@ -465,13 +519,15 @@ class ControlCore:
             d = math.hypot(wp.x_m - o.x, wp.y_m - o.y)
             if self.index < self.lineups:  # lined up: close to it and facing the door
                 if d > LINEUP_M or abs(wrap(wp.yaw_rad - o.yaw)) > LINEUP_RAD:
-                    return self._follow_plan(o)
+                    return self._follow_plan(o, now)
             elif d > cfg.pass_radius_m:
-                return self._follow_plan(o)
+                return self._follow_plan(o, now)
             self.index += 1  # passed: plan to the next one at once
             self.plan, self.ctg, self._plan_t = None, None, -math.inf
         if not self.final:
-            return self._follow_plan(o)
+            return self._follow_plan(o, now)
+        if self._plan_stale(now):  # the final approach, too, is watched by fresh plans
+            return 0.0, 0.0
         goal = self.waypoints[-1]
         r = math.hypot(goal.x_m - o.x, goal.y_m - o.y)
         capture = self.tol_m * cfg.capture_fraction
@@ -506,10 +562,13 @@ class ControlCore:
         v = min(v, out.v_mps, cfg.approach_rate_1ps * r)
         return v, out.kappa_1pm * v
 
-    def _follow_plan(self, o: OdomSample) -> tuple[float, float]:
-        """The law towards MPEPC's target at its speed; at rest while planning or blocked."""
+    def _follow_plan(self, o: OdomSample, now: float) -> tuple[float, float]:
+        """The law towards MPEPC's target at its speed; at rest while planning or blocked, and
+        while the plan is stale."""
         p = self.plan
         if p is None or self.state == BLOCKED:
+            return 0.0, 0.0
+        if self._plan_stale(now):
             return 0.0, 0.0
         tx, ty, tyaw = p.target
         turn = p.z[0] < IN_PLACE_R_M and abs(wrap(tyaw - o.yaw)) >= 2 * ALIGNED_RAD
@@ -521,6 +580,14 @@ class ControlCore:
         out = park_kuipers(o.x, o.y, o.yaw, tx, ty, tyaw, self.gains, min(p.vmax_mps, self.vmax),
                            omega_floor=self.cfg.omega_floor_radps)
         return out.v_mps, out.omega_radps
+
+    def _plan_stale(self, now: float) -> bool:
+        """The newest plan is older than three planning periods (a starved planning thread):
+        its collision check covered where the chair was, not where it is now."""
+        if now - self._plan_got_t <= 3.0 / self.cfg.plan_rate_hz:
+            return False
+        self._count("stale_plan_stops")
+        return True
 
     def _align(self, goal: Pose2D, o: OdomSample, now: float) -> tuple[float, float]:
         cfg = self.cfg

@@ -18,15 +18,18 @@ import time
 
 import numpy as np
 
+from autochair.geometry import quaternion_yaw
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.planner import PlanRequest, PlanResult, compute
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import (
     CommandOwner,
     EStopState,
+    FrameTransform,
     GoalReply,
     GoalRequest,
     GoalStatus,
+    LocalizedPose,
     NavPlan,
     OccupancyGrid,
     Odometry,
@@ -77,6 +80,17 @@ class ControlNode:
     def on_limit(self, msg: SafetyLimit) -> None:
         with self.lock:  # plan within the monitor's bounds instead of being clamped by the PID
             self.core.on_limit(msg.omega_max_radps)
+
+    def on_tf(self, msg: FrameTransform) -> None:
+        if msg.parent_frame_id != "map" or msg.child_frame_id != "odom":
+            return
+        t, r = msg.translation, msg.rotation
+        with self.lock:
+            self.core.on_correction((t.x, t.y, quaternion_yaw(r.x, r.y, r.z, r.w)))
+
+    def on_loc(self, msg: LocalizedPose) -> None:
+        with self.lock:
+            self.core.on_loc_state(msg.state, time.monotonic())
 
     def on_grid(self, msg: OccupancyGrid) -> None:
         self.grid = msg  # (built on the map thread: never block a Zenoh callback)
@@ -194,6 +208,8 @@ def start(node: Node, cfg: ControlConfig) -> None:
     node.subscribe(keys.CMD_OWNER, c.on_owner)
     node.subscribe(keys.SAFETY_LIMIT, c.on_limit)
     node.subscribe(keys.MAP_GRID, c.on_grid)
+    node.subscribe(keys.TF, c.on_tf)  # map → odom, for goals in map
+    node.subscribe(keys.LOC_POSE, c.on_loc)
     node.serve(keys.GOAL_SET, c.on_set)
     node.serve(keys.GOAL_CANCEL, c.on_cancel)
     node.serve(keys.GOAL_GET, lambda _: c.status_msg())
