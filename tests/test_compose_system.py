@@ -170,6 +170,7 @@ def test_compose_sim_stack_drives_survives_a_killed_pid_and_records(
         out = Recorder(live, keys.JOYSTICK_OUT)
         truth = Recorder(live, keys.SIM_TRUTH)
         pid_ready(live)
+        wait_for(truth.latest, 10, "ground truth")
         # The drive starts now, after the PID's start: a deliberate act it obeys.
         old = subprocess.Popen([*AUTOCHAIR, "drive", "0.5", "0", "--connect", hub],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

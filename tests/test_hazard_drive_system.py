@@ -47,6 +47,7 @@ def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
         out = Recorder(session, keys.JOYSTICK_OUT)
         status = Recorder(session, keys.GOAL_STATUS)
         pid_ready(session)
+        wait_for(truth.latest, 10, "ground truth")  # (10 Hz while the chair is parked)
         goal = GoalRequest(waypoints=[Pose2D(8.0, 0.0, 0.0)])
         assert request(session, keys.GOAL_SET, goal, GoalReply).ok
         wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair cruising to the goal")

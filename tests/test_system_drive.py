@@ -61,6 +61,7 @@ def test_a_drive_service_killed_mid_drive_stops_the_chair_until_a_new_command(
         out = Recorder(session, keys.JOYSTICK_OUT)
         truth = Recorder(session, keys.SIM_TRUTH)
         pid_ready(session)
+        wait_for(truth.latest, 10, "ground truth")  # (10 Hz while the chair is parked)
         old = Stream.on(session, 0.5)
 
         def driving() -> bool:

@@ -130,6 +130,7 @@ class Chair:
         self.cmds = Recorder(self.session, keys.TELEOP)
         self.pid = Recorder(self.session, keys.PID_STATUS)
         self.truth = Recorder(self.session, keys.SIM_TRUTH)
+        wait_for(self.truth.latest, 15, "ground truth")
 
     def handed_to_teleop(self) -> bool:
         st = self.pid.latest()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import math
 import os
 import random
 import sys
@@ -20,7 +21,7 @@ from typing import Annotated
 import msgspec
 
 from autochair.runtime import ConfigError, Node, service_main
-from autochair.sim.chair.firmware import Firmware
+from autochair.sim.chair.firmware import NEUTRAL_MV, Firmware
 from autochair.sim.chair.model import ChairModel, ChairParams
 from autochair_msgs import GroundTruth, keys
 from autochair_msgs.sim import SimFault, SimFaultReply
@@ -35,7 +36,9 @@ class SimConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # Telemetry frames per simulated second (= model rate; the firmware's AC_FRAME_US).
     telemetry_rate_hz: Positive = float(keys.DRIVE_RATE_HZ)
     time_scale: Positive = 1.0  # simulated seconds per wall second (>1: faster than real time)
-    truth_rate_hz: Positive = 100.0  # ground truth per simulated second
+    truth_rate_hz: Positive = 100.0  # ground truth per simulated second, while moving
+    # ... and while at rest (no wheel turning, joystick at neutral), when it does not change
+    parked_truth_rate_hz: Positive = 10.0
     seed: int = 0  # noise and garbage bytes
     noise: bool = False  # wheel-speed noise and encoder slip in the model
     # Systematic odometry errors (model.ChairParams: wheel-diameter ratio, base error, slip in
@@ -118,7 +121,9 @@ class Simulator:
         self.t = 0.0
         self._rng = random.Random(cfg.seed)
         self._truth_period = 1.0 / cfg.truth_rate_hz
+        self._parked_period = 1.0 / cfg.parked_truth_rate_hz
         self._next_truth = 0.0
+        self._last_truth = -math.inf
         self._truth_pub = node.publisher(keys.SIM_TRUTH)
         self._faults: deque[SimFault] = deque()
         self._unplugged_until: float | None = None
@@ -180,7 +185,12 @@ class Simulator:
             self.node.health.count("frames_dropped_host_not_reading")
         if self.t + 1e-9 >= self._next_truth:
             self._next_truth += self._truth_period
-            self._publish_truth()
+            m, fw = self.model, self.fw
+            parked = abs(m.v) < 1e-4 and abs(m.omega) < 1e-4 and \
+                fw.longitudinal_mv == fw.angular_mv == NEUTRAL_MV
+            if not parked or self.t - self._last_truth + 1e-9 >= self._parked_period:
+                self._last_truth = self.t
+                self._publish_truth()
         self._report_counters()
 
     def _publish_truth(self) -> None:
