@@ -296,9 +296,10 @@ def floor_role(role: str, endpoint: str, spec: str) -> int:
         sub.undeclare()
         print(json.dumps({"received": got[0]}), flush=True)
     else:
+        base = max(rate for rate, _ in streams.values())  # the tick: the fastest stream's
         pubs = {k: (session.declare_publisher(f"floor/{k}", express=True,
                                               congestion_control=zenoh.CongestionControl.DROP),
-                    bytes(size), round(200 / rate)) for k, (rate, size) in streams.items()}
+                    bytes(size), round(base / rate)) for k, (rate, size) in streams.items()}
         print("ready", flush=True)
         tick, next_t, sent = 0, time.monotonic(), 0
         while not stop.is_set():
@@ -307,7 +308,7 @@ def floor_role(role: str, endpoint: str, spec: str) -> int:
                     pub.put(payload)
                     sent += 1
             tick += 1
-            next_t += 0.005
+            next_t += 1.0 / base
             stop.wait(max(0.0, next_t - time.monotonic()))
         print(json.dumps({"sent": sent}), flush=True)
     session.close()
