@@ -14,13 +14,15 @@ from bench import loc_eval
 from autochair.localization.core import Localizer, LocState
 from autochair.localization.graph import PoseGraph
 from autochair.localization.matching import DistanceField, compose, refine
+from autochair.localization.slam import MapRenderer, Slam, render
 from autochair.mapping.mapfile import MapFile, MapFileError, load_map, map_path, save_map
 from autochair.odometry.core import OdometryCore
 from autochair.sim.chair.model import NEUTRAL_V, ChairModel, ChairParams, volts
 from autochair.sim.lidar.scanner import UrgParams
 from autochair.sim.world import load_world
+from autochair_msgs import keys
 
-DT = 0.005
+DT = 1.0 / keys.DRIVE_RATE_HZ
 
 
 def _drive(params: ChairParams, lv: float, av: float, seconds: float) -> tuple[
@@ -201,3 +203,35 @@ def test_odom_buffer_interpolates_between_samples() -> None:
     assert x == pytest.approx(0.05)
     assert yaw == pytest.approx(3.1 + 0.25 * (2 * math.pi - 6.2))  # the short way round
     assert buf.at(10**9, 50_000_000) is None  # not bracketed, nothing near
+
+
+def test_map_renderer_draws_new_keyframes_and_redraws_after_a_correction() -> None:
+    """The live map grows by the new keyframes only (one full render), equals a full render,
+    and is redrawn whole when a keyframe it drew has moved (a loop closure)."""
+    slam = Slam()
+    slam.pose = np.array(loc_eval.ROUTES["hallway"][0], dtype=np.float64)
+    r = MapRenderer(slam.p)
+    for k, tick in enumerate(loc_eval.drive("hallway", 0.4)):
+        slam.update(tick.odom, tick.scan)
+        if k == 100:
+            r.update(*slam.snapshot())
+    nodes, kfs = slam.snapshot()
+    assert 10 < len(r.drawn) < len(kfs)  # the second update has new keyframes to draw
+    grid = r.update(nodes, kfs)
+    assert r.full_renders == 1  # drawn incrementally
+
+    def cells(g: object) -> set[tuple[int, int]]:
+        occ = g.occupied()  # type: ignore[attr-defined]
+        s = g.spec  # type: ignore[attr-defined]
+        iy, ix = np.nonzero(occ)
+        return set(zip((ix + round(s.origin_x_m / s.resolution_m)).tolist(),
+                       (iy + round(s.origin_y_m / s.resolution_m)).tolist(), strict=True))
+
+    full = cells(render(nodes, kfs, slam.p))
+    # the same walls; a few cells differ where keyframes moved by less than the redraw
+    # tolerance (half a cell) or a point falls on a cell edge of the other grid's origin
+    assert len(full) > 200 and len(full ^ cells(grid)) <= 0.02 * len(full)
+    moved = [n.copy() for n in nodes]
+    moved[5][0] += 0.3
+    r.update(moved, kfs)
+    assert r.full_renders == 2

@@ -5,7 +5,7 @@ Loop-closure error, the measurable form of "no double walls": the scans of the s
 over the start of the loop, re-registered against a map made ONLY of the first pass's
 keyframes, must move ≤ 5 cm (median) from their mapped poses. A wall seen twice in two places
 would pull them by the distance between its copies. Positive control: the same run with loop
-closure switched off leaves them over 10 cm apart (13 cm measured)."""
+closure switched off leaves them over 10 cm apart, or too far apart to fit at all."""
 
 from __future__ import annotations
 
@@ -36,7 +36,8 @@ def _map(params: SlamParams) -> tuple[Slam, float, float]:
     return slam, time.perf_counter() - t0, scans[-1].stamp_s - scans[0].stamp_s
 
 
-def _loop_error(slam: Slam) -> float:
+def _loop_error(slam: Slam) -> tuple[float, int]:
+    """Median shift of the second pass's keyframes, and how many overlap the first."""
     first = np.vstack([transform(slam.graph.nodes[i], slam.kfs[i].pts)
                        for i in range(FIRST_PASS)])
     field = points_field(first, 0.05)
@@ -45,8 +46,7 @@ def _loop_error(slam: Slam) -> float:
         m = refine(field, slam.kfs[j].pts, slam.graph.nodes[j], inlier_m=0.05)
         if m.inliers > 0.5:
             shifts.append(math.hypot(*(m.pose[:2] - slam.graph.nodes[j][:2])))
-    assert len(shifts) >= 20, "the second pass must overlap the first"
-    return float(np.median(shifts))
+    return (float(np.median(shifts)) if shifts else math.inf), len(shifts)
 
 
 def test_real_wheelchair_log_loop_closes_without_double_walls() -> None:
@@ -55,8 +55,13 @@ def test_real_wheelchair_log_loop_closes_without_double_walls() -> None:
     slam, wall_s, log_s = _map(SlamParams())
     assert wall_s < log_s  # offline, faster than real time
     assert slam.stats.loops >= 1
-    closed_m = _loop_error(slam)
+    closed_m, overlap = _loop_error(slam)
+    assert overlap >= 20, "the second pass must overlap the first"
     assert closed_m <= 0.05
     unclosed, _, _ = _map(SlamParams(loop_quality=2.0))  # positive control: no loop closure
     assert unclosed.stats.loops == 0
-    assert _loop_error(unclosed) > max(2 * closed_m, 0.1)  # measured: 0.7 cm vs 13 cm
+    # Without loop closure the second pass lies far from the first: its keyframes are pulled
+    # far (measured 13 cm in session 3) or, drifted further, do not fit the first pass at all
+    # (session 4: 1 of 49 fits, 80 cm off).
+    open_m, open_overlap = _loop_error(unclosed)
+    assert open_overlap < 20 or open_m > max(2 * closed_m, 0.1)

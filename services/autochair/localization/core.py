@@ -55,6 +55,10 @@ class LocParams:
     max_search_xy_m: float = 8.0
     max_points: int = 200  # scan points used in matching (evenly subsampled)
     gate: float = 25.0  # χ² (3 dof) beyond which a match is not fused, unless it fits well
+    # The match's information counts every point as an independent measurement; its errors
+    # are not (a submap's wall ends, grid quantisation), so it can be scaled down against
+    # the odometry (mapping's tracker: along a corridor only a few points fix the position).
+    info_scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -171,13 +175,14 @@ class Localizer:
                 self.state = LocState.LOST
             return self.estimate()
         self._bad = 0
+        info = m.information * self.p.info_scale
         innov = m.pose - self.pose
         innov[2] = math.atan2(math.sin(innov[2]), math.cos(innov[2]))
         chi2 = float(innov @ np.linalg.solve(self.cov + np.linalg.inv(
-            m.information + np.eye(3) * 1e-6), innov))
+            info + np.eye(3) * 1e-6), innov))
         if chi2 > self.p.gate and m.inliers < self.p.found_quality:
             return self.estimate()  # a poor fit far from the prediction: not fused
-        self._fuse(m.pose, m.information)
+        self._fuse(m.pose, info)
         return self.estimate()
 
     def estimate(self) -> Estimate:

@@ -132,6 +132,20 @@ def search(field: DistanceField, pts: F64, centre: F64, *, half_xy_m: float, hal
            free: BoolGrid | None = None) -> tuple[F64, float]:
     """Best pose (by fraction of points within `inlier_m` of the map) on a grid of poses
     around `centre`; `free` (map cells), if given, keeps candidates on known free space."""
+    poses, scores = score_grid(field, pts, centre, half_xy_m=half_xy_m, half_yaw=half_yaw,
+                               step_xy_m=step_xy_m, step_yaw=step_yaw, inlier_m=inlier_m,
+                               max_points=max_points, free=free)
+    if not scores.size:
+        return np.array(centre, dtype=np.float64), -1.0
+    k = int(scores.argmax())
+    return poses[k].copy(), float(scores[k])
+
+
+def score_grid(field: DistanceField, pts: F64, centre: F64, *, half_xy_m: float,
+               half_yaw: float, step_xy_m: float, step_yaw: float, inlier_m: float,
+               max_points: int = 80, free: BoolGrid | None = None) -> tuple[F64, F64]:
+    """Every candidate pose of `search` (N, 3) with its score (N,): the fit landscape, for
+    telling a unique fit from an ambiguous one (a corridor fits all along its length)."""
     if len(pts) > max_points:
         pts = pts[np.linspace(0, len(pts) - 1, max_points).astype(np.int64)]
     near = field.dist < inlier_m
@@ -147,7 +161,7 @@ def search(field: DistanceField, pts: F64, centre: F64, *, half_xy_m: float, hal
         ok[ok] = free[iy[ok], ix[ok]]
         cx, cy = cx[ok], cy[ok]
     n_yaw = round(half_yaw / step_yaw)
-    best, best_score = np.array(centre, dtype=np.float64), -1.0
+    poses, scores = [], []
     for k in range(-n_yaw, n_yaw + 1):
         yaw = centre[2] + k * step_yaw
         c, s = math.cos(yaw), math.sin(yaw)
@@ -157,12 +171,9 @@ def search(field: DistanceField, pts: F64, centre: F64, *, half_xy_m: float, hal
         ok = (ix >= 0) & (iy >= 0) & (ix < field.w) & (iy < field.h)
         hit = np.zeros(ix.shape, dtype=np.bool_)
         hit[ok] = near[iy[ok], ix[ok]]
-        scores = hit.mean(axis=1)
-        if scores.size and scores.max() > best_score:
-            j = int(scores.argmax())
-            best_score = float(scores[j])
-            best = np.array([cx[j], cy[j], math.atan2(s, c)])
-    return best, best_score
+        scores.append(hit.mean(axis=1) if len(pts) else np.zeros(len(cx)))
+        poses.append(np.column_stack((cx, cy, np.full(len(cx), math.atan2(s, c)))))
+    return np.vstack(poses), np.concatenate(scores)
 
 
 def search_wide(field: DistanceField, pts: F64, centre: F64, *, half_xy_m: float,

@@ -46,7 +46,7 @@ from autochair_msgs import (
 
 from .core import Estimate, Localizer, LocState, chair_cells
 from .matching import DistanceField, GridFrame
-from .slam import Scan, Slam, render
+from .slam import MapRenderer, Scan, Slam
 
 
 class LocalizationConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -109,6 +109,8 @@ class LocalizationService:
         self.map_pub = node.publisher(keys.LOC_MAP)
         self.last_state = ""
         self._rendered: tuple[tuple[int, int], MapFile] | None = None
+        self._renderer = MapRenderer(self.slam.p) if self.slam is not None else None
+        self._render_lock = threading.Lock()  # the map timer and MAP_SAVE both render
 
     # --- Zenoh side -----------------------------------------------------------------------
     def on_odom(self, msg: Odometry) -> None:
@@ -157,11 +159,12 @@ class LocalizationService:
         with self.lock:
             nodes, kfs = self.slam.snapshot()
             version = (len(kfs), self.slam.stats.loops)
-        if not kfs:
+        if not kfs or self._renderer is None:
             return None
-        if self._rendered is None or self._rendered[0] != version:
-            self._rendered = (version, map_from_grid(render(nodes, kfs, self.slam.p)))
-        return self._rendered[1]
+        with self._render_lock:
+            if self._rendered is None or self._rendered[0] != version:
+                self._rendered = (version, map_from_grid(self._renderer.update(nodes, kfs)))
+            return self._rendered[1]
 
     def worker(self) -> None:
         while not self.node.stop_event.is_set():
