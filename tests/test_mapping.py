@@ -7,14 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from autochair.mapping.core import (
-    GridSpec,
-    OccupancyMapper,
-    OdomBuffer,
-    VoxelCloud,
-    compose,
-    scan_points,
-)
+from autochair.geometry import compose
+from autochair.mapping.core import GridSpec, OccupancyMapper, OdomBuffer, VoxelCloud, scan_points
 from autochair.runtime.config import ChairGeometry
 from autochair.sim.lidar.scanner import UrgParams, ray_scan
 from autochair.sim.world import load_world

@@ -17,7 +17,6 @@ import math
 import sys
 import threading
 import time
-from collections import deque
 from pathlib import Path
 from typing import Annotated
 
@@ -90,8 +89,6 @@ class LocalizationService:
         self.lock = threading.Lock()
         self.odom = OdomBuffer()
         self.gate = MoveGate()
-        self.pending: deque[LaserScan] = deque(maxlen=4)
-        self.wake = threading.Event()
         self.map: MapFile | None = None
         self.loc: Localizer | None = None
         self.slam: Slam | None = None
@@ -116,12 +113,6 @@ class LocalizationService:
     def on_odom(self, msg: Odometry) -> None:
         with self.lock:
             self.odom.add(msg)
-
-    def on_scan(self, msg: LaserScan) -> None:
-        if len(self.pending) == self.pending.maxlen:
-            self.node.health.count("scans_dropped_busy")
-        self.pending.append(msg)
-        self.wake.set()
 
     def on_set_pose(self, req: LocalizeRequest) -> LocalizeReply:
         if self.loc is None:
@@ -165,13 +156,6 @@ class LocalizationService:
             if self._rendered is None or self._rendered[0] != version:
                 self._rendered = (version, map_from_grid(self._renderer.update(nodes, kfs)))
             return self._rendered[1]
-
-    def worker(self) -> None:
-        while not self.node.stop_event.is_set():
-            self.wake.wait(0.2)
-            self.wake.clear()
-            while self.pending:
-                self.process(self.pending.popleft())
 
     def process(self, msg: LaserScan) -> None:
         health = self.node.health
@@ -232,10 +216,10 @@ def start(node: Node, cfg: LocalizationConfig) -> None:
     svc = LocalizationService(node, cfg)
     node.health.detail = f"{svc.mode}" + (f" on {Path(cfg.map).name}" if cfg.map else "")
     node.subscribe(keys.ODOM_SLOW, svc.on_odom)  # 50 Hz, interpolated at the scan stamps
-    node.subscribe(keys.SCAN, svc.on_scan)
+    # Matching runs on a worker thread, not the Zenoh thread; 4 scans may wait.
+    node.subscribe(keys.SCAN, node.worker("localize", svc.process, 4, "scans_dropped_busy"))
     node.serve(keys.LOC_SET_POSE, svc.on_set_pose)
     node.serve(keys.MAP_SAVE, svc.on_save)
-    node.thread(svc.worker, "localize")
     node.every(cfg.map_period_s, svc.publish_map, "map")
 
 

@@ -15,18 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from autochair.geometry import wrap_angle
+from autochair.geometry import Pose, wrap_angle
 from autochair_msgs import OccupancyGrid, Odometry, PointCloud
 
 F64 = npt.NDArray[np.float64]
-Pose = tuple[float, float, float]  # x, y, yaw
-
-
-def compose(a: Pose, b: Pose) -> Pose:
-    """Pose b (in a's frame) expressed in a's parent frame: a ∘ b."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    yaw = math.atan2(math.sin(a[2] + b[2]), math.cos(a[2] + b[2]))
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], yaw)
 
 
 def scan_points(ranges: F64, angle_min: float, angle_inc: float, pose: Pose) -> F64:

@@ -9,25 +9,16 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from collections import deque
 from typing import Annotated
 
 import msgspec
 import numpy as np
 
+from autochair.geometry import Pose, compose
 from autochair.runtime.node import Node, service_main
 from autochair_msgs import FrameTransform, LaserScan, Odometry, keys
 
-from .core import (
-    GridSpec,
-    MoveGate,
-    OccupancyMapper,
-    OdomBuffer,
-    Pose,
-    VoxelCloud,
-    compose,
-    scan_points,
-)
+from .core import GridSpec, MoveGate, OccupancyMapper, OdomBuffer, VoxelCloud, scan_points
 
 Positive = Annotated[float, msgspec.Meta(gt=0)]
 
@@ -68,9 +59,7 @@ class MappingService:
         self.gate = MoveGate(max_age_ns=int(cfg.still_period_s * 1e9))
         self.mount: Pose = node.chair.laser_mount
         self.tf_error = ""
-        self.pending: deque[LaserScan] = deque(maxlen=8)
         self.lock = threading.Lock()
-        self.wake = threading.Event()
         self.grid_pub = node.publisher(keys.MAP_GRID)
         self.cloud_pub = node.publisher(keys.MAP_CLOUD)
 
@@ -89,19 +78,6 @@ class MappingService:
             self.node.event("warning" if err else "info",
                             f"mapping: laser mount mismatch ({err}); mapping with [chair]" if err
                             else "mapping: tf_static laser mount agrees with [chair]")
-
-    def on_scan(self, msg: LaserScan) -> None:
-        if len(self.pending) == self.pending.maxlen:
-            self.node.health.count("scans_dropped_busy")
-        self.pending.append(msg)  # the worker thread does the ray updates, not the Zenoh thread
-        self.wake.set()
-
-    def worker(self) -> None:
-        while not self.node.stop_event.is_set():
-            self.wake.wait(0.2)
-            self.wake.clear()
-            while self.pending:
-                self.integrate(self.pending.popleft())
 
     def integrate(self, scan: LaserScan) -> None:
         cfg, health = self.cfg, self.node.health
@@ -133,8 +109,8 @@ def start(node: Node, cfg: MappingConfig) -> None:
     svc = MappingService(node, cfg)
     node.subscribe(keys.ODOM_SLOW, svc.on_odom)  # 50 Hz, interpolated at the scan stamps
     node.subscribe(keys.TF_STATIC, svc.on_tf)
-    node.subscribe(keys.SCAN, svc.on_scan)
-    node.thread(svc.worker, "map")
+    # The ray updates run on a worker thread, not the Zenoh thread; 8 scans may wait.
+    node.subscribe(keys.SCAN, node.worker("map", svc.integrate, 8, "scans_dropped_busy"))
     node.every(cfg.publish_period_s, svc.publish, "publish")
 
 
