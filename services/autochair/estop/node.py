@@ -8,7 +8,6 @@ source's cause, the keys.ESTOP_RELEASE query releases) and the state file.
 
 from __future__ import annotations
 
-import os
 import sys
 import threading
 import time
@@ -17,6 +16,7 @@ from typing import Annotated
 
 import msgspec
 
+from autochair.files import write_atomic
 from autochair.runtime import Node, service_main
 from autochair_msgs import EStopAssert, EStopRelease, EStopReply, keys
 
@@ -48,16 +48,8 @@ class StateFile:
 
     def write(self, data: bytes) -> str:
         """"" when written, else why not (one line)."""
-        tmp = self.path.with_name(self.path.name + ".tmp")
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-            try:
-                os.write(fd, data)
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-            tmp.replace(self.path)
+            write_atomic(self.path, data)
         except OSError as e:
             return f"{self.path}: {type(e).__name__}: {e.strerror or e}"
         return ""

@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from autochair.files import write_atomic
+
 BoolGrid = npt.NDArray[np.bool_]
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
@@ -51,12 +53,13 @@ def save_map(m: MapFile, yaml_path: str | Path) -> Path:
     pix[m.free] = 254
     pix[m.occupied] = 0
     h, w = m.occupied.shape
-    yaml_path.parent.mkdir(parents=True, exist_ok=True)
-    pgm.write_bytes(f"P5\n# autochair map\n{w} {h}\n255\n".encode() + pix[::-1].tobytes())
-    yaml_path.write_text(
+    # Each file whole or not at all (saving over a map in use must not leave a torn one);
+    # the image first, so a YAML never names a half-written image.
+    write_atomic(pgm, f"P5\n# autochair map\n{w} {h}\n255\n".encode() + pix[::-1].tobytes())
+    write_atomic(yaml_path, (
         f"image: {pgm.name}\nmode: trinary\nresolution: {m.resolution_m:.6f}\n"
         f"origin: [{m.origin_x_m:.6f}, {m.origin_y_m:.6f}, {m.origin_yaw:.6f}]\n"
-        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")  # as ROS map_saver
+        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n").encode())  # as map_saver
     return yaml_path
 
 
