@@ -49,7 +49,7 @@ def test_bridge_serves_pose_tf_scan_and_plots_to_a_foxglove_client() -> None:
     th.start()
     try:
         r = subprocess.run(["node", str(JS / "foxglove_ws.js"), f"ws://127.0.0.1:{server.port}",
-                            "/pose", "autochair/tf", "autochair/lidar/scan", "autochair/odom"],
+                            "autochair/tf", "autochair/lidar/scan", "autochair/odom"],
                            capture_output=True, text=True, timeout=60)
     finally:
         stop.set()
@@ -60,12 +60,9 @@ def test_bridge_serves_pose_tf_scan_and_plots_to_a_foxglove_client() -> None:
     out = json.loads(r.stdout or "{}")
     assert "error" not in out, (out, r.stderr)
     ch, first = out["channels"], out["first"]
-    assert ch["/pose"]["schemaName"] == "foxglove.PoseInFrame"
     assert ch["autochair/lidar/scan"]["schemaName"] == "foxglove.LaserScan"
     assert ch["autochair/tf"]["schemaName"] == "foxglove.FrameTransform"
     assert ch["autochair/odom"] == {"encoding": "json", "schemaName": "autochair_msgs.Odometry"}
-    assert first["/pose"]["pose"]["position"]["x"] == 1.5
-    assert first["/pose"]["frame_id"] == "odom"  # REP-105
     scan = first["autochair/lidar/scan"]
     assert scan["ranges"] == [1.0, 0.0, 2.5]  # NaN beam drawn at the sensor, its value kept:
     assert scan["nonfinite"] == {"1": "NaN"} and scan["range_max_m"] == 5.6

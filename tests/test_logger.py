@@ -14,7 +14,7 @@ from autochair.logger import foxglove
 from autochair.logger.reader import Recording, is_indexed, recover
 from autochair.logger.schema import Codec, codec_for, json_schema, to_json
 from autochair.logger.writer import LoggerConfig, Recorder, base_path, part_path
-from autochair_msgs import Health, LogEvent, keys
+from autochair_msgs import EStopCause, EStopState, Health, LogEvent, Odometry, keys
 from tests.logger_samples import QUERY_SAMPLES, T0, samples
 
 ENC = msgspec.msgpack.Encoder()
@@ -118,10 +118,6 @@ def test_derived_foxglove_messages(tmp_path: Path) -> None:
     assert (laser["parent_frame_id"], laser["child_frame_id"]) == ("chair", "laser")
     assert laser["translation"] == {"x": 0.8636, "y": 0.2032, "z": 0.3937}
     assert laser["timestamp"] == {"sec": T0 // 10**9, "nsec": T0 % 10**9}
-    pose = by_topic["/pose"][0]
-    q = pose["pose"]["orientation"]  # type: ignore[index]
-    assert math.isclose(2 * math.atan2(q["z"], q["w"]), math.pi)
-    assert pose["pose"]["position"]["x"] == 1.25  # type: ignore[index]
     (scan_ch,) = [m for m in Recording(tmp_path / "run.mcap").messages()
                   if m.topic == keys.SCAN.key][:1]
     assert scan_ch.schema == "foxglove.LaserScan" and not scan_ch.derived  # no /scan copy
@@ -164,7 +160,6 @@ def test_periodic_flush_makes_data_readable_before_finish(tmp_path: Path) -> Non
         rec.write(keys.ODOM.key, ENC.encode(odom), T0 + 100 + i)
     s = Recording(path).summary()
     assert not s.indexed and s.channels[keys.ODOM.key].count == 50
-    assert s.channels["/pose"].count == 1  # one stamp: decimated (LoggerConfig.derived_max_hz)
     out = recover(path, tmp_path / "fixed.mcap")
     assert is_indexed(tmp_path / "fixed.mcap") and out.channels[keys.ODOM.key].count == 50
     rec.finish()
@@ -289,14 +284,14 @@ def test_packed_chunk_indexes_give_the_same_file(tmp_path: Path) -> None:
         assert sum(1 for _ in reader.iter_messages()) == 300
 
 
-def test_health_is_recorded_on_change_or_every_period() -> None:
-    from autochair.logger.writer import HealthGate
+def test_repeating_status_is_recorded_on_change_or_every_period() -> None:
+    from autochair.logger.writer import RepeatGate
 
     s = 1_000_000_000
     base = Health(stamp_ns=T0, service="gateway", state="ok", uptime_s=1.0, counters={},
                   rates_hz={}, thresholds={}, detail="connected", last_fault="",
                   last_fault_stamp_ns=0)
-    gate = HealthGate(5.0)
+    gate = RepeatGate(5.0)
     taken = [t for t in range(0, 12 * s, s) if gate.take(base, t)]
     assert taken == [0, 5 * s, 10 * s]  # a steady 1 Hz health: one in five
     assert gate.take(msgspec.structs.replace(base, service="pid"), 11 * s)  # per service
@@ -305,7 +300,16 @@ def test_health_is_recorded_on_change_or_every_period() -> None:
     assert gate.take(fault, 11 * s)  # a change: at once
     assert not gate.take(fault, 12 * s)
     assert gate.take(base, 12 * s + 1)  # and back
-    every = HealthGate(0.0)
+    # the e-stop's 10 Hz state: its changes at once, its repeats every 5 s
+    free = EStopState(stamp_ns=T0, latched=False)
+    assert [t for t in range(0, s, s // 10) if gate.take(free, t)] == [0]
+    latched = EStopState(stamp_ns=T0, latched=True, causes=[EStopCause(
+        source="cli", reason="test", since_ns=T0, active=False)])
+    assert gate.take(latched, s) and not gate.take(latched, s + s // 10)
+    assert gate.take(free, s + 2 * (s // 10))
+    assert gate.take(Odometry(stamp_ns=T0, x_m=0.0, y_m=0.0, yaw_rad=0.0, v_mps=0.0,
+                              omega_radps=0.0), 0)  # anything else: always
+    every = RepeatGate(0.0)
     assert all(every.take(base, t) for t in range(0, 5 * s, s))
 
 

@@ -1,7 +1,7 @@
 """`autochair foxglove`: a live Foxglove WebSocket bridge (foxglove-sdk) of the chair.
 
 Serves on 127.0.0.1:8765 by default (open Foxglove, "Open connection", ws://127.0.0.1:8765).
-Channels: the well-known /pose, /map, /log (foxglove.* JSON, converted by the logger's
+Channels: the well-known /map, /log (foxglove.* JSON, converted by the logger's
 autochair.logger.foxglove.Deriver, so recordings and the live view match) and the raw
 autochair messages as JSON on their Zenoh key names, as recorded, for the Plot panel
 (odometry, PID status, health) and the 3D panel (`autochair/lidar/scan`, a foxglove.LaserScan;
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 
 # Zenoh rows bridged as they are recorded (plots; scans and transforms for the 3D panel).
 PLOT_KEYS = ("ODOM", "PID_STATUS", "HEALTH", "GOAL_STATUS", "SCAN", "TF", "TF_STATIC")
-DERIVED_KEYS = ("ODOM", "MAP_GRID", "LOG", "HEALTH")
+DERIVED_KEYS = ("MAP_GRID", "LOG", "HEALTH")
 TELEOP_TOPIC = "autochair/cmd/teleop"  # the Teleop panel's topic (client publishing)
 OWNER_TOPIC = "autochair/cmd/owner"  # {"owner": "teleop" | "autonomy"}: take over, hand back
 

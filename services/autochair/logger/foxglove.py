@@ -3,20 +3,18 @@ and the map work without any user scripts.
 
 | derived topic    | schema                     | from                               |
 |------------------|----------------------------|------------------------------------|
-| /pose            | foxglove.PoseInFrame       | keys.ODOM                          |
 | /map             | foxglove.Grid              | keys.MAP_GRID                      |
 | /log             | foxglove.Log               | keys.LOG, new faults in keys.HEALTH |
 | /nav/plan        | foxglove.PosesInFrame      | keys.NAV_PLAN (predicted path, then the target) |
 | /nav/scene       | foxglove.SceneUpdate       | keys.NAV_PLAN (footprint, target arrow, people) |
 | /loc/map         | foxglove.Grid              | keys.LOC_MAP (frame `map`)         |
-| /loc/pose        | foxglove.PoseInFrame       | keys.LOC_POSE (frame `map`)        |
 
 Scans and transforms need no derived channel: keys.SCAN, keys.TF and keys.TF_STATIC are
-recorded as foxglove.LaserScan and foxglove.FrameTransform themselves (`schema.codec_for`).
-/pose duplicates keys.ODOM, recorded at the full rate: it is decimated by message stamp to at
-most `max_hz` (the logger's `derived_max_hz`, default 20 Hz), enough for the 3D panel. Maps,
-localized poses and logs are derived from every message. Frames follow REP-105 (`map` →
-`odom` → `chair` → `laser`): set the 3D panel's display frame to `map`.
+recorded as foxglove.LaserScan and foxglove.FrameTransform themselves (`schema.codec_for`); the
+chair's pose is shown by the transforms (`odom` → `chair` from odometry, `map` → `odom` from
+localization), so no pose is derived either. Maps, plans and logs are derived from every
+message. Frames follow REP-105 (`map` → `odom` → `chair` → `laser`): set the 3D panel's
+display frame to `map`.
 
 Times are {sec, nsec}; bytes are base64. The schemas are Foxglove's own (copied from npm
 `@foxglove/schemas` into foxglove_schemas.json).
@@ -32,30 +30,19 @@ from typing import Any
 import msgspec
 
 from autochair import geometry
-from autochair.timing import Decimator
-from autochair_msgs import (
-    Health,
-    LocalizedPose,
-    LogEvent,
-    NavPlan,
-    OccupancyGrid,
-    Odometry,
-    keys,
-)
+from autochair_msgs import Health, LogEvent, NavPlan, OccupancyGrid, keys
 
 from .schema import FOXGLOVE_SCHEMAS, ORIGIN
 
 SCHEMAS = FOXGLOVE_SCHEMAS
 LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "fatal": 5}
 
-TOPIC_POSE, TOPIC_MAP, TOPIC_LOG = "/pose", "/map", "/log"
+TOPIC_MAP, TOPIC_LOG = "/map", "/log"
 TOPIC_PLAN, TOPIC_SCENE = "/nav/plan", "/nav/scene"
-TOPIC_LOC_MAP, TOPIC_LOC_POSE = "/loc/map", "/loc/pose"
-DERIVED = {TOPIC_POSE: "foxglove.PoseInFrame",
-           TOPIC_MAP: "foxglove.Grid",
-           TOPIC_LOG: "foxglove.Log", TOPIC_PLAN: "foxglove.PosesInFrame",
-           TOPIC_SCENE: "foxglove.SceneUpdate", TOPIC_LOC_MAP: "foxglove.Grid",
-           TOPIC_LOC_POSE: "foxglove.PoseInFrame"}
+TOPIC_LOC_MAP = "/loc/map"
+DERIVED = {TOPIC_MAP: "foxglove.Grid", TOPIC_LOG: "foxglove.Log",
+           TOPIC_PLAN: "foxglove.PosesInFrame", TOPIC_SCENE: "foxglove.SceneUpdate",
+           TOPIC_LOC_MAP: "foxglove.Grid"}
 
 Derived = tuple[str, int, dict[str, Any]]  # (derived topic, stamp ns, message)
 
@@ -71,18 +58,6 @@ def yaw_quaternion(yaw: float) -> dict[str, float]:
 
 def _finite(v: float) -> float:
     return v if math.isfinite(v) else 0.0
-
-
-def _pose(m: Odometry) -> dict[str, Any]:
-    return {"timestamp": time_of(m.stamp_ns), "frame_id": m.frame_id, "pose": {
-        "position": {"x": _finite(m.x_m), "y": _finite(m.y_m), "z": 0.0},
-        "orientation": yaw_quaternion(_finite(m.yaw_rad))}}
-
-
-def _loc_pose(m: LocalizedPose) -> dict[str, Any]:
-    return {"timestamp": time_of(m.stamp_ns), "frame_id": m.frame_id, "pose": {
-        "position": {"x": _finite(m.x_m), "y": _finite(m.y_m), "z": 0.0},
-        "orientation": yaw_quaternion(_finite(m.yaw_rad))}}
 
 
 def _grid(m: OccupancyGrid) -> dict[str, Any]:
@@ -145,16 +120,11 @@ class Deriver:
     """Maps one decoded message to its foxglove.* messages. Keeps the last fault seen per
     service so a Health fault becomes one Log entry, not one per second."""
 
-    def __init__(self, max_hz: float = 0.0) -> None:
+    def __init__(self) -> None:
         self._faults: dict[str, int] = {}
-        # Decimation of the duplicates of full-rate raw channels (0 = every message).
-        pose = Decimator.at(max_hz)
         self._by_key: dict[str, Callable[[Any], list[Derived]]] = {
-            keys.ODOM.key: lambda m: [(TOPIC_POSE, m.stamp_ns, _pose(m))]
-            if pose(m.stamp_ns) else [],
             keys.MAP_GRID.key: lambda m: [(TOPIC_MAP, m.stamp_ns, _grid(m))],
             keys.LOC_MAP.key: lambda m: [(TOPIC_LOC_MAP, m.stamp_ns, _grid(m))],
-            keys.LOC_POSE.key: lambda m: [(TOPIC_LOC_POSE, m.stamp_ns, _loc_pose(m))],
             keys.NAV_PLAN.key: lambda m: [(TOPIC_PLAN, m.stamp_ns, _plan(m)),
                                           (TOPIC_SCENE, m.stamp_ns, _scene(m))],
             keys.LOG.key: self._log,

@@ -26,7 +26,7 @@ from mcap.data_stream import RecordBuilder
 from mcap.writer import CompressionType, Writer
 
 from autochair.timing import Decimator
-from autochair_msgs import Health, keys
+from autochair_msgs import EStopState, Health, keys
 
 from . import foxglove
 from .schema import Codec, codec_for
@@ -51,17 +51,15 @@ class LoggerConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     chunk_size_kib: Annotated[int, msgspec.Meta(ge=1)] = 1024  # ...or at this much data
     queue_size: Annotated[int, msgspec.Meta(ge=1)] = 100_000  # waiting samples before drops
     compression: Literal["zstd", "lz4", "none"] = "zstd"
-    # Derived foxglove /pose at most this often (its source, keys.ODOM, is recorded at the
-    # full rate); 0 = one per message.
-    derived_max_hz: NonNegative = 20.0
     # Maps (keys.MAP_GRID and its /map) recorded at most this often (by
     # receive time; the node's intake): each is the whole map (~240 kB), republished every
     # second for live viewers; 0 = every one.
     map_period_s: NonNegative = 5.0
-    # A service's health recorded when its state, detail or last fault changes, else at most
-    # this often: its counters are cumulative, so only the time resolution of their rates
-    # is given up; 0 = every one (each service sends one a second).
-    health_period_s: NonNegative = 5.0
+    # Status that repeats unchanged, recorded when it changes, else at most this often: a
+    # service's health (state, detail, last fault; its counters are cumulative, so only the
+    # time resolution of their rates is given up) and the e-stop state (latch and causes,
+    # repeated at 10 Hz as a heartbeat); 0 = every one.
+    repeat_period_s: NonNegative = 5.0
 
 
 ZSTD_LEVEL = 9
@@ -92,21 +90,33 @@ class Intake:
         return every is None or every(recv_ns)
 
 
-class HealthGate:
-    """Which Health messages the logger records (see LoggerConfig.health_period_s)."""
+def _what(msg: msgspec.Struct) -> tuple[str, object] | None:
+    """(whose, what it says) of a status message that repeats unchanged, else None."""
+    if isinstance(msg, Health):
+        return msg.service, (msg.state, msg.detail, msg.last_fault_stamp_ns)
+    if isinstance(msg, EStopState):
+        return "estop", (msg.latched, msg.causes)
+    return None
+
+
+class RepeatGate:
+    """Which repeating status messages the logger records (LoggerConfig.repeat_period_s)."""
 
     def __init__(self, period_s: float) -> None:
         self.period_ns = int(period_s * 1e9)
-        self._last: dict[str, tuple[tuple[str, str, int], int]] = {}
+        self._last: dict[str, tuple[object, int]] = {}
 
-    def take(self, msg: Health, recv_ns: int) -> bool:
-        what = (msg.state, msg.detail, msg.last_fault_stamp_ns)
-        last = self._last.get(msg.service)
+    def take(self, msg: msgspec.Struct, recv_ns: int) -> bool:
+        status = _what(msg)
+        if status is None:
+            return True
+        whose, what = status
+        last = self._last.get(whose)
         if last is not None and last[0] == what and 0 <= recv_ns - last[1] < self.period_ns:
             return False
         if len(self._last) > 256:  # bounded: service names come from the wire
             self._last.clear()
-        self._last[msg.service] = (what, recv_ns)
+        self._last[whose] = (what, recv_ns)
         return True
 
 
@@ -241,11 +251,11 @@ class Recorder:
         self.files: list[Path] = []
         self.counters: dict[str, int] = {"written": 0, "derived": 0, "decode_errors": 0,
                                          "unknown_keys": 0, "flushes": 0, "rotations": 0,
-                                         "health_held": 0}
-        self._health = HealthGate(cfg.health_period_s)
+                                         "repeats_held": 0}
+        self._repeats = RepeatGate(cfg.repeat_period_s)
         self.last_error = ""
         self._codecs: dict[str, tuple[Codec, dict[str, str], str]] = {}
-        self._deriver = foxglove.Deriver(cfg.derived_max_hz)
+        self._deriver = foxglove.Deriver()
 
         self._fox_schemas = {n: _JSON.encode(s) for n, s in foxglove.SCHEMAS.items()}
         self._last_flush = start_mono_s
@@ -284,8 +294,8 @@ class Recorder:
             self.counters["decode_errors"] += 1
             self.last_error = f"{key}: {e}"
             return False
-        if isinstance(msg, Health) and not self._health.take(msg, recv_ns):
-            self.counters["health_held"] += 1
+        if not self._repeats.take(msg, recv_ns):
+            self.counters["repeats_held"] += 1
             return True
         if f.start_ns is not None and self.cfg.max_duration_s > 0 and \
                 recv_ns - f.start_ns >= self.cfg.max_duration_s * 1e9:
