@@ -182,7 +182,10 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
             speeds.append(abs(model.v))
         if t_end is None and not core.active:
             t_end = t
-        if (t_end is not None and t - t_end >= SETTLE_S) or t >= TIMEOUT_S:
+        # (recorded until the chair is at rest: a goal aborted at speed would otherwise end
+        # the record mid-braking, and the smoothed derivatives spike at the cut, 7 m/s³)
+        at_rest = abs(model.v) < 0.01 and abs(model.omega) < 0.01
+        if (t_end is not None and t - t_end >= SETTLE_S and at_rest) or t >= TIMEOUT_S:
             break
         k += 1
     result = metrics(rows, clear, plan_ms, core, start, goal, t_end, fld, states)

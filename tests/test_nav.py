@@ -9,7 +9,7 @@ import pytest
 
 from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
 from autochair.nav.field import Footprint, GridMap, NavField
-from autochair.nav.mpepc import LawParams, Mpepc, Person
+from autochair.nav.mpepc import LawParams, Mpepc, MpepcParams, Person
 from autochair.nav.planner import PlanRequest, blocker, compute, free_field
 from autochair.sim.world import WorldError, parse_world
 from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
@@ -255,3 +255,61 @@ def test_world_people_walk_their_segment_and_are_seen_as_discs() -> None:
     assert len(w.at(0.5).circles) == 1 and len(w.circles) == 0
     with pytest.raises(WorldError, match="person speed"):
         parse_world("person 0 0 1 1 9\n")
+
+
+def _law_at_50hz(pose: tuple[float, float, float], v0: float, a0: float,
+                 target: tuple[float, float, float], vmax: float, law: LawParams,
+                 seconds: float) -> tuple[float, float, float]:
+    """What the core does between plans: park_kuipers at 50 Hz through the comfort limiter."""
+    from autochair.control.law import park_kuipers
+    from autochair.control.limits import ComfortLimiter, ComfortLimits
+
+    lim = ComfortLimiter(ComfortLimits(law.vmax_mps, law.a_mps2, law.jerk_mps3,
+                                       law.omega_max_radps, law.omega_acc_radps2,
+                                       law.omega_jerk_radps3), law.lookahead_s)
+    lim.v.value, lim.v.rate = v0, a0
+    x, y, yaw = pose
+    for _ in range(round(seconds / 0.02)):
+        out = park_kuipers(x, y, yaw, *target, law, vmax, omega_floor=law.omega_floor_radps)
+        v, w = lim.step(out.v_mps, out.omega_radps, 0.02)
+        mid = yaw + 0.5 * w * 0.02
+        x, y, yaw = x + v * math.cos(mid) * 0.02, y + v * math.sin(mid) * 0.02, yaw + w * 0.02
+    return x, y, yaw
+
+
+def test_mpepc_predicts_the_50hz_law_through_the_jerk_limited_limiter() -> None:
+    # The limits the core gives it (ControlConfig.law): S-curves, not acceleration steps (v's
+    # jerk is off in the default prediction, see MpepcParams.v_jerk; ω's is always on).
+    law = ControlConfig().law(0.025)
+    mp = Mpepc(free_field([(0.0, 0.0), (6.0, 3.0)], FP), law, MpepcParams(v_jerk=True))
+    pose = (0.0, 0.0, 0.0)
+    for target, v0, a0 in [((4.0, 2.0, 1.2), 0.8, 0.8), ((3.0, -1.0, -0.5), 1.0, 0.0),
+                           ((2.0, 1.5, 2.5), 0.3, 0.5)]:
+        z = np.array([[*mp.relative(pose, target), 1.2]])
+        xs, ys, yaws, *_ = mp.simulate(pose, v0, 0.0, z, a0, 0.0)
+        for k in (2, 4):  # 0.6 s (one plan period and a bit) and 1.0 s ahead
+            x, y, yaw = _law_at_50hz(pose, v0, a0, target, 1.2, law, (k + 1) * mp.p.dt_s)
+            assert math.hypot(xs[0, k] - x, ys[0, k] - y) < 0.02, (target, k)
+            assert abs(math.remainder(yaws[0, k] - yaw, 2 * math.pi)) < 0.03, (target, k)
+
+
+def test_the_stop_after_one_plan_period_is_the_limiters_s_curve() -> None:
+    # The chair at 1 m/s, still accelerating at 1 m/s²: the limiter must first swing the
+    # acceleration round (jerk 2 m/s³) before it brakes. An acceleration-only model (MPEPC's
+    # drive model until now) stops 0.5 m short of that; the check of the stop must not.
+    from autochair.control.limits import ComfortLimiter
+
+    law = ControlConfig().law(0.025)
+    mp = Mpepc(free_field([(0.0, 0.0), (5.0, 0.0)], FP), law)
+    st = np.array([[1.0], [1.0], [0.0], [0.0]])
+    brake = mp.braking(np.zeros(1), np.zeros(1), np.zeros(1), st)
+    lim = ComfortLimiter(ControlConfig().limits)
+    lim.v.value, lim.v.rate = 1.0, 1.0
+    x = 0.0
+    for _ in range(500):
+        v, _ = lim.step(0.0, 0.0, 0.02)
+        x += v * 0.02
+    assert lim.at_rest
+    assert float(brake[0][0, -1]) == pytest.approx(x, abs=0.05)  # (0.1 s steps)
+    assert x - (1.0 ** 2 / (2 * law.a_mps2)) > 0.3  # what the acceleration-only model missed
+

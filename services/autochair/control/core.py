@@ -121,7 +121,10 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
                          omega_max_radps=lim.omega_max_radps,
                          omega_acc_radps2=lim.omega_acc_max_radps2,
                          align_brake_radps2=self.align_brake_fraction * lim.omega_acc_max_radps2,
-                         align_gain_1ps=self.align_gain_1ps, capture_m=capture_m)
+                         align_gain_1ps=self.align_gain_1ps, capture_m=capture_m,
+                         jerk_mps3=lim.jerk_max_mps3, omega_jerk_radps3=lim.omega_jerk_max_radps3,
+                         commit_s=1.0 / self.plan_rate_hz, brake_fraction=self.brake_fraction,
+                         approach_rate_1ps=self.approach_rate_1ps)
 
     @property
     def limits(self) -> ComfortLimits:
@@ -397,7 +400,9 @@ class ControlCore:
                          q.radius_m) for q in self.people]
         return PlanRequest(self.goal_id, self.index, (p.x, p.y, p.yaw), self.limiter.v.value,
                            self.limiter.w.value, (wp.x_m, wp.y_m, wp.yaw_rad), fld, ctg, prev,
-                           self.cfg.law(self.tol_m * self.cfg.capture_fraction), people)
+                           self.cfg.law(self.tol_m * self.cfg.capture_fraction), people,
+                           (self.limiter.v.rate, self.limiter.w.rate),
+                           self.index == len(self.waypoints) - 1)
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""
@@ -463,7 +468,8 @@ class ControlCore:
         self._last_blocked = (why, now)
         waited = now - self._blocked_since
         if waited >= self.cfg.blocked_abort_s:
-            self._stopped(ABORTED, f"{why} (for {waited:.0f} s)", now)
+            # (the chair follows its commands: it brakes through the limiter, no reset)
+            self._end(ABORTED, f"{why} (for {waited:.0f} s)", now)
         elif waited >= self.cfg.blocked_wait_s and not self._replanned:
             self._replanned, self._ctg_key = True, (0, -1)  # next cycle: a new path
 
@@ -489,8 +495,10 @@ class ControlCore:
             # Blocked, driving round, blocked again...: say what blocked it last.
             why, t = self._last_blocked
             also = f"; last {why}" if why and now - t <= cfg.no_progress_s else ""
-            self._stopped(ABORTED, f"no progress for {cfg.no_progress_s:g} s "
-                                   f"({self.status().distance_left_m:.2f} m left{also})", now)
+            # Ended while it may still move (it follows its commands): braked through the
+            # limiter. A reset to the lagging odometry velocity made a 4.8 m/s³ jerk (measured).
+            self._end(ABORTED, f"no progress for {cfg.no_progress_s:g} s "
+                               f"({self.status().distance_left_m:.2f} m left{also})", now)
 
     def _stopped(self, state: str, reason: str, now: float) -> None:
         """End the goal for a stop the chair did not ask for: the command restarts from the

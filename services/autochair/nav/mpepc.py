@@ -65,12 +65,36 @@ class LawParams(Gains, frozen=True, kw_only=True):
     align_brake_radps2: float = 0.84
     align_gain_1ps: float = 1.5
     capture_m: float = 0.025
+    # The rest of the comfort limiter (control/limits.py): jerk bounds and the turn-rate
+    # look-ahead of its curvature keeping. An acceleration-only model stops ~0.5 m short of the
+    # S-curve when braking begins while the chair still accelerates (measured, 1 m/s).
+    jerk_mps3: float = 2.0
+    omega_jerk_radps3: float = 7.7
+    lookahead_s: float = 0.2
+    # The plan period: a chosen motion is followed this long before the next plan can brake.
+    commit_s: float = 0.5
+    # The core's final approach once the goal itself is the target: v also ≤ the braking curve
+    # at brake_fraction of a and jerk, and ≤ approach_rate·r (ControlConfig).
+    brake_fraction: float = 0.6
+    approach_rate_1ps: float = 0.6
 
 
 @dataclass(frozen=True)
 class MpepcParams:
     horizon_s: float = 5.0
     dt_s: float = 0.2  # the paper's step
+    # The first fine_s are simulated in substeps (the 50 Hz loop re-evaluates the law; at
+    # 0.2 s steps the predicted heading after one plan period was off by up to 14°, measured).
+    fine_s: float = 1.0
+    fine_substeps: int = 2
+    # v's jerk limit in the predicted motions (the stop after commit_s always has it). Off:
+    # with it MPEPC slowed to 0.13 m/s at intermediate waypoints (tests/test_control.py), as
+    # the law's slowdown towards a target then predicts an overshoot the core never drives.
+    v_jerk: bool = False
+    # Predict the core's final approach (braking curve) for the goal itself as target. Off:
+    # on, 2 of 40 obstacle-free goals (tests/test_control.py grid) got an ω reversal near the
+    # goal; it mattered (the dead end) only with v's jerk on.
+    final_approach: bool = False
     r_max_m: float = 8.0
     theta_max_rad: float = math.pi
     delta_max_rad: float = 1.8
@@ -89,6 +113,7 @@ class MpepcParams:
     c_omega: float = 0.1
     hit_cost: float = 10.0
     contact_m: float = 0.05  # a predicted clearance below this counts as a hit
+    brake_clear_m: float = 0.05  # least clearance of the stop after `commit_s` (else a hit)
     goal_blend_m: float = 1.0
     progress_ahead_m: float = 0.0
     goal_slack: float = 0.5  # the goal is taken when it costs at most this much more
@@ -116,6 +141,29 @@ class Plan:
 
 def wrap(a: F64) -> F64:
     return np.remainder(a + np.pi, 2 * np.pi) - np.pi
+
+
+def braking_speed(d: F64, a: float, j: float) -> F64:
+    """control/law.py braking_speed, batched."""
+    d = np.maximum(d, 0.0)
+    v = np.power(d * math.sqrt(j), 2.0 / 3.0)
+    c = a * a / j
+    return np.where(v <= c, v, 0.5 * (-c + np.sqrt(c * c + 8.0 * a * d)))
+
+
+def scurve(value: F64, rate: F64, target: F64, vmax: float, amax: float, jmax: float,
+           dt: float) -> tuple[F64, F64]:
+    """control/limits.py SCurveAxis.step, batched: (value, rate) after one step of dt."""
+    target = np.clip(target, -vmax, vmax)
+    e = target - value
+    jd = jmax * dt
+    land = e / dt
+    snap = (np.abs(land) <= jd) & (np.abs(land - rate) <= jd)
+    m = np.floor(-0.5 + np.sqrt(0.25 + 2.0 * np.abs(e) / (jd * dt)) + 1e-9)
+    want = np.sign(e) * np.minimum(amax, m * jd)
+    r = np.clip(rate + np.clip(want - rate, -jd, jd), -amax, amax)
+    v = np.clip(value + r * dt, -vmax, vmax)
+    return np.where(snap, target, v), np.where(snap, land, r)
 
 
 class Mpepc:
@@ -160,53 +208,130 @@ class Mpepc:
         return np.stack([pose[0] + go * np.cos(psi), pose[1] + go * np.sin(psi), psi], 1)
 
     # --- prediction ---------------------------------------------------------------------------
+    def limiter(self, st: F64, vd: F64, wd: F64, dt: float, v_jerk: bool = True) -> None:
+        """One step of the comfort limiter (control/limits.py ComfortLimiter.step), batched:
+        st = (v, a, ω, ω̇) rows, advanced in place; the curvature kept as it does."""
+        g = self.law
+        avd = np.abs(vd)
+        s = np.minimum(1.0, g.omega_max_radps / np.maximum(np.abs(wd), 1e-9))
+        s = np.where(avd * s > g.vmax_mps, g.vmax_mps / np.maximum(avd, 1e-9), s)
+        moving = avd * s > 1e-3
+        kappa = np.where(moving, wd / np.where(moving, vd, 1.0), 0.0)
+        reach = np.maximum(np.sign(wd) * st[2] + g.omega_acc_radps2 * g.lookahead_s, 0.0)
+        s = np.where(kappa != 0.0, np.minimum(
+            s, reach / np.maximum(np.abs(kappa), 1e-9) / np.maximum(avd, 1e-9)), s)
+        vd, wd = vd * s, wd * s
+        big = np.abs(vd) > 1e-3
+        if v_jerk:
+            st[0], st[1] = scurve(st[0], st[1], vd, g.vmax_mps, g.a_mps2, g.jerk_mps3, dt)
+        else:  # acceleration-limited only (see MpepcParams.v_jerk)
+            dv = np.clip(vd - st[0], -g.a_mps2 * dt, g.a_mps2 * dt)
+            st[0], st[1] = st[0] + dv, dv / dt
+        wt = np.where(big, wd * st[0] / np.where(big, vd, 1.0), wd)
+        st[2], st[3] = scurve(st[2], st[3], wt, g.omega_max_radps, g.omega_acc_radps2,
+                              g.omega_jerk_radps3, dt)
+
     def simulate(self, pose: tuple[float, float, float], v0: float, w0: float,
-                 z: F64) -> tuple[F64, F64, F64, F64, F64]:
-        """Predicted (x, y, yaw, v, ω), each (N, T), of candidates z (N, 4)."""
+                 z: F64, a0: float = 0.0, q0: float = 0.0,
+                 goal: tuple[float, float, float] | None = None, last: bool = True
+                 ) -> tuple[F64, F64, F64, F64, F64, F64]:
+        """Predicted (x, y, yaw, v, ω), each (N, T), of candidates z (N, 4), from the limiter's
+        state (v0, a0; ω0, ω̇0); and (3, N, B) poses braking to rest from the state after
+        `commit_s` (the earliest a next plan can stop the chair). Candidates targeting `goal`
+        itself, if it is the `last` waypoint, are driven on the core's final approach."""
         g, dt = self.law, self.p.dt_s
         n = z.shape[0]
         in_place = z[:, 0] < self.p.in_place_r_m
         tgt = np.where(in_place[:, None], self.in_place_targets(pose, z), self.targets(pose, z))
-        tx, ty, tyaw, vmax = tgt[:, 0], tgt[:, 1], tgt[:, 2], z[:, 3]
+        vmax = z[:, 3]
         x, y, yaw = np.full(n, pose[0]), np.full(n, pose[1]), np.full(n, pose[2])
-        v, w = np.full(n, v0), np.full(n, w0)
+        st = np.empty((4, n))
+        st[0], st[1], st[2], st[3] = v0, a0, w0, q0
         turning, arrived = in_place.copy(), np.zeros(n, dtype=np.bool_)
+        final = np.zeros(n, dtype=np.bool_)
+        if goal is not None and last and self.p.final_approach:  # targets = the last waypoint
+            final = (np.abs(tgt[:, 0] - goal[0]) < 1e-6) \
+                & (np.abs(tgt[:, 1] - goal[1]) < 1e-6) & ~in_place
         out = np.empty((5, n, self.steps))
+        commit = min(self.steps, max(1, math.ceil(g.commit_s / dt - 1e-9)))
+        fine = math.ceil(self.p.fine_s / dt - 1e-9)
         for k in range(self.steps):
-            dx, dy = tx - x, ty - y
-            r = np.hypot(dx, dy)
-            arrived |= r < g.capture_m
-            turning &= np.abs(wrap(tyaw - yaw)) >= ALIGNED_RAD
-            captured = turning | arrived
-            alpha = np.arctan2(dy, dx)
-            th, de = wrap(tyaw - alpha), wrap(yaw - alpha)
-            k1t = g.k1 * th
-            kappa = -(g.k2 * (de - np.arctan(-k1t)) + (1 + g.k1 / (1 + k1t * k1t)) * np.sin(de)) \
-                / np.maximum(r, 1e-6)
-            vd = vmax / (1 + g.beta * np.abs(kappa) ** g.lam)
-            vd = np.maximum(vd, np.minimum(vmax, g.omega_floor_radps / np.maximum(
-                np.abs(kappa), 1e-9)))
-            vd = np.minimum(vd, vmax * r / g.r_thresh_m)
-            wd = kappa * vd
-            e = wrap(tyaw - yaw)
-            wa = np.sign(e) * np.minimum.reduce([np.full(n, g.omega_max_radps),
-                                                 np.sqrt(2 * g.align_brake_radps2 * np.abs(e)),
-                                                 g.align_gain_1ps * np.abs(e)])
-            vd, wd = np.where(captured, 0.0, vd), np.where(captured, wa, wd)
-            s = np.minimum(1.0, g.omega_max_radps / np.maximum(np.abs(wd), 1e-9))
-            vd, wd = vd * s, wd * s
-            v = v + np.clip(vd - v, -g.a_mps2 * dt, g.a_mps2 * dt)
-            w = w + np.clip(wd - w, -g.omega_acc_radps2 * dt, g.omega_acc_radps2 * dt)
-            mid = yaw + 0.5 * w * dt
-            x, y, yaw = x + v * np.cos(mid) * dt, y + v * np.sin(mid) * dt, wrap(yaw + w * dt)
-            out[0, :, k], out[1, :, k], out[2, :, k], out[3, :, k], out[4, :, k] = x, y, yaw, v, w
-        return out[0], out[1], out[2], out[3], out[4]
+            if k == commit:
+                brake = self.braking(x, y, yaw, st.copy())
+            n_sub = self.p.fine_substeps if k < fine else 1
+            for _ in range(n_sub):
+                x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
+                                          dt / n_sub)
+            out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
+            out[3, :, k], out[4, :, k] = st[0], st[2]
+        if commit >= self.steps:
+            brake = self.braking(x, y, yaw, st.copy())
+        return out[0], out[1], out[2], out[3], out[4], brake
+
+    def law_step(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
+                 turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
+                 final: npt.NDArray[np.bool_], dt: float) -> tuple[F64, F64, F64]:
+        """The 50 Hz loop over dt: the law (or the in-place turn) towards the targets, then the
+        limiter; `turning` and `arrived` are updated in place."""
+        g, n = self.law, x.size
+        tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
+        dx, dy = tx - x, ty - y
+        r = np.hypot(dx, dy)
+        arrived |= r < g.capture_m
+        turning &= np.abs(wrap(tyaw - yaw)) >= ALIGNED_RAD
+        captured = turning | arrived
+        alpha = np.arctan2(dy, dx)
+        th, de = wrap(tyaw - alpha), wrap(yaw - alpha)
+        k1t = g.k1 * th
+        kappa = -(g.k2 * (de - np.arctan(-k1t)) + (1 + g.k1 / (1 + k1t * k1t)) * np.sin(de)) \
+            / np.maximum(r, 1e-6)
+        vd = vmax / (1 + g.beta * np.abs(kappa) ** g.lam)
+        vd = np.maximum(vd, np.minimum(vmax, g.omega_floor_radps / np.maximum(
+            np.abs(kappa), 1e-9)))
+        vd = np.minimum(vd, vmax * r / g.r_thresh_m)
+        if final.any():  # (control/core.py _desired: braking curve from where the limiter
+            # will have swung its acceleration round to braking)
+            f = g.brake_fraction
+            swing = np.maximum(st[1] + f * g.a_mps2, 0.0) / g.jerk_mps3
+            stop = braking_speed(r - np.maximum(st[0], 0.0) * swing, f * g.a_mps2,
+                                 f * g.jerk_mps3)
+            vd = np.where(final, np.minimum.reduce([vd, stop, g.approach_rate_1ps * r]), vd)
+        wd = kappa * vd
+        e = wrap(tyaw - yaw)
+        wa = np.sign(e) * np.minimum.reduce([np.full(n, g.omega_max_radps),
+                                             np.sqrt(2 * g.align_brake_radps2 * np.abs(e)),
+                                             g.align_gain_1ps * np.abs(e)])
+        vd, wd = np.where(captured, 0.0, vd), np.where(captured, wa, wd)
+        return self.advance(x, y, yaw, st, vd, wd, dt, self.p.v_jerk)
+
+    def advance(self, x: F64, y: F64, yaw: F64, st: F64, vd: F64, wd: F64, dt: float,
+                v_jerk: bool = True) -> tuple[F64, F64, F64]:
+        """One step of dt: the limiter towards (vd, ωd), the pose by the step's mean v, ω."""
+        v_old, w_old = st[0].copy(), st[2].copy()
+        self.limiter(st, vd, wd, dt, v_jerk)
+        v, w = 0.5 * (v_old + st[0]), 0.5 * (w_old + st[2])
+        mid = yaw + 0.5 * w * dt
+        return x + v * np.cos(mid) * dt, y + v * np.sin(mid) * dt, wrap(yaw + w * dt)
+
+    def braking(self, x: F64, y: F64, yaw: F64, st: F64) -> F64:
+        """(3, N, B) poses while the limiter brakes to rest (v, ω desired 0, as the core does
+        when a plan says blocked) from state st; B covers the longest stop."""
+        g, h = self.law, 0.5 * self.p.dt_s  # half steps: the S-curve's path within ~4 cm
+        stop_s = g.vmax_mps / g.a_mps2 + 2 * g.a_mps2 / g.jerk_mps3
+        out = np.empty((3, x.size, max(1, math.ceil(stop_s / h))))
+        zero = np.zeros(x.size)
+        for k in range(out.shape[2]):
+            x, y, yaw = self.advance(x, y, yaw, st, zero, zero, h)
+            out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
+        return out
 
     # --- cost ---------------------------------------------------------------------------------
     def evaluate(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
-                 ctg: CostToGo, people: list[Person]) -> tuple[F64, dict[str, F64]]:
+                 ctg: CostToGo, people: list[Person], a0: float = 0.0, q0: float = 0.0,
+                 goal: tuple[float, float, float] | None = None, last: bool = True
+                 ) -> tuple[F64, dict[str, F64]]:
         p, dt, fld = self.p, self.p.dt_s, self.field
-        xs, ys, yaws, vs, ws = self.simulate(pose, v0, w0, z)
+        xs, ys, yaws, vs, ws, brake = self.simulate(pose, v0, w0, z, a0, q0, goal, last)
         pts = place(fld.outline, xs, ys, yaws)  # (N, T, P, 2)
         d_static = fld.clearance_at(pts).min(axis=-1)
         pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
@@ -214,6 +339,11 @@ class Mpepc:
         # getting closer still counts as a hit, so the chair can move away instead of freezing.
         d0 = float(fld.footprint_clearance(*pose))
         hit = d_static < min(p.contact_m, d0 - 0.005)
+        # A motion is only as safe as the stop after it: the next plan can brake the chair
+        # after `commit_s` at the earliest, so that stop must end clear too (else the chair
+        # is committed to a contact by the time it sees one, as it was in the cluttered room).
+        d_brake = fld.clearance_at(place(fld.outline, brake[0], brake[1], brake[2])).min(-1)
+        hit[:, -1] |= d_brake.min(1) < min(p.brake_clear_m, d0 - 0.005)
         d_all = d_static
         t = (np.arange(self.steps) + 1) * dt
         for person in people:
@@ -307,8 +437,11 @@ class Mpepc:
 
     def plan(self, pose: tuple[float, float, float], v0: float, w0: float,
              goal: tuple[float, float, float], ctg: CostToGo, people: list[Person] | None = None,
-             previous_target: tuple[float, float, float, float] | None = None) -> Plan:
-        """The best z from the chair at `pose` (v0, ω0: the command it is tracking).
+             previous_target: tuple[float, float, float, float] | None = None,
+             rates: tuple[float, float] = (0.0, 0.0), final: bool = True) -> Plan:
+        """The best z from the chair at `pose` (v0, ω0: the command it is tracking; `rates`:
+        the limiter's dv/dt and dω/dt; `final`: `goal` is the last waypoint, which the core
+        approaches on its braking curve once it is the target; an intermediate one it passes).
         `previous_target`: the last plan's world target + vmax, re-expressed as a seed.
         The goal itself wins over a slightly cheaper target near it when its prediction is
         clear and ends on it (the final approach is then the control law's own)."""
@@ -321,14 +454,14 @@ class Mpepc:
                 prev = (float(rel[0]), float(rel[1]), float(rel[2]), previous_target[3])
         seeds, has_goal = self.seeds(pose, goal, prev, ctg)
         z = np.concatenate([seeds, self._global])
-        cost, info = self._costs(pose, v0, w0, z, ctg, people, goal)
+        cost, info = self._costs(pose, v0, w0, z, ctg, people, goal, rates, final)
         evals = len(z)
         i = int(np.argmin(cost))
         best_z, best_c, best = z[i].copy(), float(cost[i]), {k: v[i] for k, v in info.items()}
         scale = (hi - lo) * 0.15
         for _ in range(self.p.local_rounds):
             cand = np.clip(best_z + self._rng.normal(size=(self.p.n_local, 4)) * scale, lo, hi)
-            c2, inf2 = self._costs(pose, v0, w0, cand, ctg, people, goal)
+            c2, inf2 = self._costs(pose, v0, w0, cand, ctg, people, goal, rates, final)
             evals += len(cand)
             j = int(np.argmin(c2))
             if c2[j] < best_c:
@@ -355,9 +488,10 @@ class Mpepc:
                     float(cost[int(has_goal)]), evals)
 
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
-               ctg: CostToGo, people: list[Person], goal: tuple[float, float, float]
+               ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],
+               rates: tuple[float, float] = (0.0, 0.0), final: bool = True
                ) -> tuple[F64, dict[str, F64]]:
-        cost, info = self.evaluate(pose, v0, w0, z, ctg, people)
+        cost, info = self.evaluate(pose, v0, w0, z, ctg, people, *rates, goal, final)
         # Final-heading term: the turn still to make where the prediction ends. Away from the
         # goal, to face down −∇φ; within goal_blend_m, to the goal's yaw (the law curves onto
         # it). Within half that (no room to curve: the chair is 1.2 m long) a forward-only

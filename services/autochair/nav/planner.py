@@ -30,6 +30,8 @@ class PlanRequest:
     previous: tuple[float, float, float, float] | None  # last target (x, y, yaw) + vmax
     law: LawParams = dc_field(default_factory=LawParams)
     people: list[Person] = dc_field(default_factory=list)
+    rates: tuple[float, float] = (0.0, 0.0)  # the limiter's dv/dt, dω/dt (its S-curve state)
+    final: bool = True  # `goal` is the last waypoint (approached on the braking curve)
 
 
 @dataclass(frozen=True)
@@ -115,7 +117,8 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
     if error or ctg is None:
         return PlanResult(req.goal_id, req.index, fld, ctg, None, error=error)
     plan = planner_for(fld, req.law, params).plan(req.pose, req.v, req.omega, req.goal, ctg,
-                                              req.people, req.previous)
+                                              req.people, req.previous, req.rates,
+                                              req.final)
     blocked = ""
     if plan.min_clearance_m < (params or MpepcParams()).contact_m:
         # Every motion is predicted to touch something: stand still (blocked) rather than
