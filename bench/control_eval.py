@@ -31,10 +31,8 @@ import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
 from autochair.geometry import wrap_angle as wrap
-from autochair.odometry.core import OdometryCore
-from autochair.pid.core import Command, PidConfig, VelocityPidCore, make_core
-from autochair.sim.chair.model import ChairModel
-from autochair.tune.lockstep import DT  # the drive chain's rate, one constant for all benches
+from autochair.pid.core import PidConfig, VelocityPidCore, make_core
+from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate, for all benches
 from autochair_msgs import GoalRequest, Pose2D
 
 SETTLE_S = 2.0  # keep simulating after arrival to measure the final error at rest
@@ -169,34 +167,25 @@ def turn_drive_turn_time(start: tuple[float, float, float], goal: tuple[float, f
 
 def run_case(start: tuple[float, float, float], goal: tuple[float, float, float],
              cfg: ControlConfig, pid_kind: str = "tuned") -> dict[str, Any]:
-    model = ChairModel()
-    model.x, model.y, model.yaw = start
-    odom = OdometryCore()
-    odom.reset(*start)
-    pid = make_pid(pid_kind)
+    rig = Rig(make_pid(pid_kind), start=start)
+    model = rig.chair
     core = ControlCore(cfg)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
-    volts = (2.5, 2.5)
     rows: list[tuple[float, ...]] = []
     cmds: list[tuple[float, float]] = []
     t_arrive: float | None = None
     k = 0
     while True:
         t = k * DT
-        model.step(volts[0], volts[1], DT)
-        st = odom.update(model.left_counts, model.right_counts, round(model.t * 1e6))
+        st = rig.sense()
         core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
         if k == 0:
             reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t)
             assert reply.ok, reply.error
-        if k % ctrl_every == 0:
-            out = core.step(t)
-            if out is not None:
-                now_ns = round(t * 1e9)
-                pid.set_desired(Command(out[0], out[1], "autonomy", now_ns, 1), t, now_ns)
-                cmds.append(out)
-        p = pid.update(st.v, st.omega, DT, t, round(t * 1e9))
-        volts = (p.longitudinal_v, p.angular_v)
+        out = core.step(t) if k % ctrl_every == 0 else None
+        if out is not None:
+            cmds.append(out)
+        rig.act(t, st.v, st.omega, out)
         rows.append((t, st.x, st.y, st.yaw, st.v, st.omega, st.distance,
                      model.x, model.y, model.yaw, model.v, model.omega))
         if t_arrive is None and not getattr(core, "active", core.state == "active"):

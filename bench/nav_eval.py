@@ -25,7 +25,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import msgspec
 import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
@@ -34,12 +33,9 @@ from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import MpepcParams, Person
 from autochair.nav.planner import compute
-from autochair.odometry.core import OdometryCore
-from autochair.pid.core import Command, PidConfig, make_core
-from autochair.sim.chair.model import ChairModel
 from autochair.sim.world import DEFAULT_WORLD, World, load_world
-from autochair.tune.lockstep import DT  # the drive chain's rate
-from bench.control_eval import deriv, smooth, trapezoid_time
+from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate
+from bench.control_eval import deriv, make_pid, smooth, trapezoid_time
 
 SETTLE_S = 1.5
 TIMEOUT_S = 90.0
@@ -131,19 +127,13 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
              fp: Footprint, params: MpepcParams | None = None) -> dict[str, Any]:
     from autochair_msgs import GoalRequest, Pose2D
 
-    model = ChairModel()
-    model.x, model.y, model.yaw = start
-    odom = OdometryCore()
-    odom.reset(*start)
-    # The PID as the node configures it ([pid] defaults), without e-stop or safety monitor.
-    pid = make_core(msgspec.structs.replace(PidConfig(), require_safety_limit=False,
-                                            require_estop=False))
+    rig = Rig(make_pid("tuned"), start=start)  # the PID as the node configures it
+    model = rig.chair
     core = ControlCore(cfg, footprint=fp)
     core.inline_planning = False  # planned here, so each cycle can be timed
     core.on_field(fld)
     outline = fp.outline(0.02)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
-    volts = (2.5, 2.5)
     rows: list[tuple[float, ...]] = []
     plan_ms: list[float] = []
     clear: list[float] = []
@@ -153,13 +143,13 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     k = 0
     while True:
         t = k * DT
-        model.step(volts[0], volts[1], DT)
-        st = odom.update(model.left_counts, model.right_counts, round(model.t * 1e6))
+        st = rig.sense()
         core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
         if k == 0:
             reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t)
             if not reply.ok:
                 return {"state": "refused", "reason": reply.error, "arrived": False}
+        out = None
         if k % ctrl_every == 0:
             core.people = people_at(world, t)
             req = core.plan_request(t)
@@ -170,11 +160,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
                 core.on_plan(res, t)
             states.add(core.state)
             out = core.step(t)
-            if out is not None:
-                now_ns = round(t * 1e9)
-                pid.set_desired(Command(out[0], out[1], "autonomy", now_ns, 1), t, now_ns)
-        p = pid.update(st.v, st.omega, DT, t, round(t * 1e9))
-        volts = (p.longitudinal_v, p.angular_v)
+        rig.act(t, st.v, st.omega, out)
         rows.append((t, st.x, st.y, st.yaw, st.v, st.omega, st.distance,
                      model.x, model.y, model.yaw))
         if k % TRUTH_EVERY == 0:

@@ -10,8 +10,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from autochair.odometry.core import OdometryCore
-from autochair.pid.core import Command, VelocityPidCore
+from autochair.odometry.core import OdometryCore, OdomState
+from autochair.pid.core import Command, PidOutput, VelocityPidCore
 from autochair.sim.chair.model import ChairModel
 from autochair_msgs import keys
 
@@ -30,29 +30,45 @@ DT = 1.0 / keys.DRIVE_RATE_HZ  # the drive chain's rate: encoders, odometry, PID
 
 
 class Rig:
-    """Chair model, odometry and a PID core, stepped together; the desired velocity is a
-    command stream begun at construction (the deliberate act the PID requires)."""
+    """Chair model, odometry and a PID core, stepped together (the tuning experiments here; the
+    control and navigation benches drive `sense`/`act` themselves). With `step`, the desired
+    velocity is a command stream begun at construction (the deliberate act the PID requires)."""
 
     def __init__(self, core: VelocityPidCore | None = None, chair: ChairModel | None = None,
-                 truth: bool = False) -> None:
+                 truth: bool = False, start: tuple[float, float, float] | None = None) -> None:
         self.chair = chair or ChairModel()
         self.odom = OdometryCore()
+        if start is not None:  # the chair placed there, and the odometry with it
+            self.chair.x, self.chair.y, self.chair.yaw = start
+            self.odom.reset(*start)
         self.core = core or VelocityPidCore(require_estop=False)
         self.truth = truth  # measure the true velocity instead of the odometry's
         self.t = 0.0
         self.volts = (2.5, 2.5)
         self.rows: list[tuple[float, float, float, float, float]] = []  # t, v, ω true; cv, cw
 
-    def step(self, v: float, omega: float) -> None:
+    def sense(self) -> OdomState:
+        """One tick of the chair under the last volts; the odometry reads its encoders."""
         c = self.chair
         c.step(*self.volts, DT)
-        st = self.odom.update(c.left_counts, c.right_counts, round(c.t * 1e6))
-        self.t += DT
-        ns = round(self.t * 1e9)
-        self.core.set_desired(Command(v, omega, "autonomy", ns, 1), self.t, ns)
-        mv, mw = (c.v, c.omega) if self.truth else (st.v, st.omega)
-        out = self.core.update(mv, mw, DT, self.t, ns)
+        return self.odom.update(c.left_counts, c.right_counts, round(c.t * 1e6))
+
+    def act(self, t: float, v_meas: float, omega_meas: float,
+            desired: tuple[float, float] | None = None) -> PidOutput:
+        """One PID tick at `t` on a measurement: a new desired velocity first if given (the
+        same command stream), then the volts for the next `sense`."""
+        ns = round(t * 1e9)
+        if desired is not None:
+            self.core.set_desired(Command(desired[0], desired[1], "autonomy", ns, 1), t, ns)
+        out = self.core.update(v_meas, omega_meas, DT, t, ns)
         self.volts = (out.longitudinal_v, out.angular_v)
+        return out
+
+    def step(self, v: float, omega: float) -> None:
+        st, c = self.sense(), self.chair
+        self.t += DT
+        mv, mw = (c.v, c.omega) if self.truth else (st.v, st.omega)
+        out = self.act(self.t, mv, mw, (v, omega))
         self.rows.append((self.t, c.v, c.omega, out.v_effort, out.omega_effort))
 
     def hold(self, v: float, omega: float, seconds: float) -> None:
