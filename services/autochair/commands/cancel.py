@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from autochair.cli import CliError
 from autochair.commands.link import add_link_args
 
 
@@ -17,16 +16,9 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autochair.commands.link import tool_session
-    from autochair.runtime.client import request
+    from autochair.commands.link import ask
     from autochair_msgs import GoalReply, GoalRequest, keys
 
-    session = tool_session(args)
-    try:
-        reply = request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
-    finally:
-        session.close()
-    if not reply.ok:
-        raise CliError(reply.error)
+    reply = ask(args, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
     print(f"goal {reply.goal_id} cancelled" if reply.goal_id else "no active goal", flush=True)
     return 0

@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import argparse
 import os
+from typing import Any, TypeVar
 
+import msgspec
 import zenoh
 
 from autochair.cli import CliError
-from autochair.runtime.client import open_client
+from autochair.runtime.client import open_client, request
 from autochair.runtime.config import ENV_CHAIR, ConfigError, check_chair
+
+R = TypeVar("R", bound=msgspec.Struct)
 
 ENV_ZENOH_CONFIG = "AUTOCHAIR_ZENOH_CONFIG"
 
@@ -58,3 +62,16 @@ def tool_session(args: argparse.Namespace, timeout_ms: int = 5000,
                            zenoh_config=args.zenoh_config or "")
     except ConfigError as e:
         raise CliError(str(e)) from None
+
+
+def ask(args: argparse.Namespace, topic: Any, req: msgspec.Struct, reply: type[R]) -> R:
+    """One request from a tool: a session for it, the reply, and a refusal (`ok` false) as
+    the reply's own one-line error."""
+    session = tool_session(args)
+    try:
+        got = request(session, topic, req, reply)
+    finally:
+        session.close()
+    if not getattr(got, "ok", True):
+        raise CliError(getattr(got, "error", "refused"))
+    return got

@@ -41,17 +41,9 @@ def request_of(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autochair.commands.link import tool_session
-    from autochair.runtime.client import request
+    from autochair.commands.link import ask
     from autochair_msgs import LocalizeReply, keys
 
-    req = request_of(args)
-    session = tool_session(args)
-    try:
-        reply = request(session, keys.LOC_SET_POSE, req, LocalizeReply)
-    finally:
-        session.close()
-    if not reply.ok:
-        raise CliError(reply.error)
+    reply = ask(args, keys.LOC_SET_POSE, request_of(args), LocalizeReply)
     print(f"localization: {reply.state}", flush=True)
     return 0

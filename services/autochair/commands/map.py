@@ -25,22 +25,15 @@ def register(sub: Any) -> None:
 
 
 def run_save(args: argparse.Namespace) -> int:
-    from autochair.commands.link import tool_session
+    from autochair.commands.link import ask
     from autochair.mapping.mapfile import MapFileError, map_path
-    from autochair.runtime.client import request
     from autochair_msgs import MapSaveReply, MapSaveRequest, keys
 
     try:
         map_path(".", args.name)  # refuse a bad name before asking the chair
     except MapFileError as e:
         raise CliError(str(e)) from None
-    session = tool_session(args)
-    try:
-        reply = request(session, keys.MAP_SAVE, MapSaveRequest(name=args.name), MapSaveReply)
-    finally:
-        session.close()
-    if not reply.ok:
-        raise CliError(reply.error)
+    reply = ask(args, keys.MAP_SAVE, MapSaveRequest(name=args.name), MapSaveReply)
     print(f"map saved: {reply.path}", flush=True)
     return 0
 
