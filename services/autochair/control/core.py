@@ -184,8 +184,7 @@ class ControlCore:
                  footprint: Footprint | None = None) -> None:
         """`odom_timeout_s`: older odometry aborts the goal ([stale] odometry_s in the node);
         `footprint`: the chair's body ([chair] section)."""
-        self.cfg = cfg or ControlConfig()
-        self.cfg.check()
+        self.cfg = cfg or ControlConfig()  # (checked on construction: __post_init__)
         if not odom_timeout_s > 0:
             raise ValueError(f"odom_timeout_s must be > 0, not {odom_timeout_s}")
         self.odom_timeout_s = odom_timeout_s
