@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -21,7 +22,7 @@ from autochair_msgs import (
     Pose2D,
     keys,
 )
-from tests.helpers import Recorder, client_session, pid_ready, wait_for
+from tests.helpers import Recorder, Stream, client_session, pid_ready, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -80,5 +81,53 @@ def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
               f"peak |a| {a:.2f} m/s² (limit {A_MAX})")
         assert lunge < 0.1, f"first frame {lunge:.2f} V off neutral: a lunge"
         assert a <= A_MAX, f"peak |a| {a:.2f} m/s² beyond the comfort limit"
+    finally:
+        session.close()
+
+
+def test_two_command_streams_are_never_mixed_and_the_older_never_resumes(
+        stack_factory: Callable[..., Launcher], hub: str) -> None:
+    """H37: a goal's stream and `autochair drive` (or two laptops) on one key at once."""
+    stack_factory(["estop", "sim", "gateway", "odometry", "pid"])
+    session = client_session(hub)
+    try:
+        truth = Recorder(session, keys.SIM_TRUTH)
+        pid_ready(session)
+        older = Stream.on(session, 0.3, 0.0)  # straight ahead
+
+        def state(*streams: Stream) -> GroundTruth | None:
+            for s in streams:
+                s.put()
+            return truth.latest()  # type: ignore[no-any-return]
+
+        # Positive control: the older stream alone drives the chair forward.
+        wait_for(lambda: (lambda m: m is not None and m.v_mps > 0.25)(state(older)), 15,
+                 "the first stream driving", interval=0.05)
+        newer = Stream(older.pub, 0.0, 0.5)  # begun later: turn on the spot
+        # Interleaved at the same rate: the chair must follow the newer stream alone.
+        turning = wait_for(lambda: (lambda m: m if m is not None and m.omega_radps > 0.4
+                                    and abs(m.v_mps) < 0.03 else None)(state(older, newer)),
+                           10, "the chair turning on the spot (the newer stream alone)",
+                           interval=0.05)
+        mixed = [m for m in truth.messages() if m.stamp_ns > turning.stamp_ns
+                 and abs(m.v_mps) > 0.03]
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 1.0:  # a second more of both: no forward creep
+            state(older, newer)
+            time.sleep(0.05)  # the streams' own 20 Hz, not a synchronisation
+        mixed += [m for m in truth.messages() if m.stamp_ns > turning.stamp_ns
+                  and abs(m.v_mps) > 0.03]
+        assert not mixed, f"the streams were mixed: {max(abs(m.v_mps) for m in mixed):.2f} m/s"
+        # The newer stream's person lets go; the older stream goes on: the chair stops, stays.
+        wait_for(lambda: (lambda m: m is not None and abs(m.omega_radps) < 0.01
+                          and abs(m.v_mps) < 0.005)(state(older)), 10, "the chair at rest",
+                 interval=0.05)
+        rest = truth.latest()
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 1.5:
+            state(older)
+            time.sleep(0.05)
+        moved = math.hypot(truth.latest().x_m - rest.x_m, truth.latest().y_m - rest.y_m)
+        assert moved < 0.01, f"the older stream drove again ({moved:.3f} m)"
     finally:
         session.close()

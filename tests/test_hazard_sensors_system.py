@@ -9,6 +9,7 @@ clear path.
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -19,7 +20,7 @@ import pytest
 from autochair.launcher import Launcher
 from autochair.runtime.client import Publisher
 from autochair.sim.lidar.node import BLIND_SIGNAL
-from autochair_msgs import Health, VelocityCommand, keys
+from autochair_msgs import Health, LaserScan, SafetyLimit, VelocityCommand, keys
 from tests.helpers import Recorder, Spawn, client_session, spawned, stop_process, wait_for
 
 pytestmark = pytest.mark.slow
@@ -148,5 +149,41 @@ def test_laser_mount_mismatch_stops_until_they_agree(spawn: tuple[str, Spawn],
         # the assert key, where active=False would latch as a button press).
         assert any(m.source == "safety" and not m.active for m in clears.messages())
         assert asserts.messages() == []
+    finally:
+        session.close()
+
+
+def test_a_late_scan_is_a_stop(spawn: tuple[str, Spawn]) -> None:
+    """H38: scans that arrive late (a backlog after a stall) show the world as it was; the
+    monitor judges them by their own stamp: a stop with the reason, open again when fresh."""
+    hub, start = spawn
+    session = client_session(hub)
+    try:
+        limits = Recorder(session, keys.SAFETY_LIMIT)
+        start("autochair.safety.node")
+        pub = Publisher(session, keys.SCAN)
+        n = 682
+        inc = math.radians(240) / (n - 1)
+
+        def scan(age_s: float) -> None:
+            pub.put(LaserScan(stamp_ns=time.time_ns() - round(age_s * 1e9), frame_id="laser",
+                              angle_min_rad=-(n - 1) / 2 * inc, angle_increment_rad=inc,
+                              range_min_m=0.02, range_max_m=5.6, ranges_m=[4.0] * n))
+
+        def latest_after(age_s: float) -> SafetyLimit | None:
+            scan(age_s)
+            return limits.latest()  # type: ignore[no-any-return]
+
+        open_ = wait_for(lambda: (lambda m: m if m is not None and m.v_max_fwd_mps > 0.5
+                                  else None)(latest_after(0.1)), 20,
+                         "an open limit for fresh scans (positive control)", interval=0.1)
+        print(open_)
+        stop = wait_for(lambda: (lambda m: m if m is not None and "old" in m.reason
+                                 else None)(latest_after(1.0)), 5,
+                        "a stop for scans one second old", interval=0.1)
+        print(stop)
+        assert (stop.v_max_fwd_mps, stop.v_max_rev_mps, stop.omega_max_radps) == (0, 0, 0)
+        wait_for(lambda: (lambda m: m is not None and m.v_max_fwd_mps > 0.5)(
+            latest_after(0.1)), 5, "open again for fresh scans", interval=0.1)
     finally:
         session.close()

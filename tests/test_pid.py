@@ -177,6 +177,19 @@ def test_safety_limit_clamps_and_may_be_required() -> None:
     assert not core.set_limit(float("nan"), 0, 0, 0)
 
 
+def test_a_limit_delivered_late_is_not_fresh() -> None:
+    """H38 at the PID: a limit is judged by its own stamp, not by when it arrived."""
+    core = core_(require_limit=True, limit_stale_s=0.5, skew_s=0.1)
+    assert core.set_limit(1.0, 0.5, 1.0, 0.0, age_s=0.02)  # positive control
+    assert drive(core, 0.5, 0.0, 0.1, began=0.05) is Verdict.OK
+    assert core.desired(0.1, ns(0.1)) == (0.5, 0.0)
+    for age in (0.51, 3.0, -0.11):  # late (a backlog), or from the future
+        assert not core.set_limit(1.0, 0.5, 1.0, 0.4, age_s=age)
+    assert drive(core, 0.5, 0.0, 0.55, began=0.05) is Verdict.OK  # the stream goes on
+    assert core.desired(0.6, ns(0.6)) is None  # the last fresh limit went stale: a stop
+    assert "safety" in core.stop_reason
+
+
 def test_teleop_reverses_within_the_attended_bound_autonomy_not_at_all() -> None:
     core = core_(require_limit=True)
     core.set_limit(1.0, 0.4, 1.0, 0.0)  # no rear sensor: autonomy may not reverse
@@ -278,6 +291,29 @@ def test_old_and_future_stamps_are_rejected() -> None:
         is Verdict.FUTURE
     assert core.set_desired(Command(0.5, 0, "autonomy", now - ns(0.2), 1), 10.0, now) \
         is Verdict.OK
+
+
+def test_two_streams_on_one_key_are_never_mixed_and_the_older_never_drives_again() -> None:
+    """H37: a goal's stream and `autochair drive` (or two teleop laptops) on one key."""
+    core = core_(stale_s=0.3)
+    older, newer = 1.0, 2.0  # when each stream's deliberate act began
+    obeyed = []
+    for i in range(10):  # positive control: the older stream alone drives
+        t = 3.0 + i * DT
+        obeyed.append(drive(core, 0.2, 0.0, t, began=older))
+    assert obeyed == [Verdict.OK] * 10
+    obeyed = []
+    for i in range(10):  # both interleaved: the newer takes over, the older is refused
+        t = 3.1 + i * DT
+        obeyed.append(drive(core, 0.2, 0.0, t, began=older))
+        obeyed.append(drive(core, 0.9, 0.0, t + DT / 2, began=newer))
+    assert obeyed[:2] == [Verdict.OK, Verdict.TOOK_OVER]
+    assert set(obeyed[2::2]) == {Verdict.SUPERSEDED} and set(obeyed[3::2]) == {Verdict.OK}
+    assert core.desired(3.2, ns(3.2)) == pytest.approx((0.9, 0.0))
+    # The newer stream ends (its person let go): the older one never drives again.
+    assert core.desired(3.6, ns(3.6)) is None and not core.obeying
+    assert drive(core, 0.2, 0.0, 3.7, began=older) is Verdict.BEFORE_STOP
+    assert drive(core, 0.2, 0.0, 3.8, began=3.75) is Verdict.OK  # a new act drives
 
 
 def test_non_finite_measurement_does_not_poison_the_integrators() -> None:

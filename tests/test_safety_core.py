@@ -395,6 +395,23 @@ def test_monitor_decides_what_to_publish_around_the_sweep() -> None:
     assert t.stop is not None and t.stop.v_fwd == 0.0 and t.reason == "scan stale"
 
 
+def test_a_late_or_future_scan_is_a_stop() -> None:
+    """H38: the monitor judges a scan by its own stamp, not by when it arrived."""
+    from autochair.safety.monitor import Monitor
+
+    m = Monitor(SafetyCore(P), stale_s=0.5, odometry_s=0.2, clear_hold_s=1.0, frame_id="laser",
+                max_age_s=0.35, skew_s=0.1)
+    m.on_odom(0.5, 0.0, 0.0)
+    fresh = m.on_scan(urg_scan(5.0), 0.1, age_s=0.11)  # positive control: a sweep just ended
+    assert fresh.published.v_fwd > 0.5 and not fresh.degraded
+    for age, kind in ((0.36, "old"), (2.0, "old"), (-0.11, "future")):
+        v = m.on_scan(urg_scan(5.0), 0.2, age_s=age)
+        assert v.published.v_fwd == v.published.v_rev == v.published.omega == 0.0, age
+        assert v.assessed.rejected == kind and v.degraded and "stamp" in v.detail
+        assert m.tick(0.25).reason.startswith("scan rejected: " + kind)
+    assert m.on_scan(urg_scan(5.0), 0.3, age_s=0.1).published.v_fwd > 0.5  # fresh again
+
+
 def test_coarse_to_fine_sweep_equals_testing_every_pose() -> None:
     """SafetyCore._free tests a few poses of each window first; it must find exactly the
     first hit that testing every pose finds, on every path, for points anywhere (inside the

@@ -157,6 +157,8 @@ class Verdict(enum.Enum):
     OLD = "old"  # its stamp is older than the stale threshold
     FUTURE = "future"  # stamped further ahead than the allowed clock skew
     BEFORE_STOP = "before_stop"  # its stream began before the last stop (no unexpected start)
+    SUPERSEDED = "superseded"  # a stream begun later drives: two sources are never mixed (H37)
+    TOOK_OVER = "took_over"  # obeyed: a stream begun later than the one obeyed replaces it
 
 
 @dataclass(frozen=True)
@@ -224,6 +226,7 @@ class VelocityPidCore:
     _estop_t: float = -math.inf
     _last_update_t: float | None = None
     _link: tuple[int, int] | None = None
+    _stream_ns: int = 0  # the start of the newest stream obeyed
 
     def __post_init__(self) -> None:
         lo = (self.min_v - NEUTRAL_V) / VOLTS_PER_EFFORT
@@ -248,8 +251,15 @@ class VelocityPidCore:
             return Verdict.FUTURE
         if cmd.stream_start_ns <= self.stop_ns:
             return Verdict.BEFORE_STOP
+        # One stream at a time (H37): two sources on one key (a goal and `autochair drive`,
+        # two teleop laptops) would otherwise interleave into a command neither asked for.
+        # The latest deliberate act drives; an older stream never again.
+        if cmd.stream_start_ns < self._stream_ns:
+            return Verdict.SUPERSEDED
+        took_over = self.obeying and cmd.stream_start_ns > self._stream_ns
+        self._stream_ns = cmd.stream_start_ns
         self._desired, self._desired_t = (cmd.v, cmd.omega), now_s
-        return Verdict.OK
+        return Verdict.TOOK_OVER if took_over else Verdict.OK
 
     def stop(self, reason: str, now_ns: int) -> bool:
         """A stop nobody asked for: obey nothing begun before `now_ns`. True if it ended
@@ -270,8 +280,12 @@ class VelocityPidCore:
         return True
 
     def set_limit(self, v_fwd: float, v_rev: float, omega: float, now_s: float,
-                  v_rev_autonomy: float = 0.0) -> bool:
+                  v_rev_autonomy: float = 0.0, age_s: float = 0.0) -> bool:
+        """A limit from the safety monitor; `age_s` by its own stamp: one delivered late (a
+        backlog) is not fresh however recently it arrived (H38)."""
         if not all(math.isfinite(x) and x >= 0 for x in (v_fwd, v_rev, omega, v_rev_autonomy)):
+            return False
+        if not -self.skew_s <= age_s <= self.limit_stale_s:
             return False
         self._limit, self._limit_t = (v_fwd, v_rev, omega, v_rev_autonomy), now_s
         return True

@@ -27,7 +27,7 @@ from autochair_msgs import (
     keys,
 )
 
-from .core import Command, PidConfig, VelocityPidCore, make_core, probe_reply
+from .core import Command, PidConfig, VelocityPidCore, Verdict, make_core, probe_reply
 
 __all__ = ["PidConfig", "main", "start"]
 
@@ -55,6 +55,9 @@ class PidWiring:
                     Command(cmd.v_mps, cmd.omega_radps, source, cmd.stamp_ns,
                             cmd.stream_start_ns), time.monotonic(), time.time_ns())
             self.node.health.count(f"desired_{verdict.value}")
+            if verdict is Verdict.TOOK_OVER:
+                self.node.event("warning", f"pid: a {source} command stream begun later took "
+                                           "over; the earlier one is refused from now on")
 
         return on_desired
 
@@ -72,7 +75,8 @@ class PidWiring:
         with self.lock:
             ok = self.core.set_limit(msg.v_max_fwd_mps, msg.v_max_rev_mps,
                                      msg.omega_max_radps, time.monotonic(),
-                                     msg.v_max_rev_autonomy_mps)
+                                     msg.v_max_rev_autonomy_mps,
+                                     (time.time_ns() - msg.stamp_ns) / 1e9)
         self.node.health.count("limits" if ok else "rejected_limits")
 
     def on_estop(self, msg: EStopState) -> None:

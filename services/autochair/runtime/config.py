@@ -108,6 +108,7 @@ class StaleConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     desired_velocity_s: Seconds = 0.3  # velocity PID: no desired velocity → zero effort
     odometry_s: Seconds = 0.3  # control law: no odometry → abort the goal and stop
     scan_s: Seconds = 0.5  # safety monitor: no laser scan → stop
+    scan_age_s: Seconds = 0.35  # safety monitor: a scan whose own stamp is older → stop
     clock_skew_s: Seconds = 0.1  # commands stamped further in the future than this are rejected
     watchdog_s: Seconds = 1.5  # a service whose loops stop for this long is killed and restarted
     safety_limit_s: Seconds = 0.5  # velocity PID: no safety limit (when required) → stop

@@ -118,10 +118,29 @@ class Node:
         self._closers: list[Callable[[], Any]] = []
         settings = settings or ZenohSettings()
         self.session = open_session(settings)
-        self._token = client.declare_alive(self.session, name)
+        try:
+            self._token = self._declare_alone(name)
+        except ConfigError:
+            self.session.close()
+            raise
         self._health_pub = self.publisher(keys.HEALTH, keys.HEALTH.for_service(name))
         self._log_pub = self.publisher(keys.LOG)
         self.every(1.0, self.publish_health, "health")
+
+    def _declare_alone(self, name: str, grace_s: float = 3.0) -> Any:
+        """Declare this service's token, refusing to run next to a twin in this chair (H39):
+        two PIDs or gateways would both drive the chair, two e-stops disagree, and a twin's
+        token hides the other's death from every watcher. A predecessor's token may linger a
+        moment after it was stopped: wait `grace_s` for it to go."""
+        deadline = time.monotonic() + grace_s
+        while client.service_alive(self.session, name):
+            if time.monotonic() > deadline:
+                raise ConfigError(f"another {name} is already running for this chair; two "
+                                  "would both act on it: stop that one first")
+            time.sleep(0.2)  # (polling a remote fact; nothing to wait on)
+        # (Two started within the same few milliseconds would both pass: a residual risk;
+        # once declared, zenoh cannot tell a twin's token on the same key from one's own.)
+        return client.declare_alive(self.session, name)
 
     # --- messaging -----------------------------------------------------------------------------
     def publisher(self, topic: keys.Topic[Any], key: str | None = None, *,

@@ -35,8 +35,9 @@ class TickVerdict:
 
 class Monitor:
     def __init__(self, core: SafetyCore, stale_s: float, odometry_s: float, clear_hold_s: float,
-                 frame_id: str) -> None:
+                 frame_id: str, max_age_s: float = 0.35, skew_s: float = 0.1) -> None:
         self.core, self.odometry_s, self.frame_id = core, odometry_s, frame_id
+        self.max_age_s, self.skew_s = max_age_s, skew_s
         self.state = MonitorState(stale_s=stale_s, clear_hold_s=clear_hold_s)
         self._motion = (0.0, 0.0, -math.inf)  # v, ω, when
 
@@ -52,12 +53,19 @@ class Monitor:
     def source_lost(self) -> None:
         self.state.source_lost()
 
-    def on_scan(self, scan: Scan, now: float) -> ScanVerdict:
+    def on_scan(self, scan: Scan, now: float, age_s: float = 0.0) -> ScanVerdict:
+        """`age_s`: wall-clock now minus the scan's own stamp (the start of its sweep)."""
         v, w, t = self._motion
         stale = now - t > self.odometry_s
         if stale:
             v, w = 0.0, 0.0
         lim = self.core.assess(scan, v, w, self.frame_id)
+        # A scan that arrives late (a backlog after a stall, a starved process) shows the world
+        # as it was: judged as now it could clear a path a person has since stepped into (H38).
+        if not -self.skew_s <= age_s <= self.max_age_s:
+            kind = "old" if age_s > 0 else "future"
+            lim = stop_limit(f"scan rejected: {kind}: its stamp is {age_s:+.2f} s from now "
+                             f"(allowed −{self.skew_s:g} … +{self.max_age_s:g} s)", rejected=kind)
         st = self.state
         st.on_scan(now, lim.reason if lim.rejected else "")  # "scan rejected: why"
         # A rejected scan says nothing new about a collision: the previous verdict stands.

@@ -46,9 +46,10 @@ def start(node: Node, cfg: SafetyConfig) -> None:
     core = SafetyCore(SafetyParams.of(cfg, chair.front_m, chair.rear_m, chair.half_width_m,
                                       chair.laser_mount))
     monitor = Monitor(core, node.stale.scan_s, node.stale.odometry_s, cfg.clear_hold_s,
-                      cfg.frame_id)
+                      cfg.frame_id, node.stale.scan_age_s, node.stale.clock_skew_s)
     node.health.thresholds.update(
-        scan_s=node.stale.scan_s, odometry_s=node.stale.odometry_s, decel_mps2=cfg.decel_mps2,
+        scan_s=node.stale.scan_s, scan_age_s=node.stale.scan_age_s,
+        odometry_s=node.stale.odometry_s, decel_mps2=cfg.decel_mps2,
         reaction_s=cfg.reaction_s, min_valid_fraction=cfg.min_valid_fraction,
         blind_speed_mps=cfg.blind_speed_mps,
         blind_reverse_autonomy_mps=cfg.blind_reverse_autonomy_mps)
@@ -109,7 +110,8 @@ class _Wiring:
         scan = Scan(np.asarray(msg.ranges_m, dtype=np.float64), msg.angle_min_rad,
                     msg.angle_increment_rad, msg.range_min_m, msg.range_max_m, msg.frame_id)
         with self.lock:
-            verdict = self.monitor.on_scan(scan, time.monotonic())
+            verdict = self.monitor.on_scan(scan, time.monotonic(),
+                                           (time.time_ns() - msg.stamp_ns) / 1e9)
         self.publish(verdict.published)
         if self.cfg.estop_on_imminent:
             self.estop(verdict.estop)
