@@ -6,7 +6,7 @@ import importlib
 import sys
 
 BENCHES = ("chain", "lidar_decode", "logger", "control_eval", "cpu", "tune",
-           "control_stack", "nav_eval", "loc_eval")
+           "control_stack", "nav_eval", "loc_eval", "people")
 
 
 def main(argv: list[str]) -> int:

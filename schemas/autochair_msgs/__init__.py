@@ -21,7 +21,7 @@ from .localization import (
     MapSaveReply,
     MapSaveRequest,
 )
-from .nav import GoalReply, GoalRequest, GoalStatus, NavPlan, Pose2D
+from .nav import GoalReply, GoalRequest, GoalStatus, NavPlan, People, Pose2D, TrackedPerson
 from .safety import (
     EStopAssert,
     EStopCause,
@@ -58,6 +58,7 @@ __all__ = [
     "NavPlan",
     "OccupancyGrid",
     "Odometry",
+    "People",
     "PidProbeReply",
     "PidProbeRequest",
     "PidStatus",
@@ -65,6 +66,7 @@ __all__ = [
     "Pose2D",
     "Quaternion",
     "SafetyLimit",
+    "TrackedPerson",
     "Vector3",
     "VelocityCommand",
 ]

@@ -33,7 +33,7 @@ from .localization import (
     MapSaveReply,
     MapSaveRequest,
 )
-from .nav import GoalReply, GoalRequest, GoalStatus, NavPlan
+from .nav import GoalReply, GoalRequest, GoalStatus, NavPlan, People
 from .safety import EStopAssert, EStopRelease, EStopReply, EStopState, SafetyLimit
 from .sim import SimFault, SimFaultReply
 
@@ -112,6 +112,8 @@ GOAL_GET = Topic("autochair/goal/get", Empty, None, False,
                  reply=GoalStatus)
 NAV_PLAN = Topic("autochair/nav/plan", NavPlan, 2, True,
                  "MPEPC plan: target, predicted path, footprint, people (control)")
+PEOPLE = Topic("autochair/people", People, 10, True,
+               "People tracked in the scans, in odom, with their velocity (mapping), for MPEPC")
 
 # --- lidar and map -------------------------------------------------------------------------
 SCAN = Topic("autochair/lidar/scan", LaserScan, 10, True, "Checked laser scans (lidar ingest)")

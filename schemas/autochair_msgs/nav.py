@@ -70,3 +70,23 @@ class NavPlan(msgspec.Struct, kw_only=True):
     survival: float = 1.0
     min_clearance_m: float = 0.0
     plan_ms: float = 0.0  # the planning cycle's wall time
+
+
+class TrackedPerson(msgspec.Struct, kw_only=True, frozen=True):
+    """A person (or anything that moves and is not the map's) tracked in the scans."""
+
+    track_id: int
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    radius_m: float
+
+
+class People(msgspec.Struct, kw_only=True):
+    """The people the tracker follows (mapping), in `frame_id` (odom), for MPEPC: predicted at
+    constant velocity. Empty when there is no one."""
+
+    stamp_ns: int  # the scan's
+    frame_id: str
+    people: list[TrackedPerson] = []

@@ -1,0 +1,1 @@
+"""People in the laser scans: moving obstacles for MPEPC (a pure tracker; see core.py)."""
