@@ -9,6 +9,7 @@ import numpy as np
 from autochair.nav.field import GridMap
 from autochair.people.core import PeopleTracker, StaticMap, scan_points
 from autochair.sim.world import World, raycast
+from autochair_msgs import OccupancyGrid
 
 ANGLES = np.linspace(-2.09, 2.09, 682)  # a URG-04LX's 240°
 WALLS = np.array([[-1.0, -2.0, 10.0, -2.0], [-1.0, 2.0, 10.0, 2.0]])  # a 4 m corridor
@@ -74,3 +75,19 @@ def test_two_legs_are_one_person() -> None:
     legs = np.array([[3.0, 0.15, 0.07], [3.0, -0.15, 0.07]])
     found = people(World(WALLS, legs), mapped(WALLS))
     assert len(found) == 1 and abs(found[0].y_m) < 0.05
+
+
+def test_what_the_live_map_has_not_observed_is_the_maps() -> None:
+    """A wall just come into view lies in cells the live map (a second behind) has not taken
+    in: not a person. Where the map has seen the floor, the same thing is one."""
+    box = World(np.zeros((0, 4)), np.array([[3.0, 0.0, 0.25]]))
+    res, w, h = 0.05, 200, 100  # x 0..10, y −2.5..2.5
+
+    def grid(value: int) -> OccupancyGrid:
+        data = np.full((h, w), value, np.uint8)
+        return OccupancyGrid(stamp_ns=0, frame_id="odom", resolution_m=res, width=w,
+                             height=h, origin_x_m=0.0, origin_y_m=-2.5, data=data.tobytes())
+
+    assert len(people(box, StaticMap.from_grid(grid(20)))) == 1  # seen free: a person
+    assert people(box, StaticMap.from_grid(grid(255))) == []  # never observed
+    assert people(box, StaticMap.from_grid(grid(55))) == []  # leaning occupied (grazed)

@@ -8,7 +8,7 @@ import msgspec
 class LaserScan(msgspec.Struct, kw_only=True):
     """One planar scan in the `laser` frame. Invalid beams (device error codes) are NaN."""
 
-    stamp_ns: int  # host time of the scan's first beam, from the device clock
+    stamp_ns: int  # host time of the first beam in ranges_m, from the device clock
     frame_id: str
     angle_min_rad: float
     angle_increment_rad: float
@@ -17,6 +17,9 @@ class LaserScan(msgspec.Struct, kw_only=True):
     ranges_m: list[float]
     scan_seq: int = 0
     device_time_ms: int = 0  # device clock, unwrapped
+    # Beam i was taken at stamp + i·time_increment_s (the laser turns while it scans: on a
+    # moving chair, place each beam with the pose at its own time). 0: all at the stamp.
+    time_increment_s: float = 0.0
 
 
 class OccupancyGrid(msgspec.Struct, kw_only=True):

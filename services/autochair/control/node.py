@@ -20,7 +20,9 @@ import numpy as np
 
 from autochair.geometry import quaternion_yaw
 from autochair.nav.field import Footprint, GridMap, NavField, place
+from autochair.nav.mpepc import Person
 from autochair.nav.planner import PlanRequest, PlanResult, compute
+from autochair.people.core import ScanPeople, StaticMap
 from autochair.runtime import ConfigError, Node, service_main
 from autochair_msgs import (
     CommandOwner,
@@ -29,11 +31,14 @@ from autochair_msgs import (
     GoalReply,
     GoalRequest,
     GoalStatus,
+    LaserScan,
     LocalizedPose,
     NavPlan,
     OccupancyGrid,
     Odometry,
+    People,
     SafetyLimit,
+    TrackedPerson,
     VelocityCommand,
     keys,
 )
@@ -61,13 +66,36 @@ class ControlNode:
         self.announced = 0
         self.grid: OccupancyGrid | None = None  # newest map, not yet turned into a field
         self.grid_key = b""
+        # People for MPEPC, tracked in the scans (on the scan callback, its own lock).
+        self.people = ScanPeople(chair.laser_mount)
+        self.people_lock = threading.Lock()
+        self.people_pub = node.publisher(keys.PEOPLE)
+        self.people_grid: OccupancyGrid | None = None  # the grid the tracker's map is of
 
     # --- inputs -----------------------------------------------------------------------------
     def on_odom(self, o: Odometry) -> None:
         sample = OdomSample(o.x_m, o.y_m, o.yaw_rad, o.v_mps, o.omega_radps, time.monotonic())
         with self.lock:
             self.core.on_odom(sample)
+        with self.people_lock:
+            self.people.on_odom(o)
         self.node.health.count("odom")
+
+    def on_scan(self, msg: LaserScan) -> None:
+        with self.people_lock:
+            found = self.people.on_scan(msg.stamp_ns, msg.ranges_m, msg.angle_min_rad,
+                                        msg.angle_increment_rad, msg.range_min_m,
+                                        msg.range_max_m, msg.time_increment_s)
+        if found is None:
+            self.node.health.count("scans_without_odometry")
+            return
+        with self.lock:
+            self.core.people = [Person(q.x_m, q.y_m, q.vx_mps, q.vy_mps, q.radius_m)
+                                for q in found]
+        self.people_pub.put(People(stamp_ns=msg.stamp_ns, frame_id="odom", people=[
+            TrackedPerson(track_id=q.track_id, x_m=round(q.x_m, 3), y_m=round(q.y_m, 3),
+                          vx_mps=round(q.vx_mps, 3), vy_mps=round(q.vy_mps, 3),
+                          radius_m=round(q.radius_m, 3)) for q in found]))
 
     def on_estop(self, msg: EStopState) -> None:
         with self.lock:
@@ -155,6 +183,11 @@ class ControlNode:
         msg = self.grid
         if msg is None:
             return
+        if msg is not self.people_grid:  # every new grid: what the tracker leaves to the map
+            self.people_grid = msg
+            static = StaticMap.from_grid(msg)
+            with self.people_lock:
+                self.people.tracker.static = static
         gm = GridMap.from_msg(msg)
         # ≥ 0.1 m cells: the costs-to-go are recomputed on every change, on this process's
         # CPU, while the 50 Hz loop runs (a 30 × 20 m map at 0.05 m is 240 000 cells).
@@ -210,6 +243,7 @@ def start(node: Node, cfg: ControlConfig) -> None:
     node.subscribe(keys.MAP_GRID, c.on_grid)
     node.subscribe(keys.TF, c.on_tf)  # map → odom, for goals in map
     node.subscribe(keys.LOC_POSE, c.on_loc)
+    node.subscribe(keys.SCAN, c.on_scan)  # people, for MPEPC
     node.serve(keys.GOAL_SET, c.on_set)
     node.serve(keys.GOAL_CANCEL, c.on_cancel)
     node.serve(keys.GOAL_GET, lambda _: c.status_msg())

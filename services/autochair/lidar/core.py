@@ -191,6 +191,11 @@ class ScanDecoder:
         # A cluster's angle is the middle of its steps.
         self.angle_min = (req.start + (req.cluster - 1) / 2 - params.afrt) * inc
         self.angle_inc = inc * req.cluster
+        # The device stamps the start of its turn (step 0) and takes step k at k/ARES of the
+        # period: the first beam published comes that much later, then one per cluster.
+        step_ns = params.period_ms * 1e6 / params.ares
+        self.first_beam_ns = round((req.start + (req.cluster - 1) / 2) * step_ns)
+        self.time_increment_s = step_ns * req.cluster * 1e-9
 
     def decode(self, block: bytes, host_rx_ns: int) -> LaserScan:
         scan = scip.parse_scan(block, self.prefix, self.req.nchars)
@@ -208,7 +213,7 @@ class ScanDecoder:
         ranges = np.where((v < self.p.dmin_mm) | (v > self.p.dmax_mm), np.nan, v * 1e-3)
         self.seq += 1
         return LaserScan(
-            stamp_ns=self.sync.update(dev_ms, host_rx_ns),
+            stamp_ns=self.sync.update(dev_ms, host_rx_ns) + self.first_beam_ns,
             frame_id=self.frame_id,
             angle_min_rad=self.angle_min,
             angle_increment_rad=self.angle_inc,
@@ -217,6 +222,7 @@ class ScanDecoder:
             ranges_m=ranges.tolist(),
             scan_seq=self.seq,
             device_time_ms=dev_ms,
+            time_increment_s=self.time_increment_s,
         )
 
 

@@ -177,6 +177,7 @@ class ScanRecord(msgspec.Struct, kw_only=True):
     scan_seq: int
     device_time_ms: int
     nonfinite: dict[int, float]  # beam index → its NaN / ±inf
+    time_increment_s: float = 0.0  # (absent in recordings made before it existed)
 
 
 def _finite(v: float) -> float:
@@ -208,7 +209,8 @@ class ScanCodec(Codec):
             ranges=ranges, intensities=[], stamp_ns=msg.stamp_ns,
             angle_min_rad=msg.angle_min_rad, angle_increment_rad=msg.angle_increment_rad,
             range_min_m=msg.range_min_m, range_max_m=msg.range_max_m, scan_seq=msg.scan_seq,
-            device_time_ms=msg.device_time_ms, nonfinite=bad))
+            device_time_ms=msg.device_time_ms, nonfinite=bad,
+            time_increment_s=msg.time_increment_s))
 
     def decode_json(self, data: bytes) -> msgspec.Struct:
         try:
@@ -224,7 +226,8 @@ class ScanCodec(Codec):
                          angle_min_rad=r.angle_min_rad,
                          angle_increment_rad=r.angle_increment_rad,
                          range_min_m=r.range_min_m, range_max_m=r.range_max_m, ranges_m=ranges,
-                         scan_seq=r.scan_seq, device_time_ms=r.device_time_ms)
+                         scan_seq=r.scan_seq, device_time_ms=r.device_time_ms,
+                         time_increment_s=r.time_increment_s)
 
 
 def codec_for(type_: type[msgspec.Struct]) -> Codec:

@@ -127,15 +127,18 @@ def load_world(path: str | Path = DEFAULT_WORLD) -> World:
     return parse_world(text, str(path))
 
 
-def raycast(world: World, x: float, y: float, angles: F64, max_range: float) -> F64:
+def raycast(world: World, x: float | F64, y: float | F64, angles: F64, max_range: float) -> F64:
     """Distance along each ray from (x, y) at world-frame `angles` to the first hit (inf if none
-    within `max_range`). Vectorised over rays × shapes."""
+    within `max_range`). `x`, `y`: one origin, or one per ray (a sweeping laser on a moving
+    chair). Vectorised over rays × shapes."""
     dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    x0 = np.broadcast_to(np.asarray(x, dtype=np.float64), angles.shape)[:, None]
+    y0 = np.broadcast_to(np.asarray(y, dtype=np.float64), angles.shape)[:, None]
     best = np.full(angles.shape[0], np.inf)
     if len(world.segments):
         s = world.segments
         ex, ey = (s[:, 2] - s[:, 0])[None, :], (s[:, 3] - s[:, 1])[None, :]
-        qx, qy = (s[:, 0] - x)[None, :], (s[:, 1] - y)[None, :]
+        qx, qy = s[None, :, 0] - x0, s[None, :, 1] - y0
         den = dx * ey - dy * ex
         with np.errstate(divide="ignore", invalid="ignore"):
             t = (qx * ey - qy * ex) / den
@@ -144,7 +147,7 @@ def raycast(world: World, x: float, y: float, angles: F64, max_range: float) -> 
         best = np.minimum(best, np.where(ok, t, np.inf).min(axis=1))
     if len(world.circles):
         c = world.circles
-        ox, oy = (x - c[:, 0])[None, :], (y - c[:, 1])[None, :]
+        ox, oy = x0 - c[None, :, 0], y0 - c[None, :, 1]
         b = dx * ox + dy * oy
         disc = b * b - (ox * ox + oy * oy - (c[:, 2] ** 2)[None, :])
         root = np.sqrt(np.maximum(disc, 0))

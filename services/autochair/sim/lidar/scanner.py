@@ -193,14 +193,29 @@ class UrgDevice:
 
 def ray_scan(world: World, params: UrgParams, pose: tuple[float, float, float],
              mount: tuple[float, float, float], noise_std_m: float,
-             rng: np.random.Generator) -> npt.NDArray[np.int64]:
+             rng: np.random.Generator,
+             twist: tuple[float, float] = (0.0, 0.0)) -> npt.NDArray[np.int64]:
     """Raw URG values (mm or error codes) for steps AMIN..AMAX seen from chair `pose` (x, y,
-    yaw in world) with the laser at `mount` (x, y, yaw in the chair frame)."""
+    yaw in world) with the laser at `mount` (x, y, yaw in the chair frame).
+
+    `pose` is the chair's at the end of the sweep, moving at `twist` (v m/s, ω rad/s): the
+    laser turns once a period and takes step k at k/ARES of it, so each beam is cast from
+    where the chair was then (constant twist over the sweep), as a real laser on a moving
+    chair skews its scan."""
     x, y, yaw = pose
     mx, my, myaw = mount
-    lx = x + mx * math.cos(yaw) - my * math.sin(yaw)
-    ly = y + mx * math.sin(yaw) + my * math.cos(yaw)
-    angles = params.step_angles() + yaw + myaw
+    steps = np.arange(params.amin, params.amax + 1)
+    v, omega = twist
+    age = (1.0 - steps / params.ares) / params.scan_rate_hz  # s before the end of the sweep
+    th = yaw - omega * age
+    if abs(omega) > 1e-9:
+        cx = x - v / omega * (math.sin(yaw) - np.sin(th))
+        cy = y + v / omega * (math.cos(yaw) - np.cos(th))
+    else:
+        cx, cy = x - v * age * math.cos(yaw), y - v * age * math.sin(yaw)
+    lx = cx + mx * np.cos(th) - my * np.sin(th)
+    ly = cy + mx * np.sin(th) + my * np.cos(th)
+    angles = params.step_angles() + th + myaw
     r = raycast(world, lx, ly, angles, params.dmax_mm / 1000.0)
     if noise_std_m > 0:
         r = r + rng.normal(0.0, noise_std_m, r.shape)
