@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import shutil
 import sys
 import tempfile
 import time
@@ -56,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--time-scale", type=float, default=1.0)
     ap.add_argument("--warmup", type=float, default=30.0, help="wall seconds before baseline")
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--keep", action="store_true",
+                    help="keep the run directory (recording, logs) instead of removing it")
     args = ap.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="autochair-soak-"))
     run = work / "run"
@@ -141,6 +144,10 @@ def main(argv: list[str] | None = None) -> int:
         sub.undeclare()
         session.close()
         launcher.stop()
+        if args.keep:
+            print(f"run directory kept: {work}")
+        else:  # an hour's recording is ~200 MB: not left behind in /tmp
+            shutil.rmtree(work, ignore_errors=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(res, indent=2) + "\n")
     print(json.dumps(res, indent=2))
