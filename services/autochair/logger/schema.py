@@ -32,7 +32,8 @@ from typing import Any
 
 import msgspec
 
-from autochair_msgs import FrameTransform, LaserScan
+from autochair import geometry
+from autochair_msgs import FrameTransform, LaserScan, People
 
 _NON_FINITE = {math.inf: "Infinity", -math.inf: "-Infinity"}
 _JSON = msgspec.json.Encoder()
@@ -230,10 +231,49 @@ class ScanCodec(Codec):
                          time_increment_s=r.time_increment_s)
 
 
+class PeopleCodec(Codec):
+    """keys.PEOPLE recorded (and bridged) as foxglove.SceneUpdate: each person a 1.7 m
+    cylinder and an arrow 1 s of their motion long, in one entity replaced by the next
+    message (so people who have gone vanish); our fields added, read back by the plain
+    decoder, which ignores the scene."""
+
+    def __init__(self) -> None:
+        super().__init__(People)
+        self.name = "foxglove.SceneUpdate"
+        self.schema = _with_schema(self.name, People, "the tracked people's fields too")
+
+    def encode_json(self, msg: msgspec.Struct) -> bytes:
+        assert isinstance(msg, People)
+        sec, nsec = divmod(max(msg.stamp_ns, 0), 1_000_000_000)
+
+        def pose(x: float, y: float, yaw: float, z: float) -> dict[str, Any]:
+            q = dict(zip("xyzw", geometry.yaw_quaternion(_finite(yaw)), strict=True))
+            return {"position": {"x": _finite(x), "y": _finite(y), "z": z}, "orientation": q}
+
+        red = {"r": 1.0, "g": 0.2, "b": 0.2, "a": 0.6}
+        cylinders = [{"pose": pose(p.x_m, p.y_m, 0.0, 0.85),
+                      "size": {"x": _finite(2 * p.radius_m), "y": _finite(2 * p.radius_m),
+                               "z": 1.7}, "bottom_scale": 1.0, "top_scale": 1.0, "color": red}
+                     for p in msg.people]
+        arrows = [{"pose": pose(p.x_m, p.y_m, math.atan2(p.vy_mps, p.vx_mps), 1.0),
+                   "shaft_length": _finite(math.hypot(p.vx_mps, p.vy_mps)),
+                   "shaft_diameter": 0.04, "head_length": 0.12, "head_diameter": 0.1,
+                   "color": red} for p in msg.people]
+        entity = {"timestamp": {"sec": sec, "nsec": nsec}, "frame_id": msg.frame_id,
+                  "id": "people", "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
+                  "metadata": [], "arrows": arrows, "cubes": [], "spheres": [],
+                  "cylinders": cylinders, "lines": [], "triangles": [], "texts": [],
+                  "models": []}
+        return _JSON.encode({"deletions": [], "entities": [entity]})[:-1] + b"," + \
+            to_json(msg)[1:]
+
+
 def codec_for(type_: type[msgspec.Struct]) -> Codec:
     """How messages of `type_` are recorded and bridged to Foxglove."""
     if type_ is LaserScan:
         return ScanCodec()
     if type_ is FrameTransform:
         return TransformCodec()
+    if type_ is People:
+        return PeopleCodec()
     return Codec(type_)
