@@ -31,3 +31,15 @@ def test_compose_and_inverse_of_planar_poses() -> None:
         assert back == pytest.approx(a)
         assert compose(b, inverse(b)) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
     assert -math.pi < compose((0, 0, 3.0), (0, 0, 3.0))[2] <= math.pi  # wrapped
+
+
+def test_sweep_poses_place_each_beam_between_the_sweeps_ends() -> None:
+    from autochair.geometry import sweep_poses
+
+    x, y, yaw = sweep_poses((0.0, 0.0, 0.0), (0.2, 0.0, 0.1), (1.0, 0.0, 0.5), 3)
+    assert yaw.tolist() == pytest.approx([0.5, 0.55, 0.6])
+    assert x.tolist() == pytest.approx([1.0, 0.1 + math.cos(0.05), 0.2 + math.cos(0.1)])
+    assert y.tolist() == pytest.approx([0.0, math.sin(0.05), math.sin(0.1)])
+    # Across ±π the chair turned 0.08 rad, not −6.2.
+    _, _, yaw = sweep_poses((0.0, 0.0, 3.1), (0.0, 0.0, -3.1), (0.0, 0.0, 0.0), 3)
+    assert yaw[1] == pytest.approx(3.1 + (2 * math.pi - 6.2) / 2)

@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+import numpy.typing as npt
+
 
 def wrap_angle(a: float) -> float:
     """Wrap an angle to (−π, π] (REP-103 heading range)."""
@@ -68,3 +71,18 @@ def mount_mismatch(parent: str, translation: tuple[float, float, float],
         return (f"tf rotation differs by {math.degrees(angle):.2f}° (yaw {yaw:.4f} rad vs "
                 f"[chair] laser_yaw_rad {laser_yaw:.4f})")
     return ""
+
+
+def sweep_poses(first: Pose, last: Pose, mount: Pose, n: int
+                ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64],
+                           npt.NDArray[np.float64]]:
+    """x, y, yaw of the laser (at `mount` on the chair) for each of the `n` beams of a sweep
+    during which the chair went from `first` to `last`, linearly (a sweep lasts tens of
+    milliseconds): a scan taken while turning is placed beam by beam, not skewed."""
+    f = np.linspace(0.0, 1.0, n)
+    x = first[0] + f * (last[0] - first[0])
+    y = first[1] + f * (last[1] - first[1])
+    yaw = first[2] + f * wrap_angle(last[2] - first[2])
+    mx, my, myaw = mount
+    c, s = np.cos(yaw), np.sin(yaw)
+    return x + mx * c - my * s, y + mx * s + my * c, yaw + myaw

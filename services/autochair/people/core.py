@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
 
-from autochair.geometry import Pose
+from autochair.geometry import Pose, sweep_poses
 from autochair.mapping.core import OdomBuffer
 from autochair_msgs import OccupancyGrid, Odometry
 
@@ -268,15 +268,9 @@ class ScanPeople:
         first, last = self.odom.at(stamp_ns, dt_ns), self.odom.at(end_ns, dt_ns)
         if first is None or last is None:
             return None
-        f = np.linspace(0.0, 1.0, len(ranges))
-        turn = math.atan2(math.sin(last[2] - first[2]), math.cos(last[2] - first[2]))
-        x = first[0] + f * (last[0] - first[0])
-        y = first[1] + f * (last[1] - first[1])
-        yaw = first[2] + f * turn
-        mx, my, myaw = self.mount
-        lx, ly = x + mx * np.cos(yaw) - my * np.sin(yaw), y + mx * np.sin(yaw) + my * np.cos(yaw)
+        lx, ly, lyaw = sweep_poses(first, last, self.mount, len(ranges))
         pts = scan_points(np.asarray(ranges, dtype=np.float64), angle_min, angle_inc,
-                          range_min, range_max, (lx, ly, yaw + myaw))
+                          range_min, range_max, (lx, ly, lyaw))
         mid = len(ranges) // 2
         return self.tracker.update(pts, (float(lx[mid]), float(ly[mid])),
                                    (stamp_ns + end_ns) / 2e9)
