@@ -3,8 +3,8 @@
 MPEPC plans around people at constant velocity (σ 0.2 m); in the simulator's evaluation they come
 from ground truth, on a live chair only from this tracker. Per scan, in the planning frame:
 
-1. **Not the map's.** Beams that hit within `static_m` of a cell that is the map's are the
-   map's (a distance transform of the grid, rebuilt with each grid): occupied cells, and
+1. **Not the map's.** Beams that hit within 0.2 m of a cell that is the map's are the
+   map's (`StaticMap`, rebuilt with each grid): occupied cells, and
    cells never observed: a wall just come into view lies in cells the live map (a second
    behind) has not taken in yet, while a person walks where the laser has seen the floor.
 2. **Segments.** The remaining points, in beam order, split where neighbours are more than
@@ -48,7 +48,6 @@ STATIC_PCT = 45
 
 @dataclass(frozen=True)
 class TrackerParams:
-    static_m: float = 0.2  # a point this close to an occupied map cell is the map's
     gap_m: float = 0.3  # neighbouring points further apart start a new segment
     min_points: int = 3
     max_extent_m: float = 0.9  # a wider segment is furniture or an unmapped wall
@@ -63,37 +62,39 @@ class TrackerParams:
 
 @dataclass
 class StaticMap:
-    """Distance (m) from each cell to the nearest cell that is the map's: occupied, or never
-    observed (a wall just come into view is in cells the live map has not taken in yet);
-    off the grid counts as never observed."""
+    """Which cells lie within `near_m` of a cell that is the map's: occupied, or never
+    observed (a wall just come into view is in cells the live map has not taken in yet); off
+    the grid counts as never observed. A box max-filter of the grid (5 ms for 40 × 20 m at
+    5 cm, where an exact distance transform took 30-80 ms a grid)."""
 
-    dist_m: F64  # (H, W), row = y
+    near: npt.NDArray[np.bool_]  # (H, W), row = y
     resolution_m: float
     origin_x_m: float
     origin_y_m: float
 
     @classmethod
     def of(cls, static: npt.NDArray[np.bool_], resolution_m: float, origin_x_m: float,
-           origin_y_m: float) -> StaticMap:
-        dist = ndimage.distance_transform_edt(~static) * resolution_m if static.any() \
-            else np.full(static.shape, np.inf)
-        return cls(np.asarray(dist, dtype=np.float64), resolution_m, origin_x_m, origin_y_m)
+           origin_y_m: float, near_m: float = 0.2) -> StaticMap:
+        size = 2 * math.ceil(near_m / resolution_m - 1e-9) + 1
+        near = ndimage.maximum_filter(static.view(np.uint8), size=size).astype(np.bool_)
+        return cls(near, resolution_m, origin_x_m, origin_y_m)
 
     @classmethod
-    def from_grid(cls, msg: OccupancyGrid) -> StaticMap:
+    def from_grid(cls, msg: OccupancyGrid, near_m: float = 0.2) -> StaticMap:
         """From the live map: a cell is the map's unless it has been seen free (p <
         `STATIC_PCT`, not 255)."""
         data = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.width)
-        return cls.of((data >= STATIC_PCT), msg.resolution_m, msg.origin_x_m, msg.origin_y_m)
+        return cls.of(data >= STATIC_PCT, msg.resolution_m, msg.origin_x_m, msg.origin_y_m,
+                      near_m)
 
-    def distance(self, pts: F64) -> F64:
-        """Per (N, 2) point: the distance to the nearest cell that is the map's."""
+    def is_near(self, pts: F64) -> npt.NDArray[np.bool_]:
+        """Per (N, 2) point: whether it lies near what is the map's (off the grid: yes)."""
         ij = np.floor((pts - (self.origin_x_m, self.origin_y_m)) / self.resolution_m)
         col, row = ij[:, 0].astype(np.int64), ij[:, 1].astype(np.int64)
-        h, w = self.dist_m.shape
+        h, w = self.near.shape
         inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-        out = np.zeros(len(pts))
-        out[inside] = self.dist_m[row[inside], col[inside]]
+        out = np.ones(len(pts), np.bool_)
+        out[inside] = self.near[row[inside], col[inside]]
         return out
 
 
@@ -154,7 +155,7 @@ class PeopleTracker:
         free = valid
         if self.static is not None and valid.any():
             near = np.zeros(len(pts), dtype=np.bool_)
-            near[valid] = self.static.distance(pts[valid]) <= p.static_m
+            near[valid] = self.static.is_near(pts[valid])
             free = valid & ~near
         # Segment boundaries: a map point or an invalid beam between, or a jump.
         idx = np.flatnonzero(free)
