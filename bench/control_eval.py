@@ -10,6 +10,12 @@ one-tick differences would report noise, not motion). The same peaks at the chai
 simulator's ground truth (true v and ω, exact each tick; smoothed 50 ms for the jerk), are the
 goal's measure ("truth_*"); the commanded (limiter) peaks are reported too.
 
+Time is compared with four references: the trapezoid bound (straight line or in-place turn,
+acceleration-limited), the jerk-limited S-curve bound, a turn–drive–turn reference, and the least
+time any controller could take for a forward-only unicycle under all the comfort limits
+(bench/min_time.py, solved once by collocation and cached in results/min_time.json):
+`time_ratio_min`, the honest one (the first two ignore that a chair cannot move sideways).
+
 The velocity PID is configured as the [pid] section (tuned gains and feed-forward model);
 `--pid thesis` runs the thesis's ZN gains without a model for comparison.
 
@@ -34,6 +40,8 @@ from autochair.geometry import wrap_angle as wrap
 from autochair.pid.core import PidConfig, VelocityPidCore, make_core
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate, for all benches
 from autochair_msgs import GoalRequest, Pose2D
+
+from .min_time import Limits, cached
 
 SETTLE_S = 2.0  # keep simulating after arrival to measure the final error at rest
 TIMEOUT_S = 60.0
@@ -213,6 +221,9 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
     jbound = max(scurve_time(d_straight, cfg.vmax_mps, cfg.a_max_mps2, cfg.jerk_max_mps3),
                  scurve_time(abs(wrap(gyaw - syaw)), cfg.omega_max_radps,
                              cfg.omega_acc_max_radps2, cfg.omega_jerk_max_radps3))
+    ref = cached(start, goal, Limits(cfg.vmax_mps, cfg.a_max_mps2, cfg.jerk_max_mps3,
+                                     cfg.omega_max_radps, cfg.omega_acc_max_radps2,
+                                     cfg.omega_jerk_max_radps3))
     cmd = np.array(cmds)
     cmd_a = np.diff(cmd[:, 0]) * cfg.rate_hz
     cmd_wd = np.diff(cmd[:, 1]) * cfg.rate_hz
@@ -229,6 +240,11 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
         "tdt_ref_s": round(turn_drive_turn_time(start, goal, cfg), 3),
         "time_ratio_tdt": round((t_arrive or TIMEOUT_S) / turn_drive_turn_time(start, goal, cfg),
                                 2),
+        # the least time any controller could take (bench/min_time.py: unicycle, comfort
+        # limits, forward only), and this run's time over it
+        "min_time_s": round(ref.time_s, 3),
+        "min_time_ok": ref.ok,
+        "time_ratio_min": round((t_arrive or TIMEOUT_S) / ref.time_s, 2),
         "pos_error_m": round(math.hypot(gx - end[1], gy - end[2]), 4),
         "yaw_error_deg": round(math.degrees(abs(wrap(gyaw - end[3]))), 2),
         "true_pos_error_m": round(math.hypot(gx - end[7], gy - end[8]), 4),
@@ -269,6 +285,7 @@ def main(argv: list[str] | None = None) -> int:
         results.append(r)
         print(f"{name:32s} {r['state']:8s} t={r['time_s']:6.2f}s x{r['time_ratio']:<5} "
               f"xj{r['time_ratio_jerk']:<5} xtdt{r['time_ratio_tdt']:<5} "
+              f"xmin{r['time_ratio_min']:<5} "
               f"err={r['pos_error_m'] * 100:4.1f}cm/{r['yaw_error_deg']:4.1f}° "
               f"a={r['peak_a_mps2']:.2f} j={r['peak_jerk_mps3']:.2f} "
               f"ω={r['peak_omega_radps']:.2f} ω̇={r['peak_omega_dot_radps2']:.2f} "
@@ -298,6 +315,9 @@ def main(argv: list[str] | None = None) -> int:
         "max_time_ratio_jerk": max(r["time_ratio_jerk"] for r in results),
         "median_time_ratio_tdt": statistics.median(r["time_ratio_tdt"] for r in results),
         "max_time_ratio_tdt": max(r["time_ratio_tdt"] for r in results),
+        "median_time_ratio_min": statistics.median(r["time_ratio_min"] for r in results),
+        "max_time_ratio_min": max(r["time_ratio_min"] for r in results),
+        "min_time_all_ok": all(r["min_time_ok"] for r in results),
         "max_pos_error_m": max(r["pos_error_m"] for r in results),
         "max_yaw_error_deg": max(r["yaw_error_deg"] for r in results),
         "sim_time_s": round(sim_s, 1),

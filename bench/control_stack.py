@@ -7,7 +7,7 @@ goal relative to the suite's start, applied to the chair's pose now (only cases 
 the origin are used). Time to goal: from the goal request to the status "arrived". Comfort
 peaks from the simulator's ground truth (autochair/sim/truth, 100 Hz, on its own clock).
 
-    .venv/bin/python -m bench control_stack [--cases 6]
+    .venv/bin/python -m bench control_stack [--cases 6] [--out FILE]
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from autochair.processes import PROCESSES, local_values
 from autochair.runtime.config import load_section
 
 from .control_eval import run_case, scurve_time, smooth, suite, trapezoid_time
+from .min_time import Limits, cached
 
 RESULTS = Path(__file__).parent / "results" / "control_stack.json"
 STACK = ["router", "estop", "sim", "gateway", "odometry", "pid", "control"]
@@ -116,17 +117,22 @@ def drive_case(session: Any, truth: list[Any], lock: threading.Lock, rel: tuple[
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cases", type=int, default=6, help="how many origin-start cases")
+    ap.add_argument("--out", type=Path, default=RESULTS, help="results file")
+    ap.add_argument("--only", default="", help="only cases whose name contains this")
+    ap.add_argument("--logs", type=Path, default=None, help="keep the processes' logs here")
     args = ap.parse_args(argv)
     from autochair.runtime.client import open_client, subscribe
     from autochair_msgs import GroundTruth, keys
 
     cfg = load_section(ControlConfig, "control", None, [])
-    cases = [c for c in suite() if c[1] == (0.0, 0.0, 0.0)][:args.cases]
+    cases = [c for c in suite() if c[1] == (0.0, 0.0, 0.0) and args.only in c[0]][:args.cases]
     hub = f"tcp/127.0.0.1:{free_port()}"
     results = []
     with tempfile.TemporaryDirectory() as tmp:
+        run_dir = args.logs or Path(tmp)
+        run_dir.mkdir(parents=True, exist_ok=True)
         launcher = Launcher([p for p in PROCESSES if p.name in STACK],
-                            local_values(Path(tmp), hub), Path(tmp))
+                            local_values(run_dir, hub), run_dir)
         launcher.start(ready_timeout_s=40)
         session = open_client(hub)
         try:
@@ -156,13 +162,18 @@ def main(argv: list[str] | None = None) -> int:
                                      cfg.a_max_mps2, cfg.jerk_max_mps3),
                          scurve_time(abs(goal[2]), cfg.omega_max_radps,
                                      cfg.omega_acc_max_radps2, cfg.omega_jerk_max_radps3))
+                ref = cached((0.0, 0.0, 0.0), goal, Limits(
+                    cfg.vmax_mps, cfg.a_max_mps2, cfg.jerk_max_mps3, cfg.omega_max_radps,
+                    cfg.omega_acc_max_radps2, cfg.omega_jerk_max_radps3))
                 r.update(name=name, time_ratio=round(r.get("time_s", 0) / bound, 2),
                          time_ratio_jerk=round(r.get("time_s", 0) / jb, 2),
+                         time_ratio_min=round(r.get("time_s", 0) / ref.time_s, 2),
                          lockstep_time_s=lock_r["time_s"],
                          lockstep_truth_peak_a_mps2=lock_r["truth_peak_a_mps2"])
                 results.append(r)
                 print(f"{name:32s} {r['state']:8s} t={r.get('time_s', 0):6.2f}s "
                       f"(lockstep {lock_r['time_s']:.2f}s) x{r['time_ratio']} "
+                      f"xmin{r['time_ratio_min']} "
                       f"a={r.get('truth_peak_a_mps2')} j={r.get('truth_peak_jerk_mps3')} "
                       f"ω̇={r.get('truth_peak_omega_dot_radps2')}", flush=True)
         finally:
@@ -174,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
         "median_time_ratio": statistics.median(r["time_ratio"] for r in done) if done else None,
         "median_time_ratio_jerk": statistics.median(r["time_ratio_jerk"] for r in done)
         if done else None,
+        "median_time_ratio_min": statistics.median(r["time_ratio_min"] for r in done)
+        if done else None,
         "median_stack_over_lockstep_time": statistics.median(
             r["time_s"] / r["lockstep_time_s"] for r in done) if done else None,
         "max_truth_a_mps2": max((r["truth_peak_a_mps2"] for r in done), default=None),
@@ -182,8 +195,8 @@ def main(argv: list[str] | None = None) -> int:
                                           default=None),
     }
     print(json.dumps(summary, indent=1))
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({"summary": summary, "steps_0.5": steps, "runs": results},
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"summary": summary, "steps_0.5": steps, "runs": results},
                                   indent=1) + "\n")
     return 0
 

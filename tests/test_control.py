@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -63,7 +64,7 @@ def drive(start: tuple[float, float, float], goal: tuple[float, float, float],
     x, y, yaw = start
     v = w = 0.0
     # The pose prediction horizon is matched to the plant's lag, as it should be on a chair.
-    core = ControlCore(ControlConfig(predict_s=lag_s))
+    core = ControlCore(ControlConfig(predict_s=lag_s, predict_omega_s=lag_s))
     core.on_odom(OdomSample(x, y, yaw, 0, 0, 0.0))
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
     t, arrived_t, k = 0.0, -1.0, 0
@@ -300,7 +301,9 @@ def test_cancel_brakes_then_publishes_a_burst_of_zeros_then_nothing() -> None:
 
 
 def test_waypoints_are_passed_without_stopping_and_status_counts_down() -> None:
-    core = fresh_core()
+    # The chair below follows at once: so must the predictor (with the default 0.62 s chain
+    # model on an instant chair the time-optimal final turn over-predicts and limit-cycles).
+    core = fresh_core(INSTANT)
     wps = [Pose2D(2, 0, 0), Pose2D(4, 1, math.pi / 4), Pose2D(5, 3, math.pi / 2)]
     assert core.set_goal(GoalRequest(waypoints=wps), 0.0).ok
     x = y = yaw = v = w = 0.0
@@ -439,7 +442,7 @@ def test_turns_are_planned_within_the_monitors_turn_rate_bound() -> None:
 
 
 # --- goals in map (nav/frames.py), the stale-plan stop --------------------------------------
-INSTANT = ControlConfig(predict_s=0.02)  # a chair that follows at once: nothing to predict
+INSTANT = ControlConfig(predict_s=0.02, predict_omega_s=0.02)  # a chair that follows at once
 
 
 def run_unicycle(core: ControlCore, t: float, until: float, pose: list[float],
@@ -488,7 +491,7 @@ def test_a_goal_in_map_ends_where_the_correction_puts_it() -> None:
 
 
 def test_lost_localization_stops_a_map_goal_then_it_resumes_or_aborts() -> None:
-    core = fresh_core(ControlConfig(blocked_abort_s=6.0, predict_s=0.02))
+    core = fresh_core(ControlConfig(blocked_abort_s=6.0, predict_s=0.02, predict_omega_s=0.02))
     core.on_correction((0.0, 0.0, 0.0))
     core.on_loc_state("tracking", 0.0)
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(6, 0, 0)], frame_id="map"), 0.0).ok
@@ -523,3 +526,50 @@ def test_a_stale_plan_stops_the_chair_until_a_new_one_comes() -> None:
     run_unicycle(core, t, 6.0, pose, planner)  # (the final approach too needs fresh plans)
     assert core.active and core.limiter.at_rest  # stopped: the plan is 3 s old
     assert core.counters["stale_plan_stops"] > 0 and pose[0] < 5.8
+
+
+def _post_field(posts: np.ndarray) -> object:
+    from autochair.nav.field import Footprint, GridMap, NavField
+
+    room = np.array([[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
+                     [-1.0, 3.0, -1.0, -3.0]])
+    return NavField(GridMap.from_shapes(room, posts), Footprint())
+
+
+# A post 0.7 m out at 45° from (2, 0): outside the body at 0° and at 90°, inside at 45°.
+POST = np.array([[2.0 + 0.7 / math.sqrt(2), 0.7 / math.sqrt(2), 0.04]])
+
+
+def test_an_in_place_turn_is_checked_over_its_whole_sweep() -> None:
+    """H40 (the navigation suite's final turn touched a bench): the core's own in-place turn
+    is refused where the body would sweep over something that neither end pose touches."""
+    core = fresh_core(INSTANT)
+    here = OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    core.on_field(_post_field(np.zeros((0, 3))))  # type: ignore[arg-type]
+    assert core._room_to_turn(here, math.pi / 2)  # positive control: no post
+    core.on_field(_post_field(POST))  # type: ignore[arg-type]
+    fld = core.field
+    ends = np.array([0.0, math.pi / 2])  # the turn's start and end poses are clear
+    assert fld is not None and min(fld.footprint_clearance(2.0, 0.0, ends)) > 0.1
+    assert not core._room_to_turn(here, math.pi / 2)  # the sweep crosses the post
+    assert core._room_to_turn(here, -math.pi / 2)  # the other way round is clear
+
+
+def test_a_goal_whose_final_turn_would_hit_a_post_ends_without_turning() -> None:
+    def run(posts: np.ndarray) -> tuple[ControlCore, float]:
+        core = fresh_core(INSTANT)
+        core.on_field(_post_field(posts))  # type: ignore[arg-type]
+        core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(2.0, 0.0, math.pi / 2)]), 0.0).ok
+        pose, turned = [2.0, 0.0, 0.0], 0.0
+        t = 0.0
+        while t < 25.0 and core.active:
+            t = run_unicycle(core, t, t + 0.02, pose)
+            turned = max(turned, pose[2])
+        return core, turned
+
+    free, turned = run(np.zeros((0, 3)))
+    assert free.state == "arrived" and turned > math.radians(87)  # positive control
+    core, turned = run(POST)
+    assert turned < math.radians(3), f"turned {math.degrees(turned):.0f}° into the post"
+    assert core.state == "aborted" and core.reason, core.reason

@@ -6,12 +6,22 @@ discrete braking curve: the rate from which the remaining error can still be rem
 the rate down at the jerk limit, which is what makes it stop on the commanded value without
 overshoot (for any target it can reach in time). v is limited first; ω is then rescaled by the
 factor v was limited by, so the curvature (the path) is kept while the chair speeds up or brakes.
+
+Point-to-point (`move`): an in-place turn to a yaw, a straight final onto a goal. Each axis
+covers a given distance time-optimally and ends at rest, with the same limits, by ruckig's
+position interface (Berscheid & Kröger 2021: the time-optimal third-order profile from any
+state), replanned every step from the axis's own state and the distance left. The tracker
+above cannot do this: steering the rate onto a braking curve for a *velocity* leaves a position
+target to a √-profile with a derated brake and an exponential tail (measured: a 45° turn took
+4.2 s against 1.56 s for the jerk-limited optimum).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+
+from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 
 @dataclass(frozen=True)
@@ -33,6 +43,14 @@ class SCurveAxis:
         self.vmax, self.amax, self.jmax = vmax, amax, jmax
         self.value = 0.0
         self.rate = 0.0
+        self._otg = Ruckig(1)
+        self._inp = InputParameter(1)
+        self._traj = Trajectory(1)
+        # The profile's own (velocity, acceleration) at the end of the last move step, and the
+        # (value, rate) that step left: the plan continues from the former while nothing else
+        # has stepped the axis since.
+        self._plan_state = (0.0, 0.0)
+        self._left = (math.nan, math.nan)
 
     def reset(self, value: float = 0.0, rate: float = 0.0) -> None:
         self.value = max(-self.vmax, min(self.vmax, value))
@@ -66,6 +84,63 @@ class SCurveAxis:
         return self.value
 
 
+    @property
+    def moving(self) -> bool:
+        """A move (below) is under way: the axis was last stepped by it and it has not ended."""
+        return self._left == (self.value, self.rate) and self._plan_state != (0.0, 0.0)
+
+    def move(self, distance: float, dt: float, vmax: float | None = None) -> float:
+        """One step of the time-optimal move that covers `distance` from the current (value,
+        rate) and ends at rest, never moving against `distance` (|value| ≤ `vmax`, default the
+        axis's bound). Moving away from it, or unable to stop on it without turning back, it
+        brakes to rest by the shortest jerk-limited stop (and never turns back)."""
+        if dt <= 0.0:
+            return self.value
+        vm = min(self.vmax, self.vmax if vmax is None else vmax)
+        # From the tracker (values held over a step, rate = their difference): the velocity at
+        # the step's end is half a step of rate beyond the value held over it.
+        pv, pa = self._plan_state if self._left == (self.value, self.rate) else (
+            self.value + 0.5 * self.rate * dt, self.rate)
+        inp = self._inp
+        inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [pv], [pa]
+        inp.target_position, inp.target_velocity, inp.target_acceleration = [distance], [0.0], [0.0]
+        # One-signed velocity: the profile never turns back (no overshoot reversal).
+        inp.max_velocity, inp.min_velocity = ([vm], [0.0]) if distance >= 0 else ([0.0], [-vm])
+        inp.max_acceleration, inp.max_jerk = [self.amax], [self.jmax]
+        inp.control_interface = ControlInterface.Position
+        if distance * pv < 0.0 or not self._plan():
+            # Too close to stop on it without turning back (the prediction moved the goal by
+            # more than the time-optimal profile's zero slack): the shortest stop instead, by
+            # the same exact integration, so the jerk stays bounded across the switch.
+            inp.control_interface = ControlInterface.Velocity
+            inp.max_velocity, inp.min_velocity = [self.vmax], [-self.vmax]
+            if not self._plan():
+                return self.step(0.0, dt)
+        # Sent: the mean velocity over the step, so that the command, held for the step as the
+        # chair is commanded, covers exactly what the profile does (the end value would leave
+        # a remainder each step that the next plan chases in a creeping tail). The rate is
+        # that of what is sent (the tracker's convention, so a hand-over to it is smooth);
+        # the profile's own state is kept for the next plan.
+        old = self.value
+        if self._traj.duration <= dt:  # it ends within this step: cover the rest, then rest
+            pos = self._traj.at_time(self._traj.duration)[0][0]
+            self.value = pos / dt if abs(pos) > 1e-9 else 0.0
+            self._plan_state = (0.0, 0.0)
+        else:
+            pos, vel, acc = (x[0] for x in self._traj.at_time(dt))
+            self.value = max(-self.vmax, min(self.vmax, pos / dt))
+            self._plan_state = (vel, acc)
+        self.rate = max(-self.amax, min(self.amax, (self.value - old) / dt))
+        self._left = (self.value, self.rate)
+        return self.value
+
+    def _plan(self) -> bool:
+        try:
+            return self._otg.calculate(self._inp, self._traj) in (Result.Working, Result.Finished)
+        except RuckigError:
+            return False
+
+
 class ComfortLimiter:
     """Both axes, curvature-preserving."""
 
@@ -93,6 +168,14 @@ class ComfortLimiter:
     def at_rest(self) -> bool:
         return self.v.value == 0.0 and self.v.rate == 0.0 and self.w.value == 0.0 \
             and self.w.rate == 0.0
+
+    def move(self, v_to: float | None, w_to: float | None, dt: float,
+             vmax: float | None = None) -> tuple[float, float]:
+        """Point-to-point: an axis given a distance covers it time-optimally and ends at rest
+        (SCurveAxis.move; v at most `vmax`); an axis given None brakes to rest."""
+        v = self.v.step(0.0, dt) if v_to is None else self.v.move(v_to, dt, vmax)
+        w = self.w.step(0.0, dt) if w_to is None else self.w.move(w_to, dt)
+        return v, w
 
     def step(self, v_des: float, omega_des: float, dt: float) -> tuple[float, float]:
         # Over the speed or turn-rate bound: scale both, so the curvature is unchanged.

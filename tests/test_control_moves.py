@@ -1,0 +1,169 @@
+"""Time-optimal point-to-point moves (limits.py `move`), the drive-chain predictor (core.py
+ChainAxis) and the minimum-time reference of the control-law suite (bench/min_time.py)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import pytest
+from bench.control_eval import scurve_time
+from bench.min_time import Limits, min_time
+
+from autochair.control.core import ChainAxis, ControlConfig, ControlCore, OdomSample
+from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
+from autochair.geometry import wrap_angle as wrap
+from autochair.pid.core import PidConfig
+from autochair_msgs import GoalRequest, Pose2D
+
+DT = 0.02  # the control core's period (50 Hz)
+
+
+def run_move(axis: SCurveAxis, distance: float, steps: int = 1000) -> tuple[list[float], float]:
+    """Values sent while moving `distance` (replanned each step from what is left), and the
+    distance covered (the values held over each step, as the chair is commanded)."""
+    out, covered = [], 0.0
+    for _ in range(steps):
+        left = distance - covered
+        v = axis.move(max(left, 0.0) if distance > 0 else min(left, 0.0), DT)  # as the core
+        covered += v * DT
+        out.append(v)
+        if v == 0.0 and axis.rate == 0.0:
+            break
+    return out, covered
+
+
+@pytest.mark.parametrize("angle", [math.pi / 4, -math.pi / 2, math.pi])
+def test_in_place_turn_is_time_optimal_within_the_limits(angle: float) -> None:
+    lim = ComfortLimits()
+    ax = SCurveAxis(lim.omega_max_radps, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3)
+    ws, covered = run_move(ax, angle)
+    t = len(ws) * DT
+    best = scurve_time(abs(angle), lim.omega_max_radps, lim.omega_acc_max_radps2,
+                       lim.omega_jerk_max_radps3)
+    assert covered == pytest.approx(angle, abs=math.radians(0.3))
+    assert best <= t <= best + 3 * DT  # the jerk-limited optimum, to the control period
+    w = [0.0, *ws]
+    acc = [(b - a) / DT for a, b in itertools.pairwise(w)]
+    assert max(map(abs, w)) <= lim.omega_max_radps + 1e-9
+    assert max(map(abs, acc)) <= lim.omega_acc_max_radps2 + 1e-6
+    jerk = [(b - a) / DT for a, b in itertools.pairwise(acc)]
+    assert max(map(abs, jerk)) <= lim.omega_jerk_max_radps3 * 1.01
+    assert all(x * angle >= 0 for x in ws)  # one-signed: never turns back
+
+
+def test_a_move_too_short_to_stop_on_brakes_without_turning_back() -> None:
+    ax = SCurveAxis(1.2, 1.0, 2.0)
+    ax.value, ax.rate = 0.6, 0.5  # accelerating, 5 cm before the point
+    ws, covered = run_move(ax, 0.05)
+    assert covered > 0.05  # positive control: it cannot stop on it
+    assert all(v >= 0.0 for v in ws) and ws[-1] == 0.0 and ax.rate == 0.0
+    acc = [(b - a) / DT for a, b in itertools.pairwise([0.6, *ws])]
+    assert max(map(abs, acc)) <= 1.0 + 1e-6
+
+
+def test_limiter_move_brakes_the_axis_without_a_distance() -> None:
+    lim = ComfortLimiter()
+    lim.reset(0.5, 0.0)
+    turned = 0.0
+    for _ in range(200):
+        v, w = lim.move(None, math.pi / 2 - turned, DT)
+        turned += w * DT
+        assert v >= -1e-12
+    assert lim.at_rest and turned == pytest.approx(math.pi / 2, abs=1e-4)
+
+
+def chain_response(mean: float, lag: float, cmds: list[float],
+                   h: float = 1e-4) -> tuple[float, float]:
+    """(motion by the end of the commands, whole motion) of a chair whose velocity follows
+    the commands (each held DT, then zero) through the delay and the two lags: a fine
+    simulation."""
+    delay = mean - 2 * lag
+    x1 = x2 = total = t = 0.0
+    so_far, t_end = None, len(cmds) * DT
+    while t < t_end + delay + 12 * lag:
+        if so_far is None and t >= t_end - 1e-12:
+            so_far = total
+        k = math.floor((t - delay) / DT + 1e-9)
+        u = cmds[k] if 0 <= k < len(cmds) else 0.0
+        x1 += (u - x1) * h / lag
+        x2 += (x1 - x2) * h / lag
+        total += x2 * h
+        t += h
+    assert so_far is not None
+    return so_far, total
+
+
+def test_chain_prediction_is_the_motion_still_to_come() -> None:
+    # a turn braking at the ω̇ limit: where a window of recent commands errs by degrees
+    cmds = [min(0.9, 2.8 * DT * k) for k in range(30)] + [0.9 - 2.8 * DT * k
+                                                           for k in range(1, 9)]
+    so_far, total = chain_response(0.62, 0.15, cmds)
+    ax = ChainAxis(0.62, 0.15)
+    for u in cmds:
+        ax.push(DT, u)
+    to_come = sum(ax.future(DT, 200)) * DT
+    assert to_come == pytest.approx(total - so_far, abs=math.radians(0.3))
+    window = sum(cmds[-round(0.62 / DT):]) * DT  # the old predictor: the last 0.62 s sent
+    assert abs(window - (total - so_far)) > math.radians(1.0)  # positive control
+
+
+def test_predictor_defaults_are_the_identified_drive_chain() -> None:
+    cfg, pid = ControlConfig(), PidConfig()
+    assert pid.v_model is not None and pid.omega_model is not None
+    assert cfg.predict_lag_s == pid.prefilter_s
+    assert cfg.predict_s == pytest.approx(pid.v_model[4] + 2 * pid.prefilter_s, abs=0.005)
+    assert cfg.predict_omega_s == pytest.approx(pid.omega_model[4] + 2 * pid.prefilter_s,
+                                                abs=0.005)
+
+
+def test_in_place_turn_on_a_lagging_chair_lands_without_reversal() -> None:
+    """A chair that follows each command through the predictor's own chain (delay + two lags):
+    the turn arrives in about the optimum plus the chain's lag, ω one-signed, within 3°."""
+    cfg = ControlConfig()
+    core = ControlCore(cfg)
+    axes = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
+            ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
+    x = y = yaw = 0.0
+    goal = math.radians(-45)
+    core.on_odom(OdomSample(0, 0, 0, 0, 0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(0.0, 0.0, goal)]), 0.0).ok
+    t, ws = 0.0, []
+    while core.active and t < 10:
+        core.on_odom(OdomSample(x, y, yaw, axes[0].x2, axes[1].x2, t))
+        for ax, u in zip(axes, core.step(t) or (0.0, 0.0), strict=True):
+            ax.push(DT, u)
+        x += axes[0].x2 * math.cos(yaw) * DT
+        y += axes[0].x2 * math.sin(yaw) * DT
+        yaw = wrap(yaw + axes[1].x2 * DT)
+        ws.append(axes[1].x2)
+        t += DT
+    best = scurve_time(abs(goal), cfg.omega_max_radps, cfg.omega_acc_max_radps2,
+                       cfg.omega_jerk_max_radps3)
+    assert core.state == "arrived", core.reason
+    assert abs(wrap(goal - yaw)) <= math.radians(3) and math.hypot(x, y) < 0.01
+    assert all(w <= 1e-6 for w in ws)  # one-signed
+    assert min(ws) < -0.5  # (positive control: it did turn)
+    assert t <= best + cfg.predict_omega_s + 1.0, t
+
+
+# --- the minimum-time reference (bench/min_time.py) ----------------------------------------
+def test_min_time_of_a_straight_line_is_the_jerk_limited_bound() -> None:
+    r = min_time((0, 0, 0), (1.0, 0, 0), n=24, coarse=12)
+    assert r.ok
+    assert r.time_s == pytest.approx(scurve_time(1.0, 1.2, 1.0, 2.0), rel=0.02)
+
+
+def test_min_time_of_an_in_place_turn_is_the_rotational_bound() -> None:
+    r = min_time((0, 0, 0), (0, 0, math.radians(-45)), n=24, coarse=12)
+    assert r.ok
+    assert r.time_s == pytest.approx(scurve_time(math.pi / 4, 0.9, 2.8, 7.7), rel=0.03)
+
+
+def test_min_time_forward_only_versus_reversing() -> None:
+    """0.5 m straight back: reversing allowed, the straight-line bound; forward only, the chair
+    must turn round (at least a full turn of heading, ≥ 2π/ω_max = 7 s)."""
+    back = min_time((0, 0, 0), (-0.5, 0, 0), Limits(v_min=-1.2), n=24, coarse=12)
+    assert back.ok and back.time_s == pytest.approx(scurve_time(0.5, 1.2, 1.0, 2.0), rel=0.03)
+    fwd = min_time((0, 0, 0), (-0.5, 0, 0))
+    assert fwd.ok and fwd.time_s >= 2 * math.pi / 0.9
