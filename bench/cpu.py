@@ -381,6 +381,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"work dir kept: {work}")
         else:
             shutil.rmtree(work, ignore_errors=True)
+    res["load_after"] = os.getloadavg()
+    if "floor" in res:  # a loaded machine inflates every figure alike; ratios compare runs
+        floor = res["floor"]["total_median_pct"]
+        res["ratio_to_floor"] = {c: round(res[c]["total_median_pct"] / floor, 2)
+                                 for c in ("idle", "driving") if c in res and floor > 0}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(res, indent=2) + "\n")
     print(table(res))
@@ -403,6 +408,9 @@ def table(res: dict[str, Any]) -> str:
         f = res["floor"]["services"]
         lines.append(f"floor ({res['floor']['msgs_per_s']} msg/s): pub "
                      f"{f['pub']['median_pct']} %, sub {f['sub']['median_pct']} %")
+    if res.get("ratio_to_floor"):
+        lines.append("total / floor: " + ", ".join(
+            f"{c} {r}" for c, r in res["ratio_to_floor"].items()))
     return "\n".join(lines)
 
 

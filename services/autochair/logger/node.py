@@ -19,7 +19,7 @@ from autochair_msgs import keys
 
 from .writer import Intake, LoggerConfig, Recorder
 
-IDLE_WAIT_S = 0.02  # writer poll period when the queue is empty (50 wakeups/s, not 200)
+IDLE_WAIT_S = 0.1  # writer poll period when the queue is empty (10 wakeups/s)
 
 
 def logged_keys() -> list[str]:

@@ -7,6 +7,7 @@ import collections
 import contextlib
 import faulthandler
 import logging
+import math
 import os
 import signal
 import sys
@@ -211,6 +212,37 @@ class Node:
         sub = self.session.declare_subscriber(key or topic.key, on_sample)
         self._closers.append(sub.undeclare)
 
+    def latest(self, topic: keys.Topic[T], key: str | None = None) -> Callable[[], T | None]:
+        """The newest message of `topic` when asked, for a loop that needs only the current
+        value at its own rate (the lidar simulator's pose per scan). Returns `get()`: the
+        newest message received so far (None before the first). Zenoh's network thread keeps
+        only the newest sample (a ring of one) and no Python thread wakes per message, unlike
+        `subscribe` (profiled: each 100 Hz subscription wakes its callback thread 100 × a
+        second). A malformed payload is counted and reported as in `subscribe`; the last good
+        message stays."""
+        decoder = msgspec.msgpack.Decoder(topic.type)
+        counter = f"decode_errors:{topic.key}"
+        sub = self.session.declare_subscriber(key or topic.key, zenoh.handlers.RingChannel(1))
+        self._closers.append(sub.undeclare)
+        lock = threading.Lock()  # several threads may ask (the lidar sim's pty and TCP ends)
+        last: list[T | None] = [None]
+
+        def get() -> T | None:
+            with lock:
+                sample = newest = sub.try_recv()
+                while sample is not None:
+                    newest, sample = sample, sub.try_recv()
+                if newest is not None:
+                    try:
+                        last[0] = decoder.decode(newest.payload.to_bytes())
+                    except (msgspec.DecodeError, msgspec.ValidationError) as e:
+                        self.health.count(counter)
+                        if self.health.counters.get(counter, 0) in (1, 10, 100, 1000):
+                            self.event("warning", f"malformed payload on {newest.key_expr}: {e}")
+                return last[0]
+
+        return get
+
     def serve(self, topic: keys.Topic[T], handler: Callable[[T], msgspec.Struct]) -> None:
         """Answer queries on a `kind="query"` row of the key table: the request decoded as the
         row's type, the handler's reply (the row's reply type) encoded. A malformed request is
@@ -308,6 +340,18 @@ class Node:
                 self.stop_event.wait(next_t - now)
 
         self.thread(loop, name)
+
+    def beat(self, name: str, period_s: float) -> Beat:
+        """The watchdog's view of a loop that runs on a thread of its own (`thread`) instead
+        of `every`, e.g. the gateway's tick done by its serial reader after each read, which
+        saves a thread waking at the frame rate. Call the returned `beat()` after each
+        completed iteration (at least every `period_s`); a loop with no beat for
+        max(stale.watchdog_s, 3 × period_s) gets the process restarted, as for `every`.
+        `beat.pause()`: not expected to beat until the next `beat()` (around a blocking call
+        that has its own bound, e.g. opening a serial URL). Under the SIGUSR2 test hook
+        `beat()` blocks until shutdown, as a deadlocked loop would."""
+        self.liveness.add_loop(name, period_s, time.monotonic())
+        return Beat(self, name)
 
     def thread(self, target: Callable[[], None], name: str, daemon: bool = True) -> None:
         """Run `target` on its own thread until shutdown. If it ends before (an exception, or
@@ -433,6 +477,23 @@ class Node:
         self.session.close()
 
 
+class Beat:
+    """A loop's beat for the node's watchdog (see `Node.beat`)."""
+
+    def __init__(self, node: Node, name: str) -> None:
+        self._node, self._name = node, name
+
+    def __call__(self) -> None:
+        node = self._node
+        if node._hung.is_set():  # the SIGUSR2 test hook: a deadlocked loop
+            node.stop_event.wait()
+            return
+        node.liveness.tick(self._name, time.monotonic())
+
+    def pause(self) -> None:
+        self._node.liveness.tick(self._name, math.inf)  # never late until the next beat
+
+
 def wait_for_stop(stop: threading.Event) -> None:
     """Block the main thread until `stop` is set, waking often.
 
@@ -470,6 +531,10 @@ def _parser(name: str, description: str) -> argparse.ArgumentParser:
                         help=f"override a [{name}] setting (or stale.KEY, chair.KEY); "
                              "repeatable")
     parser.add_argument("--connect", help="Zenoh endpoint(s) of the hub, comma-separated")
+    parser.add_argument("--zenoh-mode", choices=("peer", "client"),
+                        help="peer: direct links to every other peer (the drive chain); "
+                             "client: one link, to the hub, which relays (default: [zenoh] "
+                             "mode)")
     parser.add_argument("--log-level", default="INFO")
     return parser
 
@@ -485,6 +550,21 @@ def _settings(name: str, config_type: type[C], path: str | None, sets: list[str]
     return (load_section(config_type, name, path, own),
             load_section(StaleConfig, "stale", path, overrides("stale.")),
             load_section(ChairGeometry, "chair", path, overrides("chair.")))
+
+
+def zenoh_settings(path: str | None, connect: str | None, mode: str | None) -> ZenohSettings:
+    """[zenoh] with the command line's hub and mode. A client listens nowhere: its one link is
+    to the hub. Why clients at all: every link of a peer carries a keepalive each lease / 4
+    (250 ms at lease_ms = 1000), so a full mesh of n peers wakes every process ~8 (n - 1)
+    times a second doing nothing; measured, 12 idle peers cost 15 % of a core, as clients 2 %
+    (plus 1 % for the hub). A process whose traffic is light and not latency-bound (10 Hz
+    scans, maps, the simulators) is a client (processes.py); the drive chain stays peers."""
+    settings = load_zenoh(path, connect)
+    if mode is not None:
+        settings.mode = mode
+        if mode == "client":
+            settings.listen = []
+    return settings
 
 
 def service_main(
@@ -503,7 +583,8 @@ def service_main(
     setup_logging(args.log_level)
     try:
         config, stale, chair = _settings(name, config_type, args.config, args.set)
-        node = Node(name, load_zenoh(args.config, args.connect), stale, chair)
+        node = Node(name, zenoh_settings(args.config, args.connect, args.zenoh_mode), stale,
+                    chair)
     except ConfigError as e:
         print(f"autochair-{name}: error: {e}", file=sys.stderr)
         return 2

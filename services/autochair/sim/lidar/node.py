@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
-from autochair_msgs import GroundTruth, keys
+from autochair_msgs import keys
 
 from ..world import DEFAULT_WORLD, World, WorldError, load_world
 from .scanner import ERR_NO_RETURN, ScanFn, UrgDevice, UrgParams, ray_scan
@@ -170,7 +170,9 @@ class LidarSim:
     def __init__(self, node: Node, cfg: LidarSimConfig, world: World) -> None:
         self.node, self.cfg, self.world = node, cfg, world
         self.params = UrgParams(scan_rate_hz=cfg.scan_rate_hz)
-        self.pose = (0.0, 0.0, 0.0)
+        # The true pose, read once per scan: the newest ground truth (100 Hz while moving),
+        # kept by Zenoh, so no thread of ours wakes per sample.
+        self.truth = node.latest(keys.SIM_TRUTH)
         self.mount = node.chair.laser_mount
         self.rng = np.random.default_rng(cfg.seed)
         self.lock = threading.Lock()  # the generator is shared by the pty and TCP threads
@@ -181,14 +183,16 @@ class LidarSim:
         self.t0 = time.monotonic()  # people walk from the start of this process
         self.endpoints: list[Endpoint] = []
 
-    def on_truth(self, msg: GroundTruth) -> None:
-        self.pose = (msg.x_m, msg.y_m, msg.yaw_rad)
-
     def scan_fn(self, _now_s: float) -> npt.NDArray[np.int64]:
+        """The sweep that ends now, from the chair's true pose and motion (the newest ground
+        truth; at rest at the origin before the first): a turning chair skews it."""
         world = self.world.at(time.monotonic() - self.t0)
+        m = self.truth()
+        pose, twist = ((0.0, 0.0, 0.0), (0.0, 0.0)) if m is None else \
+            ((m.x_m, m.y_m, m.yaw_rad), (m.v_mps, m.omega_radps))
         with self.lock:
-            raw = ray_scan(world, self.params, self.pose, self.mount, self.cfg.noise_std_m,
-                           self.rng)
+            raw = ray_scan(world, self.params, pose, self.mount, self.cfg.noise_std_m,
+                           self.rng, twist)
         blinded = self.blind.is_set()
         if blinded != self.was_blind:  # logged here, not in the signal handler
             self.was_blind = blinded
@@ -224,7 +228,6 @@ def start(node: Node, cfg: LidarSimConfig) -> None:
     except WorldError as e:
         raise ConfigError(str(e)) from None
     sim = LidarSim(node, cfg, world)
-    node.subscribe(keys.SIM_TRUTH, sim.on_truth)
     if cfg.pty_link:
         sim.endpoints.append(PtyEndpoint(node, cfg, sim.params, sim.scan_fn))
     if cfg.tcp_port >= 0:

@@ -1,0 +1,83 @@
+"""People tracked on the live stack: the simulated URG-04LX sees a person cross the corridor
+ahead of the parked chair (crossing.world: x = 4 m, y from −3 to 3 m and back, 0.8 m/s); the
+control service reports them (autochair/people) on that line at that speed, and nothing else
+once the live map has come. (The lidar simulator walks people on its own clock, so the check
+is the person's line and speed, not the phase along it.)"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from autochair.launcher import Launcher
+from autochair.runtime.client import request
+from autochair.sim.world import DEFAULT_WORLD
+from autochair_msgs import GoalReply, GoalRequest, Pose2D, keys
+from tests.helpers import Recorder, client_session, wait_for
+from tests.test_nav_system import L_WORLD, drive_to, map_ready, story, world_config
+from tests.test_nav_system import STACK as NAV_STACK
+
+pytestmark = pytest.mark.slow
+
+STACK = ["sim", "gateway", "odometry", "lidar-sim", "lidar", "mapping", "control"]
+CROSSING = (DEFAULT_WORLD.parent / "crossing.world").read_text()
+
+
+def test_a_person_crossing_is_tracked_on_their_line_at_their_speed(
+        stack_factory: Callable[..., Launcher], hub: str, tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    world_config(tmp_path, monkeypatch, CROSSING)
+    stack_factory(STACK)
+    session = client_session(hub)
+    try:
+        people = Recorder(session, keys.PEOPLE)
+        map_ready(session)
+        wait_for(people.latest, 10, "people reports")
+        since = people.latest().stamp_ns
+
+        def tracks() -> list[tuple[float, float, float, float]]:
+            return [(q.x_m, q.y_m, q.vx_mps, q.vy_mps) for m in people.messages()
+                    if m.stamp_ns > since for q in m.people]
+
+        def walking() -> tuple[float, float, float, float] | None:
+            return next((t for t in tracks() if abs(t[0] - 4.0) < 0.25 and abs(t[1]) < 1.5
+                         and abs(abs(t[3]) - 0.8) < 0.25 and abs(t[2]) < 0.25), None)
+
+        x, y, vx, vy = wait_for(walking, 40, "the crossing person tracked at walking speed")
+        print(f"tracked at ({x:.2f}, {y:.2f}) moving ({vx:.2f}, {vy:.2f}) m/s")
+        # Positive control above; now nothing else: every track lies on the person's line.
+        wrong = [(round(t[0], 2), round(t[1], 2)) for t in tracks()
+                 if abs(t[0] - 4.0) > 0.75 or abs(t[1]) > 3.5]  # (0.75: half hidden by a jamb)
+        assert not wrong, f"tracks where no one walks: {wrong[:5]}"
+    finally:
+        session.close()
+
+
+def test_driving_round_a_corner_makes_no_people_of_walls(
+        stack_factory: Callable[..., Launcher], hub: str, tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """New walls come into view at a corner before the live map has them: they must not be
+    reported as people. Positive control: someone walking across the far end of the second
+    leg (x 7.3 … 8.7 at y = 8.3) is."""
+    world_config(tmp_path, monkeypatch, L_WORLD + "person 7.3 8.3 8.7 8.3 0.6\n")
+    stack_factory(NAV_STACK)
+    session = client_session(hub)
+    try:
+        people = Recorder(session, keys.PEOPLE)
+        map_ready(session)
+        states = drive_to(session, Pose2D(8.0, 3.0, 1.5708), 90)
+        assert states[-1].state == "arrived", story(states)
+
+        def walker() -> bool:
+            return any(abs(q.y_m - 8.3) < 0.4 and 7.0 < q.x_m < 9.0
+                       for m in people.messages() for q in m.people)
+
+        wait_for(walker, 10, "the walker at the far end reported")
+        wrong = [(round(q.x_m, 2), round(q.y_m, 2)) for m in people.messages()
+                 for q in m.people if not (abs(q.y_m - 8.3) < 0.6 and 6.8 < q.x_m < 9.2)]
+        assert not wrong, f"walls reported as people: {wrong[:8]}"
+        request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
+    finally:
+        session.close()
