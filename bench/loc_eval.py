@@ -15,7 +15,8 @@ within 0.1 m and tracking.
 Mapping mode: a 4-minute drive builds a map (CPU includes redrawing the published map every
 5 s, as the node does); then 10 minutes of localization on that map, scored raw (map frame vs
 world) and after one rigid SE(2) alignment of the whole trajectory (the usual ATE: a map
-turned by 0.2° about its start is a good map). Calibration: a separate drive of the route with
+turned by 0.2° about its start is a good map); once per mapping seed (`--map-seeds`, default
+7 1 2 3; the goal is judged on the worst). Calibration: a separate drive of the route with
 the turn-rate limit varied per lap (0.3 / 0.55 / 0.8 rad/s); at one turn rate the base error
 and the skid in turns cannot be told apart.
 
@@ -131,12 +132,23 @@ def to_volts(v: float, omega: float, p: ChairParams) -> tuple[float, float]:
 
 
 def laser_scan(world: World, urg: UrgParams, pose: tuple[float, float, float],
-               rng: np.random.Generator) -> Scan:
-    """A simulated URG scan from the true `pose`, as the lidar ingest would give it."""
-    raw = ray_scan(world, urg, pose, MOUNT, 0.01, rng)
+               rng: np.random.Generator, twist: tuple[float, float] = (0.0, 0.0)) -> Scan:
+    """A simulated URG scan from the true `pose`, as the lidar ingest would give it; with a
+    `twist` (v, ω) the sweep is skewed by the motion, as a real laser's (ray_scan)."""
+    raw = ray_scan(world, urg, pose, MOUNT, 0.01, rng, twist)
     ang = urg.step_angles()
     ranges = np.where(raw > 20, raw / 1000.0, np.inf)
-    return Scan(ranges, float(ang[0]), float(ang[1] - ang[0]), MOUNT)
+    if twist == (0.0, 0.0):
+        return Scan(ranges, float(ang[0]), float(ang[1] - ang[0]), MOUNT)
+    v, w = twist  # the chair at the first and last beam, in its frame at `pose` (the end)
+
+    def back(step: int) -> tuple[float, float, float]:
+        a = (1.0 - step / urg.ares) / urg.scan_rate_hz  # s before `pose` (ray_scan's timing)
+        if abs(w) < 1e-9:
+            return (-v * a, 0.0, 0.0)
+        return (-v * math.sin(w * a) / w, v * (1.0 - math.cos(w * a)) / w, -w * a)
+    return Scan(ranges, float(ang[0]), float(ang[1] - ang[0]), MOUNT,
+                back(urg.amin), back(urg.amax))
 
 
 def scan_points(world: World, urg: UrgParams, pose: tuple[float, float, float],
@@ -167,8 +179,10 @@ class Tick:
 
 def drive(world_name: str, minutes: float, seed: int = 1, kidnap_at_s: float | None = None,
           params: ChairParams | None = None,
-          omega_caps: tuple[float, ...] = (0.8,)) -> Iterator[Tick]:
-    """The chair driving its route with drift; one Tick per scan (10 per second)."""
+          omega_caps: tuple[float, ...] = (0.8,), skew: bool = False) -> Iterator[Tick]:
+    """The chair driving its route with drift; one Tick per scan (10 per second); `skew`:
+    scans taken beam by beam while moving (as the live simulator's and a real laser's), each
+    Scan carrying the chair's motion over its sweep (Scan.first/last: de-skewed)."""
     world = load_world(WORLDS / f"{world_name}.world")
     start, wps = ROUTES[world_name]
     model = ChairModel(params or ChairParams(drift=True, seed=seed))
@@ -192,8 +206,9 @@ def drive(world_name: str, minutes: float, seed: int = 1, kidnap_at_s: float | N
         if (k + 1) % SCAN_EVERY == 0:
             truth = (model.x, model.y, model.yaw)
             yield Tick(t + DT, truth, np.array([odo.x, odo.y, odo.yaw]),
-                       laser_scan(world, urg, truth, rng), (model.left_counts,
-                                                            model.right_counts))
+                       laser_scan(world, urg, truth, rng,
+                                  (model.v, model.omega) if skew else (0.0, 0.0)),
+                       (model.left_counts, model.right_counts))
 
 
 def surveyed_map(world_name: str, res: float = 0.05) -> MapFile:
@@ -339,6 +354,8 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--worlds", nargs="*", default=list(ROUTES))
     ap.add_argument("--map-minutes", type=float, default=4.0, help="mapping-mode drive")
+    ap.add_argument("--map-seeds", type=int, nargs="+", default=[7, 1, 2, 3],
+                    help="a mapping drive (and localization on its map) per seed")
     args = ap.parse_args(argv)
     out: dict[str, Any] = {"minutes": args.minutes,
                            "drift": {k: getattr(ChairParams(), k) for k in (
@@ -368,23 +385,33 @@ def main(argv: list[str]) -> int:
               f"({100 * cal['diameter_ratio_err_of_size']:.1f} % of the error), "
               f"E_b {cal['base_ratio_est']:.5f} ({100 * cal['base_ratio_err_of_size']:.1f} %)")
     for name in args.worlds:  # mapping mode, then localization on the map it made
-        w0 = time.perf_counter()
-        m, traj, kf = mapping_run(name, args.map_minutes)
-        mres = {f"mapping_{k}": v for k, v in {**score(traj), **kf}.items()}
-        mres["mapping_wall_s"] = time.perf_counter() - w0
-        lres = score(list(simulate(name, args.minutes, on_map=m)))
-        mres.update({f"on_own_map_{k}": v for k, v in lres.items()})
-        out["worlds"][name].update(mres)
-        print(f"{name} mapping: " + ", ".join(f"{k}={v:.4g}" for k, v in mres.items()),
-              flush=True)
-    own = {name: r["on_own_map_ate_rmse_m"] <= 0.05 and r["on_own_map_ate_max_m"] <= 0.10
-           and r["mapping_cpu_pct_one_core_at_10hz"] <= 10.0
-           for name, r in out["worlds"].items() if "on_own_map_ate_rmse_m" in r}
+        per_seed: dict[str, dict[str, float]] = {}
+        for seed in args.map_seeds:  # one seed's map is one sample: they spread 2× apart
+            w0 = time.perf_counter()
+            m, traj, kf = mapping_run(name, args.map_minutes, seed)
+            mres = {f"mapping_{k}": v for k, v in {**score(traj), **kf}.items()}
+            mres["mapping_wall_s"] = time.perf_counter() - w0
+            lres = score(list(simulate(name, args.minutes, on_map=m)))
+            mres.update({f"on_own_map_{k}": v for k, v in lres.items()})
+            per_seed[str(seed)] = mres
+            print(f"{name} mapping seed {seed}: " + ", ".join(
+                f"{k}={v:.4g}" for k, v in mres.items()), flush=True)
+        r = out["worlds"][name]
+        r.update(per_seed[str(args.map_seeds[0])])  # the first seed's figures, as before
+        r["own_map_seeds"] = per_seed
+        for k in ("on_own_map_ate_rmse_m", "on_own_map_ate_max_m", "mapping_map_ate_rmse_m",
+                  "mapping_map_ate_max_m", "mapping_cpu_pct_one_core_at_10hz"):
+            r[f"{k}_worst"] = max(v[k] for v in per_seed.values())
+    own = {name: r["on_own_map_ate_rmse_m_worst"] <= 0.05
+           and r["on_own_map_ate_max_m_worst"] <= 0.10
+           and r["mapping_cpu_pct_one_core_at_10hz_worst"] <= 10.0
+           for name, r in out["worlds"].items() if "own_map_seeds" in r}
     out["goals"] = {"surveyed_maps_and_calibration": ok, "own_map": own}
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {RESULTS}; goals on the surveyed maps and calibration "
-          f"{'met' if ok else 'NOT met'}; on the chair's own map (ATE raw, mapping CPU): "
+          f"{'met' if ok else 'NOT met'}; on the chair's own map (ATE raw, worst seed; mapping "
+          "CPU): "
           + ", ".join(f"{n} {'met' if v else 'NOT met'}" for n, v in own.items()))
     return 0 if ok else 1
 

@@ -25,6 +25,12 @@ def transform(pose: F64, pts: F64) -> F64:
                             pose[1] + s * pts[:, 0] + c * pts[:, 1]))
 
 
+def rotate(yaw: float, vecs: F64) -> F64:
+    """(N, 2) vectors turned by `yaw`."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.column_stack((c * vecs[:, 0] - s * vecs[:, 1], s * vecs[:, 0] + c * vecs[:, 1]))
+
+
 def compose(a: F64, b: F64) -> F64:
     """a ∘ b: pose b, given in a's frame, in a's parent frame."""
     c, s = math.cos(a[2]), math.sin(a[2])
@@ -81,6 +87,135 @@ class DistanceField:
         return np.where(inside, d, far), np.where(inside, gx, 0.0), np.where(inside, gy, 0.0)
 
 
+def scan_normals(pts: F64, spans: tuple[int, ...] = (2, 4, 8, 16), min_chord_m: float = 0.15,
+                 max_gap_m: float = 0.25, max_bend_m: float = 0.025) -> F64:
+    """Unit normals (N, 2) of points in scan order, from the chord between the ±span-th
+    neighbours, with the smallest span whose chord is ≥ `min_chord_m` (1 cm range noise on a
+    shorter chord turns it by degrees); NaN where no such chord has the point on it (a gap, a
+    corner, an edge). Neighbours in the scan, not in space: a wall seen at a grazing angle has
+    its points 10–15 cm apart, too sparse for a normal from a spatial neighbourhood."""
+    n = len(pts)
+    out = np.full((n, 2), np.nan)
+    done = np.zeros(n, dtype=np.bool_)
+    gap = np.hypot(*np.diff(pts, axis=0).T) if n > 1 else np.zeros(0)
+    for span in spans:
+        if n < 2 * span + 1:
+            break
+        # window k spans the gaps between points k … k + 2·span: centre k + span
+        ok_gap = np.lib.stride_tricks.sliding_window_view(gap, 2 * span).max(axis=1) <= max_gap_m
+        i = np.arange(span, n - span)
+        a, d = pts[i - span], pts[i + span] - pts[i - span]
+        length = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
+        nrm = np.column_stack((-d[:, 1], d[:, 0])) / length[:, None]
+        bend = np.abs(np.sum((pts[i] - a) * nrm, axis=1))
+        ready = ~done[i] & (length >= min_chord_m)
+        good = ready & ok_gap & (bend <= max_bend_m)
+        out[i[good]] = nrm[good]
+        done[i[ready]] = True  # the first long-enough chord decides: longer ones cross corners
+    return out
+
+
+def _cell_sums(inv: npt.NDArray[np.int64], k: int, cols: tuple[F64, ...]) -> F64:
+    """Sums of each of `cols` per cell (`inv`: the cell number of every point)."""
+    return np.column_stack([np.bincount(inv, v, k) for v in cols]).astype(np.float64)
+
+
+def _box_sums(cells: npt.NDArray[np.int64], w: int, own: F64, r: int = 1) -> F64:
+    """Per occupied cell (`cells`: sorted flat indices), the sums of `own` rows over the
+    (2r+1)² cells round it."""
+    k = cells.size
+    out = np.zeros_like(own)
+    if not k:
+        return out
+    cy, cx = cells // w, cells % w
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            nb = (cy + dy) * w + cx + dx
+            pos = np.minimum(np.searchsorted(cells, nb), k - 1)
+            hit = (cx + dx >= 0) & (cx + dx < w) & (cells[pos] == nb)
+            out[hit] += own[pos[hit]]
+    return out
+
+
+class LineField(DistanceField):
+    """A distance field of points whose `sample` is sub-cell: the distance from a query point
+    to the local line through the map points nearest to it (point-to-line; point-to-point at
+    corners and where no normal is known). Each occupied cell holds the centroid of the points
+    in its 3 × 3 neighbourhood and the mean direction of their normals (`scan_normals`,
+    structure tensor); the EDT's nearest-cell index finds the cell for a query.
+
+    Why: `DistanceField` is zero at occupied cell *centres*, so a wall is located only to its
+    cell (±2.5 cm at 5 cm), with a flat band where it spreads over two cells, and its gradient
+    along a wall is quantisation noise, read as information along a corridor. Measured on
+    scans at known poses in the loop world (15-scan submaps): across-corridor error std
+    1.0 → 0.16 cm, yaw 0.22° → 0.03°. `dist` (for the correlative search) is unchanged."""
+
+    def __init__(self, world_pts: F64, normals: F64, frame: GridFrame,
+                 shape: tuple[int, int], max_dist_m: float = 0.5, line_ratio: float = 0.2
+                 ) -> None:
+        res, (h, w) = frame.resolution_m, shape
+        lx, ly = world_pts[:, 0] - frame.origin_x_m, world_pts[:, 1] - frame.origin_y_m
+        ix, iy = (lx / res).astype(np.int64), (ly / res).astype(np.int64)
+        keep = (ix >= 0) & (iy >= 0) & (ix < w) & (iy < h)
+        lx, ly = lx[keep], ly[keep]
+        cells, inv = np.unique(iy[keep] * w + ix[keep], return_inverse=True)
+        occ = np.zeros((h, w), dtype=np.bool_)
+        occ.ravel()[cells] = True
+        self.frame, self.max_dist_m, self.res, self.h, self.w = frame, max_dist_m, res, h, w
+        self.occupied = occ
+        if cells.size:  # one feature transform: the distances and the nearest cells
+            d, (self._ny, self._nx) = ndimage.distance_transform_edt(~occ, return_indices=True)
+        else:
+            d, self._ny, self._nx = np.full((h, w), np.inf), np.zeros((h, w), np.int32), \
+                np.zeros((h, w), np.int32)
+        self.dist = np.minimum(np.asarray(d, dtype=np.float64) * res, max_dist_m)
+        # Sums per occupied cell, then over its 3 × 3 neighbourhood (sparse: the grid of a
+        # long-range scanner is mostly empty, a dense convolution cost 0.1 s a submap).
+        k = cells.size
+        nn = normals[keep]
+        has = np.isfinite(nn[:, 0])
+        nx, ny = np.where(has, nn[:, 0], 0.0), np.where(has, nn[:, 1], 0.0)
+        mom = _box_sums(cells, w, _cell_sums(inv, k, (np.ones_like(lx), lx, ly, has * 1.0,
+                                                      nx * nx, nx * ny, ny * ny)))
+        cnt, nk = np.maximum(mom[:, 0], 1.0), np.maximum(mom[:, 3], 1.0)
+        self._cx, self._cy = mom[:, 1] / cnt, mom[:, 2] / cnt
+        txx, txy, tyy = mom[:, 4] / nk, mom[:, 5] / nk, mom[:, 6] / nk
+        th = 0.5 * np.arctan2(2 * txy, txx - tyy)  # direction of the mean normal (tensor)
+        half, dev = 0.5 * (txx + tyy), np.hypot(0.5 * (txx - tyy), txy)
+        self._nrm_x, self._nrm_y = np.cos(th), np.sin(th)
+        # Points without a normal (the sparse ends of what a scan saw, gaps) say where
+        # something is, not which way it faces: snapping onto them drags the chair along a
+        # corridor past the ends of the submap's walls. They count for the fit, not the pose.
+        self._pull = mom[:, 3] >= 1
+        self._line = self._pull & (half - dev <= line_ratio * (half + dev))  # else a corner
+        self._lut = np.zeros(h * w, dtype=np.int64)  # flat cell → occupied cell number
+        self._lut[cells] = np.arange(k)
+
+    def sample(self, pts: F64) -> tuple[F64, F64, F64]:
+        fr = self.frame
+        lx, ly = pts[:, 0] - fr.origin_x_m, pts[:, 1] - fr.origin_y_m
+        ix, iy = np.floor(lx / self.res).astype(np.int64), np.floor(ly / self.res).astype(np.int64)
+        inside = (ix >= 0) & (iy >= 0) & (ix < self.w) & (iy < self.h)
+        ix, iy = np.where(inside, ix, 0), np.where(inside, iy, 0)
+        ok = inside & (self.dist[iy, ix] < self.max_dist_m * 0.9)
+        far = self.max_dist_m
+        if not self._line.size:
+            return np.full(len(pts), far), np.zeros(len(pts)), np.zeros(len(pts))
+        c = self._lut[self._ny[iy, ix].astype(np.int64) * self.w + self._nx[iy, ix]]
+        rx, ry = lx - self._cx[c], ly - self._cy[c]
+        nx, ny = self._nrm_x[c], self._nrm_y[c]
+        signed = nx * rx + ny * ry
+        dp = np.hypot(rx, ry)
+        line = self._line[c]
+        d = np.where(line, np.abs(signed), dp)
+        sgn = np.where(signed >= 0, 1.0, -1.0)
+        safe = np.maximum(dp, 1e-9)
+        gx = np.where(line, sgn * nx, rx / safe)
+        gy = np.where(line, sgn * ny, ry / safe)
+        pull = ok & self._pull[c]
+        return np.where(ok, d, far), np.where(pull, gx, 0.0), np.where(pull, gy, 0.0)
+
+
 @dataclass(frozen=True)
 class Match:
     pose: F64
@@ -91,10 +226,15 @@ class Match:
 
 
 def refine(field: DistanceField, pts: F64, init: F64, *, iterations: int = 12,
-           inlier_m: float = 0.1, huber_m: float = 0.05, sigma_floor_m: float = 0.02) -> Match:
+           inlier_m: float = 0.1, huber_m: float = 0.05, sigma_floor_m: float = 0.02,
+           prior_m: float | None = None) -> Match:
     """Gauss-Newton on Σ ρ(d(T·p)) from `init`, Huber-weighted; points in the far band of the
-    field (no map near) get no weight."""
+    field (no map near) get no weight. `prior_m`: a weak pull of the position back to `init`
+    (σ in m) in the steps only, not in the returned information: with a point-to-line field
+    a corridor leaves the along axis (almost) singular, and unregularised steps wandered
+    20–50 cm along it."""
     pose = np.array(init, dtype=np.float64)
+    prior = 0.0 if prior_m is None else (sigma_floor_m / prior_m) ** 2  # in the steps' units
     px, py = pts[:, 0], pts[:, 1]
     info = np.zeros((3, 3))
     it = 0
@@ -109,8 +249,10 @@ def refine(field: DistanceField, pts: F64, init: F64, *, iterations: int = 12,
         h = jw.T @ jac
         g = jw.T @ d
         info = h
+        hp = h + np.diag([prior, prior, 0.0])
+        gp = g + prior * np.array([pose[0] - init[0], pose[1] - init[1], 0.0])
         try:
-            step = -np.linalg.solve(h + np.eye(3) * 1e-6 * (np.trace(h) + 1e-9), g)
+            step = -np.linalg.solve(hp + np.eye(3) * 1e-6 * (np.trace(h) + 1e-9), gp)
         except np.linalg.LinAlgError:
             break
         step[:2] = np.clip(step[:2], -0.2, 0.2)  # trust region: a cell-sized field is local

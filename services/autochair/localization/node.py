@@ -44,7 +44,7 @@ from autochair_msgs import (
 )
 
 from .core import Estimate, Localizer, LocState, chair_cells
-from .matching import DistanceField, GridFrame
+from .matching import DistanceField, GridFrame, between
 from .slam import MapRenderer, Scan, Slam
 
 
@@ -159,8 +159,11 @@ class LocalizationService:
 
     def process(self, msg: LaserScan) -> None:
         health = self.node.health
+        max_dt = int(self.cfg.max_odom_dt_s * 1e9)
+        sweep_ns = int((len(msg.ranges_m) - 1) * msg.time_increment_s * 1e9)
         with self.lock:
-            pose = self.odom.at(msg.stamp_ns, int(self.cfg.max_odom_dt_s * 1e9))
+            pose = self.odom.at(msg.stamp_ns, max_dt)  # the first beam's: the scan's pose
+            end = self.odom.at(msg.stamp_ns + sweep_ns, max_dt) if sweep_ns > 0 else None
         if pose is None:
             health.count("scans_no_odom")
             return
@@ -169,8 +172,12 @@ class LocalizationService:
         if not self.gate.take(pose, msg.stamp_ns) and self.last_state == LocState.TRACKING.value:
             health.count("scans_still")
             return
+        # each beam from where the chair was when it was taken (a turn at 0.8 rad/s skews
+        # a URG sweep by 3°: 16 cm at 3 m); odometry between the first and the last beam
+        last = between(np.array(pose), np.array(end)) if end is not None else np.zeros(3)
         scan = Scan(np.asarray(msg.ranges_m, dtype=np.float64), msg.angle_min_rad,
-                    msg.angle_increment_rad, self.node.chair.laser_mount)
+                    msg.angle_increment_rad, self.node.chair.laser_mount,
+                    last=(float(last[0]), float(last[1]), float(last[2])))
         odom = np.array(pose)
         t0 = time.perf_counter()
         with self.lock:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from autochair.geometry import sweep_poses
 from autochair.mapping.core import GridSpec, OccupancyMapper
 
 from .core import Estimate, Localizer, LocParams, LocState
@@ -26,11 +27,14 @@ from .matching import (
     F64,
     DistanceField,
     GridFrame,
+    LineField,
     Match,
     between,
     compose,
     inverse,
     refine,
+    rotate,
+    scan_normals,
     score_grid,
     transform,
 )
@@ -38,20 +42,31 @@ from .matching import (
 
 @dataclass(frozen=True)
 class Scan:
-    """A laser scan as taken: ranges (inf = no return) from `mount` (laser in chair frame)."""
+    """A laser scan as taken: ranges (inf = no return) from `mount` (laser in chair frame).
+    A laser sweeps its beams one after another; on a moving chair `first`/`last` are the
+    chair's poses at the first and last beam in the frame the scan is used in (the odometry
+    pose given with it), the beams between taken linearly between them: `points` places each
+    beam from where it was taken (de-skewed). Both zero: all beams from the one pose."""
 
     ranges: F64
     angle_min: float
     angle_inc: float
     mount: tuple[float, float, float]
+    first: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    last: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def points(self, max_range_m: float = 30.0) -> F64:
         """Finite end points in the chair frame."""
-        a = self.angle_min + self.angle_inc * np.arange(self.ranges.size)
+        n = self.ranges.size
+        a = self.angle_min + self.angle_inc * np.arange(n)
         ok = np.isfinite(self.ranges) & (self.ranges > 0.02) & (self.ranges < max_range_m)
-        lp = np.column_stack((self.ranges[ok] * np.cos(a[ok] + self.mount[2]),
-                              self.ranges[ok] * np.sin(a[ok] + self.mount[2])))
-        return transform(np.array([self.mount[0], self.mount[1], 0.0]), lp)
+        r, a = self.ranges[ok], a[ok]
+        if self.first == self.last == (0.0, 0.0, 0.0):
+            lp = np.column_stack((r * np.cos(a + self.mount[2]), r * np.sin(a + self.mount[2])))
+            return transform(np.array([self.mount[0], self.mount[1], 0.0]), lp)
+        lx, ly, lyaw = sweep_poses(self.first, self.last, self.mount, n)
+        lx, ly, lyaw = lx[ok], ly[ok], lyaw[ok]
+        return np.column_stack((lx + r * np.cos(lyaw + a), ly + r * np.sin(lyaw + a)))
 
 
 @dataclass(frozen=True)
@@ -62,6 +77,7 @@ class SlamParams:
     submap_keyframes: int = 15
     submap_radius_m: float = 40.0  # 10 m lost the loop on the SENA log: far walls hold the heading
     max_points: int = 200
+    line_field: bool = True  # submaps matched point-to-line, sub-cell (LineField)
     loop_min_travel_m: float = 8.0  # a keyframe this much travel old can close a loop
     loop_radius_m: float = 3.0  # candidates within this of the current estimate
     # The search window grows with the travel since the last loop closed (how far the front
@@ -92,13 +108,16 @@ class SlamParams:
     # Tracking against the submap: a match far from the odometry prediction is never taken
     # (in mapping there is no map to recover on; the odometry carries the chair through).
     # The odometry noise is set high: the SENA chair's real odometry is worse than the
-    # localization defaults assume, and trusting it tore the loop there (4 cm → 0.7 cm).
+    # localization defaults assume, and trusting it tore the loop there (4 cm → 0.7 cm);
+    # `adapt_odometry` lowers it where the odometry proves better (simulator: ×0.11–0.14,
+    # SENA: ×0.5–0.9).
+    # `refine_prior_m`: along a corridor the point-to-line fit is singular (see refine).
     # The match's information is scaled to 0.3: along a corridor a few points at the
     # submap's ends fixed the position and the loop world's map shrank (−0.5 %); 0.1 with
     # 3 %/m odometry was better in the simulator but lost every loop on the SENA log.
     tracking: LocParams = field(default_factory=lambda: LocParams(
         found_quality=2.0, lost_after=10**9, trans_noise=0.15, rot_noise=0.15,
-        rot_per_m=0.05, info_scale=0.3))
+        rot_per_m=0.05, info_scale=0.3, adapt_odometry=True, refine_prior_m=0.05))
 
 
 @dataclass
@@ -108,6 +127,7 @@ class Keyframe:
     travel_m: float  # odometry distance at the keyframe
     reach_m: float  # its longest return: how far it mapped
     dense: F64  # every end point (chair frame): submaps are drawn from these
+    normals: F64  # of `dense`, chair frame (NaN where none: scan_normals)
 
 
 @dataclass
@@ -129,11 +149,15 @@ def _subsample(pts: F64, n: int) -> F64:
     return pts[np.linspace(0, len(pts) - 1, n).astype(np.int64)]
 
 
-def points_field(world_pts: F64, res: float, margin: float = 1.0) -> DistanceField:
-    """Distance field of a point set (map frame) on a grid just large enough for it."""
+def points_field(world_pts: F64, res: float, margin: float = 1.0,
+                 normals: F64 | None = None) -> DistanceField:
+    """Distance field of a point set (map frame) on a grid just large enough for it; with
+    the points' `normals`, sub-cell point-to-line (`LineField`)."""
     lo = np.floor((world_pts.min(axis=0) - margin) / res) * res
     hi = world_pts.max(axis=0) + margin
     w, h = math.ceil((hi[0] - lo[0]) / res), math.ceil((hi[1] - lo[1]) / res)
+    if normals is not None:
+        return LineField(world_pts, normals, GridFrame(res, float(lo[0]), float(lo[1])), (h, w))
     occ = np.zeros((h, w), dtype=np.bool_)
     ix = ((world_pts[:, 0] - lo[0]) / res).astype(np.int64)
     iy = ((world_pts[:, 1] - lo[1]) / res).astype(np.int64)
@@ -160,11 +184,14 @@ class Slam:
         """Distance field of keyframes `idx`, cropped to `submap_radius_m` round the chair:
         the distance transform is most of a keyframe's cost, and it grows with the area."""
         pts = np.vstack([transform(self.graph.nodes[i], self.kfs[i].dense) for i in idx])
+        nrm = np.vstack([rotate(self.graph.nodes[i][2], self.kfs[i].normals) for i in idx])
         near = np.hypot(pts[:, 0] - self.pose[0], pts[:, 1] - self.pose[1])
         if crop and (near <= self.p.submap_radius_m).sum() >= 10:
-            pts = pts[near <= self.p.submap_radius_m]
+            keep = near <= self.p.submap_radius_m
+            pts, nrm = pts[keep], nrm[keep]
         self.stats.submaps += 1
-        return points_field(pts, self.p.resolution_m)
+        return points_field(pts, self.p.resolution_m,
+                            normals=nrm if self.p.line_field else None)
 
     def update(self, odom: F64, scan: Scan) -> Estimate:
         odom = np.asarray(odom, dtype=np.float64)
@@ -214,7 +241,8 @@ class Slam:
         j = self.graph.add_node(self.pose)
         finite = scan.ranges[np.isfinite(scan.ranges)]
         reach = float(min(finite.max(), p.max_range_m)) if finite.size else 0.0
-        self.kfs.append(Keyframe(scan, pts, self._travel, reach, scan.points(p.max_range_m)))
+        dense = scan.points(p.max_range_m)
+        self.kfs.append(Keyframe(scan, pts, self._travel, reach, dense, scan_normals(dense)))
         if j > 0:
             info = np.diag([p.seq_sigma_xy_m ** -2, p.seq_sigma_xy_m ** -2,
                             p.seq_sigma_yaw ** -2])
@@ -362,8 +390,13 @@ def render(nodes: list[F64], kfs: list[Keyframe], p: SlamParams, spec: GridSpec 
 def _draw(grid: OccupancyMapper, node: F64, kf: Keyframe) -> None:
     s = kf.scan
     laser = compose(node, np.array(s.mount))
+    beams = None
+    if not s.first == s.last == (0.0, 0.0, 0.0):  # each beam from where it was taken
+        a, b = compose(node, np.array(s.first)), compose(node, np.array(s.last))
+        beams = sweep_poses((float(a[0]), float(a[1]), float(a[2])),
+                            (float(b[0]), float(b[1]), float(b[2])), s.mount, s.ranges.size)
     grid.integrate(s.ranges, s.angle_min, s.angle_inc,
-                   (float(laser[0]), float(laser[1]), float(laser[2])))
+                   (float(laser[0]), float(laser[1]), float(laser[2])), beams)
 
 
 class MapRenderer:

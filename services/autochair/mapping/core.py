@@ -58,11 +58,16 @@ class OccupancyMapper:
         inside = (ix >= 0) & (ix < self.w) & (iy >= 0) & (iy < self.h)
         return np.where(inside, iy * self.w + ix, -1)
 
-    def integrate(self, ranges: F64, angle_min: float, angle_inc: float, pose: Pose) -> int:
-        """Add one scan seen from laser `pose` (grid frame); returns the number of beams used."""
-        a = angle_min + angle_inc * np.arange(ranges.size) + pose[2]
+    def integrate(self, ranges: F64, angle_min: float, angle_inc: float, pose: Pose,
+                  beam_poses: tuple[F64, F64, F64] | None = None) -> int:
+        """Add one scan seen from laser `pose` (grid frame); returns the number of beams used.
+        `beam_poses`: the laser's x, y, yaw for each beam instead (a sweep taken moving)."""
+        n = ranges.size
+        lx, ly, lyaw = beam_poses if beam_poses is not None else (
+            np.full(n, pose[0]), np.full(n, pose[1]), np.full(n, pose[2]))
+        a = angle_min + angle_inc * np.arange(n) + lyaw
         ok = np.isfinite(ranges) & (ranges > 0) & (ranges <= self.max_range_m)
-        r, a = ranges[ok], a[ok]
+        r, a, ox, oy = ranges[ok], a[ok], lx[ok][:, None], ly[ok][:, None]
         if r.size == 0:
             return 0
         step = self.res / 2
@@ -70,11 +75,11 @@ class OccupancyMapper:
         cos, sin = np.cos(a)[:, None], np.sin(a)[:, None]
         # Free samples stop a cell short of the end point so the hit cell is not cleared.
         free_mask = t[None, :] < (r[:, None] - self.res)
-        fx = (pose[0] + cos * t[None, :])[free_mask]
-        fy = (pose[1] + sin * t[None, :])[free_mask]
+        fx = (ox + cos * t[None, :])[free_mask]
+        fy = (oy + sin * t[None, :])[free_mask]
         free = self.cells(np.stack([fx, fy], axis=1))
-        hits = np.unique(self.cells(np.stack([pose[0] + r * cos[:, 0],
-                                              pose[1] + r * sin[:, 0]], axis=1)))
+        hits = np.unique(self.cells(np.stack([ox[:, 0] + r * cos[:, 0],
+                                              oy[:, 0] + r * sin[:, 0]], axis=1)))
         free, hits = free[free >= 0], hits[hits >= 0]
         # Each cell once: a mask over the grid instead of sorting the (many) free samples.
         mask = self._mask
