@@ -255,8 +255,8 @@ def summarise(runs: list[dict[str, Any]], refused: list[dict[str, Any]], wall: f
         "median_time_ratio": statistics.median(r["time_ratio"] for r in ok if r["arrived"])
         if any(r["arrived"] for r in ok) else None,
         "cases_time_ratio_over_1_5": sum(r["arrived"] and r["time_ratio"] > 1.5 for r in ok),
-        "median_path_ratio": statistics.median(r["path_ratio"] for r in ok
-                                               if r["arrived"] and r["path_ratio"]),
+        "median_path_ratio": statistics.median(ratios) if (ratios := [
+            r["path_ratio"] for r in ok if r["arrived"] and r["path_ratio"]]) else None,
         "max_peak_a_mps2": max(r["peak_a_mps2"] for r in ok),
         "max_peak_jerk_mps3": max(r["peak_jerk_mps3"] for r in ok),
         "max_peak_omega_dot_radps2": max(r["peak_omega_dot_radps2"] for r in ok),
@@ -279,6 +279,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-save", action="store_true", help="do not write the results file")
     ap.add_argument("--seed", type=int, default=MpepcParams().seed,
                     help="MPEPC's sampler seed (another seed: the results file is not written)")
+    ap.add_argument("--lattice", action="store_true",
+                    help="MPEPC with the heading-aware lattice (nav/lattice.py), to compare")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [control] setting")
     args = ap.parse_args(argv)
@@ -299,7 +301,9 @@ def main(argv: list[str] | None = None) -> int:
             fields[wname] = build(wname, fp)
         world, fld = fields[wname]
         planner._planners.clear()  # a fresh planner (and sampler) per case: order-independent
-        r = run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=args.seed))
+        planner._lattices.clear()
+        r = run_case(world, fld, start, goal, cfg, fp,
+                     MpepcParams(seed=args.seed, heading_lattice=args.lattice))
         r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
         runs.append(r)
         if r["state"] == "refused":
@@ -325,7 +329,9 @@ def main(argv: list[str] | None = None) -> int:
     summary["refused_reachable"] = len(runs) - len(ok_runs)
     summary["seed"] = args.seed
     print(json.dumps(summary, indent=1))
-    if not (args.only or args.quick or args.no_save or args.seed != MpepcParams().seed):
+    summary["heading_lattice"] = args.lattice
+    if not (args.only or args.quick or args.no_save or args.lattice
+            or args.seed != MpepcParams().seed):
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         for r in runs:
             r.pop("plan_ms", None)

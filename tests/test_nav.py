@@ -71,8 +71,11 @@ def test_occupancy_grid_message_unknown_is_free_and_frame_is_kept() -> None:
     assert gm.frame_id == "map" and gm.occupied.sum() == 20 and gm.occupied[:, 15].all()
 
 
+LAW = ControlConfig().law(0.025)  # what the core plans with (LawParams has no defaults)
+
+
 def planner(fld: NavField) -> Mpepc:
-    return Mpepc(fld, LawParams())
+    return Mpepc(fld, LAW)
 
 
 def test_mpepc_cost_prefers_progress_and_punishes_contact() -> None:
@@ -117,12 +120,12 @@ def test_a_person_in_the_way_blocks_and_says_so() -> None:
     fld = corridor_with_wall()
     ctg = fld.cost_to_go(6.0, 2.0)
     assert ctg is not None
-    req = PlanRequest(1, 0, (3.0, 2.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), fld, ctg, None,
+    req = PlanRequest(1, 0, (3.0, 2.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), fld, ctg, None, LAW,
                       people=[Person(4.45, 2.0, radius_m=0.5)])
     res = compute(req)
     assert "a person at (4.45, 2.00)" in res.blocked_by
     free = compute(PlanRequest(1, 0, (3.0, 2.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), fld, ctg,
-                               None))
+                               None, LAW))
     assert free.blocked_by == "" and free.plan is not None  # positive control
 
 
@@ -132,7 +135,7 @@ def test_a_goal_just_behind_or_beside_in_open_space_is_not_blocked(
     # Turning in place to face it is progress (forward only: turn, drive, turn); standing
     # still at the goal's yaw used to be the cheapest plan, reported as "blocked".
     fld = free_field([(0.0, 0.0), goal[:2]], FP)
-    res = compute(PlanRequest(1, 0, (0.0, 0.0, 0.0), 0.0, 0.0, goal, fld, None, None))
+    res = compute(PlanRequest(1, 0, (0.0, 0.0, 0.0), 0.0, 0.0, goal, fld, None, None, LAW))
     assert res.plan is not None and res.blocked_by == "", res.blocked_by
     assert abs(res.plan.path[-1, 2]) > 0.5  # it turns (towards the goal)
     # (taken as the goal itself, or better than standing still)

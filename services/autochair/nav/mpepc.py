@@ -36,11 +36,14 @@ import numpy.typing as npt
 from scipy.stats import qmc
 
 from autochair.control.law import Gains
+from autochair.control.limits import ComfortLimiter
 
 from .field import CostToGo, NavField, place
+from .lattice import HeadingField
 
 F64 = npt.NDArray[np.float64]
 ALIGNED_RAD = 0.05  # an in-place turn is done within this heading error (then it may go)
+LIMITER_LOOKAHEAD_S = ComfortLimiter().lookahead_s  # ControlConfig.law does not pass it
 
 
 @dataclass(frozen=True)
@@ -55,28 +58,29 @@ class Person:
 
 
 class LawParams(Gains, frozen=True, kw_only=True):
-    """The graceful law (its gains) and the comfort limits the 50 Hz loop runs with
-    (ControlConfig.law)."""
+    """The graceful law (its gains) and the comfort limits the 50 Hz loop runs with. Made by
+    ControlConfig.law, the one source of these values: no defaults here (a second copy went
+    stale: the planner predicted with 0.6 m/s² while the limiter ran at 1.0)."""
 
-    omega_floor_radps: float = 0.5
-    a_mps2: float = 0.6  # the limiter's planning limits (comfort × chain margin)
-    omega_max_radps: float = 0.54
-    omega_acc_radps2: float = 1.68
-    align_brake_radps2: float = 0.84
-    align_gain_1ps: float = 1.5
-    capture_m: float = 0.025
+    omega_floor_radps: float
+    a_mps2: float  # the limiter's planning limits
+    omega_max_radps: float
+    omega_acc_radps2: float
+    align_brake_radps2: float
+    align_gain_1ps: float
+    capture_m: float
     # The rest of the comfort limiter (control/limits.py): jerk bounds and the turn-rate
     # look-ahead of its curvature keeping. An acceleration-only model stops ~0.5 m short of the
     # S-curve when braking begins while the chair still accelerates (measured, 1 m/s).
-    jerk_mps3: float = 2.0
-    omega_jerk_radps3: float = 7.7
-    lookahead_s: float = 0.2
+    jerk_mps3: float
+    omega_jerk_radps3: float
     # The plan period: a chosen motion is followed this long before the next plan can brake.
-    commit_s: float = 0.5
+    commit_s: float
     # The core's final approach once the goal itself is the target: v also ≤ the braking curve
     # at brake_fraction of a and jerk, and ≤ approach_rate·r (ControlConfig).
-    brake_fraction: float = 0.6
-    approach_rate_1ps: float = 0.6
+    brake_fraction: float
+    approach_rate_1ps: float
+    lookahead_s: float = LIMITER_LOOKAHEAD_S  # (the limiter's own, not a copy)
 
 
 @dataclass(frozen=True)
@@ -115,6 +119,15 @@ class MpepcParams:
     contact_m: float = 0.05  # a predicted clearance below this counts as a hit
     brake_clear_m: float = 0.05  # least clearance of the stop after `commit_s` (else a hit)
     goal_blend_m: float = 1.0
+    # Inside the heading-aware window, a state from which the lattice has no way to the goal
+    # costs this much more than the 2-D field says (nav/lattice.py).
+    no_way_cost: float = 1.0
+    # Progress on the heading-aware lattice near the goal (nav/lattice.py). Off: measured
+    # 24/34 on nav_eval against 23 without (same core), but with it 28 of the obstacle-free
+    # goals of tests/test_control.py stop short (session 5 notes); bench: --lattice.
+    heading_lattice: bool = False
+    lattice_within_m: float = 2.0  # ... within this (2-D costs-to-go) of the goal
+    lined_up_m: float = 0.3  # see Mpepc.lined_up
     progress_ahead_m: float = 0.0
     goal_slack: float = 0.5  # the goal is taken when it costs at most this much more
     n_global: int = 128  # rounded to a power of 2 (Sobol)
@@ -134,7 +147,9 @@ class Plan:
     min_clearance_m: float  # least clearance of the footprint along the prediction
     path: F64  # (T, 3) predicted x, y, yaw
     is_goal: bool  # the target is the goal itself
-    goal_clearance_m: float  # least clearance predicted towards the goal itself (nan: none)
+    # least clearance predicted towards the goal itself and braking from the present motion
+    # (nan: the goal is out of reach of this plan)
+    goal_clearance_m: float
     stop_cost: float  # the cost of braking to a stand-still (blocked: nothing beats it)
     evaluations: int
 
@@ -328,8 +343,8 @@ class Mpepc:
     # --- cost ---------------------------------------------------------------------------------
     def evaluate(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                  ctg: CostToGo, people: list[Person], a0: float = 0.0, q0: float = 0.0,
-                 goal: tuple[float, float, float] | None = None, last: bool = True
-                 ) -> tuple[F64, dict[str, F64]]:
+                 goal: tuple[float, float, float] | None = None, last: bool = True,
+                 hf: HeadingField | None = None) -> tuple[F64, dict[str, F64]]:
         p, dt, fld = self.p, self.p.dt_s, self.field
         xs, ys, yaws, vs, ws, brake = self.simulate(pose, v0, w0, z, a0, q0, goal, last)
         pts = place(fld.outline, xs, ys, yaws)  # (N, T, P, 2)
@@ -372,6 +387,9 @@ class Mpepc:
         phi = ctg.at(fld.map, np.stack([xs + la * np.cos(yaws), ys + la * np.sin(yaws)], -1))
         phi0 = float(ctg.at(fld.map, np.array([pose[0] + la * math.cos(pose[2]),
                                                pose[1] + la * math.sin(pose[2])])))
+        in_lattice: npt.NDArray[np.bool_] = np.zeros(len(z), dtype=np.bool_)
+        if hf is not None and self.lattice_active(hf, pose, phi0):
+            phi, phi0, in_lattice = self.heading_phi(hf, xs, ys, yaws, phi, pose, phi0)
         dphi = np.diff(phi, axis=1, prepend=phi0)
         progress = (ps * dphi).sum(1)
         end = np.stack([xs[:, -1], ys[:, -1]], -1)
@@ -384,12 +402,57 @@ class Mpepc:
                 + p.hit_cost * hit.any(1))
         return cost, {"phi_end": phi[:, -1], "phi0": np.full(len(z), phi0),
                       "survival": ps[:, -1], "clearance": d_all.min(1), "near": near,
+                      "in_lattice": in_lattice.astype(np.float64),
                       "x": xs, "y": ys, "yaw": yaws}
+
+    def lattice_active(self, hf: HeadingField, pose: tuple[float, float, float],
+                       phi0: float) -> bool:
+        """Progress is measured on the lattice in this cycle: the chair is within
+        `lattice_within_m` of the goal (on the 2-D field) and on a state with a way there.
+        Farther out the 2-D field's smooth descent is what the law follows best: the
+        lattice's arcs (22.5° at 0.6 m) make S-bends cheap that the law cannot thread
+        through a door (measured: 0.9 m door cases lost)."""
+        if phi0 > self.p.lattice_within_m:
+            return False
+        return bool(hf.at(np.array(pose[0]), np.array(pose[1]), np.array(pose[2]))[1])
+
+    def lined_up(self, pose: tuple[float, float, float], ctg: CostToGo,
+                 hf: HeadingField | None) -> bool:
+        """The goal may be handed to the core's own final approach (a straight final, then
+        an in-place turn) only where the lattice needs no manoeuvre from the chair's state:
+        its costs-to-go within `lined_up_m` of the 2-D field's. Else the core drove in
+        straight and was left beside the goal, turned 30–90° off, with no room to turn."""
+        if hf is None or math.hypot(pose[0] - hf.goal[0], pose[1] - hf.goal[1]) \
+                < self.p.in_place_r_m:  # at the goal: only its in-place turn is left
+            return True
+        phi0 = float(ctg.at(self.field.map, np.array(pose[:2])))
+        if not self.lattice_active(hf, pose, phi0):
+            return True
+        c, _ = hf.at(np.array(pose[0]), np.array(pose[1]), np.array(pose[2]))
+        return float(c) - phi0 <= self.p.lined_up_m
+
+    def heading_phi(self, hf: HeadingField, xs: F64, ys: F64, yaws: F64, phi: F64,
+                    pose: tuple[float, float, float], phi0: float
+                    ) -> tuple[F64, float, npt.NDArray[np.bool_]]:
+        """Progress measured on the heading-aware costs-to-go (nav/lattice.py) where they are
+        defined, on the 2-D field + their offset outside the window, and that + a penalty on
+        states inside it from which the lattice has no way (a corner the chair cannot turn
+        out of). Returns φ (N, T), φ at the start, and which predictions end on the lattice."""
+        p3, ok = hf.at(xs, ys, yaws)
+        inside = hf.inside(xs, ys)
+        fallback = phi + hf.offset + np.where(inside, self.p.no_way_cost, 0.0)
+        q0, ok0 = hf.at(np.array(pose[0]), np.array(pose[1]), np.array(pose[2]))
+        if bool(ok0):
+            start = float(q0)
+        else:
+            start = phi0 + hf.offset + (self.p.no_way_cost if bool(
+                hf.inside(np.array(pose[0]), np.array(pose[1]))) else 0.0)
+        return np.where(ok, p3, fallback), start, ok[:, -1]
 
     # --- optimisation -------------------------------------------------------------------------
     def seeds(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
-              previous: tuple[float, float, float, float] | None, ctg: CostToGo
-              ) -> tuple[F64, bool]:
+              previous: tuple[float, float, float, float] | None, ctg: CostToGo,
+              hf: HeadingField | None = None) -> tuple[F64, bool]:
         """Seed candidates; row 0 is the goal itself when it is within the bounds (→ True)."""
         vmax = self.law.vmax_mps
         rows = []
@@ -413,7 +476,45 @@ class Mpepc:
             z = self.relative(pose, (x, y, heading))
             if abs(z[2]) <= self.p.delta_max_rad:
                 rows += [[*z, vmax], [*z, 0.5 * vmax]]
+        if hf is not None and self.lattice_active(
+                hf, pose, float(ctg.at(self.field.map, np.array(pose[:2])))):
+            rows += self.lattice_seeds(pose, hf)
         return np.array(rows), has_goal
+
+    def lattice_seeds(self, pose: tuple[float, float, float], hf: HeadingField,
+                      at_m: tuple[float, ...] = (0.4, 0.8, 1.2, 1.6, 2.0, 3.0, 4.0)
+                      ) -> list[list[float]]:
+        """Candidates along the lattice's best way: an in-place turn it starts with (turn
+        only, and turn then go), the poses `at_m` along it, and each place where it turns in
+        place later, at the heading it arrives with (the next plan then turns there)."""
+        vmax, vmin = self.law.vmax_mps, self.p.v_min_mps
+        path = hf.best_path(*pose)
+        rows: list[list[float]] = []
+        if not path:
+            return rows
+        i = 0
+        while i < len(path) and path[i][1]:
+            i += 1
+        if i:
+            turn = float(wrap(np.array(path[i - 1][0][2] - pose[2])))
+            rows += [[0.0, turn, 0.0, vmin], [0.0, turn, 0.0, vmax]]
+        travelled, j, last = 0.0, 0, (pose[0], pose[1])
+        prev_turn, prev_yaw = True, path[i - 1][0][2] if i else pose[2]
+        for (x, y, yaw), turned in path[i:]:
+            travelled += math.hypot(x - last[0], y - last[1])
+            last = (x, y)
+            picks = []
+            if j < len(at_m) and travelled >= at_m[j] - 1e-9:
+                picks.append((x, y, yaw))
+                j += 1
+            if turned and not prev_turn and travelled > 0.3:
+                picks.append((x, y, prev_yaw))
+            prev_turn, prev_yaw = turned, yaw
+            for tgt in picks:
+                zz = self.relative(pose, tgt)
+                if abs(zz[2]) <= self.p.delta_max_rad and zz[0] >= self.p.in_place_r_m:
+                    rows += [[*zz, vmax], [*zz, 0.5 * vmax]]
+        return rows
 
     def descent_path(self, pose: tuple[float, float, float], ctg: CostToGo,
                      goal: tuple[float, float, float], step_m: float = 0.1,
@@ -438,7 +539,8 @@ class Mpepc:
     def plan(self, pose: tuple[float, float, float], v0: float, w0: float,
              goal: tuple[float, float, float], ctg: CostToGo, people: list[Person] | None = None,
              previous_target: tuple[float, float, float, float] | None = None,
-             rates: tuple[float, float] = (0.0, 0.0), final: bool = True) -> Plan:
+             rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
+             heading: HeadingField | None = None) -> Plan:
         """The best z from the chair at `pose` (v0, ω0: the command it is tracking; `rates`:
         the limiter's dv/dt and dω/dt; `final`: `goal` is the last waypoint, which the core
         approaches on its braking curve once it is the target; an intermediate one it passes).
@@ -452,16 +554,18 @@ class Mpepc:
             rel = self.relative(pose, previous_target[:3])
             if rel[0] <= self.p.r_max_m and abs(rel[2]) <= self.p.delta_max_rad:
                 prev = (float(rel[0]), float(rel[1]), float(rel[2]), previous_target[3])
-        seeds, has_goal = self.seeds(pose, goal, prev, ctg)
+        seeds, has_goal = self.seeds(pose, goal, prev, ctg, heading)
         z = np.concatenate([seeds, self._global])
-        cost, info = self._costs(pose, v0, w0, z, ctg, people, goal, rates, final)
+        cost, info = self._costs(pose, v0, w0, z, ctg, people, goal, rates, final,
+                                  heading)
         evals = len(z)
         i = int(np.argmin(cost))
         best_z, best_c, best = z[i].copy(), float(cost[i]), {k: v[i] for k, v in info.items()}
         scale = (hi - lo) * 0.15
         for _ in range(self.p.local_rounds):
             cand = np.clip(best_z + self._rng.normal(size=(self.p.n_local, 4)) * scale, lo, hi)
-            c2, inf2 = self._costs(pose, v0, w0, cand, ctg, people, goal, rates, final)
+            c2, inf2 = self._costs(pose, v0, w0, cand, ctg, people, goal, rates, final,
+                                   heading)
             evals += len(cand)
             j = int(np.argmin(c2))
             if c2[j] < best_c:
@@ -470,10 +574,18 @@ class Mpepc:
             scale *= 0.5
         is_goal, goal_clear = False, math.nan
         if has_goal:
-            goal_clear = float(info["clearance"][0])
+            # What the core's own final approach relies on (it drops the goal and stands when
+            # this is < 2 cm): the way to the goal, and braking from the chair's present
+            # motion. The core's approach is not what row 0 predicts (near the goal it may
+            # turn in place the other way); a chair already turning into an obstacle must
+            # not be left to it, nor one for which every motion touches (contacts with the
+            # bench, measured).
+            goal_clear = min(float(info["clearance"][0]), float(info["clearance"][1]),
+                             float(best["clearance"]))  # (< contact_m: every motion touches)
             ends = math.hypot(float(info["x"][0, -1]) - goal[0], float(info["y"][0, -1]) - goal[1])
             if float(info["clearance"][0]) >= self.p.contact_m and ends < 0.3 \
-                    and float(cost[0]) <= best_c + self.p.goal_slack:
+                    and float(cost[0]) <= best_c + self.p.goal_slack \
+                    and self.lined_up(pose, ctg, heading):
                 best_z, best_c, best = z[0].copy(), float(cost[0]), {k: v[0]
                                                                      for k, v in info.items()}
                 is_goal = True
@@ -489,9 +601,9 @@ class Mpepc:
 
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],
-               rates: tuple[float, float] = (0.0, 0.0), final: bool = True
-               ) -> tuple[F64, dict[str, F64]]:
-        cost, info = self.evaluate(pose, v0, w0, z, ctg, people, *rates, goal, final)
+               rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
+               heading: HeadingField | None = None) -> tuple[F64, dict[str, F64]]:
+        cost, info = self.evaluate(pose, v0, w0, z, ctg, people, *rates, goal, final, heading)
         # Final-heading term: the turn still to make where the prediction ends. Away from the
         # goal, to face down −∇φ; within goal_blend_m, to the goal's yaw (the law curves onto
         # it). Within half that (no room to curve: the chair is 1.2 m long) a forward-only
@@ -510,4 +622,6 @@ class Mpepc:
         u = np.clip(2.0 - 2.0 * d / blend, 0.0, 1.0)  # 1 within blend/2, 0 from blend on
         w = np.clip(d / self.p.in_place_r_m, 0.0, 1.0)
         h = np.where(d < blend, at_goal + u * w * (tdt - at_goal), face)
+        # On the heading-aware lattice the costs-to-go count the turns still to make.
+        h = np.where(info["in_lattice"] > 0.5, 0.0, h)
         return cost + self.p.c_heading * (h - face), info

@@ -13,7 +13,9 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
+from . import lattice
 from .field import CostToGo, Footprint, GridMap, NavField
+from .lattice import HeadingField
 from .mpepc import LawParams, Mpepc, MpepcParams, Person, Plan
 
 
@@ -28,7 +30,7 @@ class PlanRequest:
     field: NavField
     ctg: CostToGo | None  # None: (re)compute from `field`
     previous: tuple[float, float, float, float] | None  # last target (x, y, yaw) + vmax
-    law: LawParams = dc_field(default_factory=LawParams)
+    law: LawParams  # ControlConfig.law: the limits the core really runs with
     people: list[Person] = dc_field(default_factory=list)
     rates: tuple[float, float] = (0.0, 0.0)  # the limiter's dv/dt, dω/dt (its S-curve state)
     final: bool = True  # `goal` is the last waypoint (approached on the braking curve)
@@ -56,6 +58,25 @@ def planner_for(fld: NavField, law: LawParams, params: MpepcParams | None = None
         _planners.clear()  # only the newest field is used
         hit = (fld, Mpepc(fld, law, params))
         _planners[key] = hit
+    return hit[1]
+
+
+_lattices: dict[tuple[int, tuple[float, float, float]],
+                tuple[NavField, HeadingField | None]] = {}
+
+
+def lattice_for(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
+                start: tuple[float, float, float] | None = None) -> HeadingField | None:
+    """The heading-aware costs-to-go to `goal` (nav/lattice.py), built once per field and
+    goal (~0.05–0.2 s; its window reaches towards where the chair is then); None where the
+    goal region has no free state."""
+    key = (id(fld), goal)
+    hit = _lattices.get(key)
+    if hit is None or hit[0] is not fld:
+        if len(_lattices) >= 4:
+            _lattices.clear()
+        hit = (fld, lattice.build(fld, goal, ctg.phi, start=start))
+        _lattices[key] = hit
     return hit[1]
 
 
@@ -116,9 +137,13 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
     error = path_error(fld, ctg, req.pose, req.goal)
     if error or ctg is None:
         return PlanResult(req.goal_id, req.index, fld, ctg, None, error=error)
+    # (the last waypoint only: line-up poses before doors are passed within 0.2 m / 0.3 rad,
+    # which the lattice's exact goal pose does not express; measured: door cases lost)
+    use = (params or MpepcParams()).heading_lattice and req.final
+    hf = lattice_for(fld, req.goal, ctg, req.pose) if use else None
     plan = planner_for(fld, req.law, params).plan(req.pose, req.v, req.omega, req.goal, ctg,
                                               req.people, req.previous, req.rates,
-                                              req.final)
+                                              req.final, hf)
     blocked = ""
     if plan.min_clearance_m < (params or MpepcParams()).contact_m:
         # Every motion is predicted to touch something: stand still (blocked) rather than

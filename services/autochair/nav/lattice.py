@@ -1,0 +1,358 @@
+"""Heading-aware navigation function near the goal: costs-to-go over (x, y, θ). PURE (numpy, scipy).
+
+The 2-D navigation function (field.py) is for the axle: it says nothing about the heading the
+chair needs where the last turn has no room (an in-place turn sweeps 1.01 m round the axle, the
+front is 0.95 m ahead of it). Here a window round the goal is a lattice of cells (0.1 m) ×
+`headings` directions. A state is free when the chair's real rectangle there clears obstacles
+by `min_clear_m` (configuration-space obstacles: the grid's "too close" cells correlated with
+the rectangle rasterised at each heading, by FFT (scipy.fft; the rectangle's transforms kept
+per window size): ~0.1 s, where sampling the outline per state took ~1 s). Forward-only motions
+(the safety monitor forbids blind reversing): a straight step, an arc of one heading step, and
+an in-place turn of one heading step where the swept body is free (the half step checked too).
+Costs are metres at full speed, slowed near walls as the 2-D field's (so the two agree in open
+space); a turn costs vmax/ω max metres per radian. Costs-to-go from every state to the goal
+region (the goal's cell and those within the tolerance, at the two headings round the goal's
+yaw, each seeded with its remaining distance and turn) by Dijkstra over the reversed graph
+(scipy.sparse.csgraph, in C: ~10⁵ states in tens of ms).
+
+MPEPC (mpepc.py) measures progress on this where it is finite and on the 2-D field (+ the
+median offset between the two) elsewhere, and seeds candidates along the lattice's best path.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import scipy.fft as sfft
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from .field import NavField
+
+F64 = npt.NDArray[np.float64]
+Bool = npt.NDArray[np.bool_]
+I64 = npt.NDArray[np.intp]
+
+
+@dataclass(frozen=True)
+class LatticeParams:
+    half_m: float = 3.0  # window half size round the goal
+    # ... stretched towards the chair (this far round it), at most this far from the goal:
+    # entering the window mid-room left the chair where the lattice's only way was too
+    # tight for the law's curves (the cluttered room).
+    start_margin_m: float = 1.5
+    reach_m: float = 8.0
+    # Lattice cell (a multiple of the map's). 0.1 m (and 32 headings) was too coarse: tight
+    # goals (office A's far corner, the cluttered room's far corner) had no way in.
+    resolution_m: float = 0.05
+    headings: int = 16
+    min_clear_m: float = 0.04  # the footprint's clearance in a free state
+    arc_radius_m: float = 0.6
+    # An arc's cost over its length: the law cannot follow chains of tight arcs (S-bends
+    # before a door, a zig-zag in clutter) that the lattice finds cheap.
+    arc_factor: float = 2.0
+    # The goal region: the goal's own cell and those within this distance (the position
+    # tolerance) seed the search. 0.1 m made a chair 10 cm beside the goal "there" (the
+    # lateral step a forward-only chair makes by turning, driving and turning back).
+    goal_radius_m: float = 0.05
+    turn_m_per_rad: float = 1.33  # an in-place turn's cost: vmax / ω max
+    max_cost: float = 1e3  # the window's "no way" (finite, so interpolation stays defined)
+
+
+def footprint_kernel(fld: NavField, yaw: float) -> tuple[npt.NDArray[np.float64], int]:
+    """(2K+1)² mask of the map cells under the chair's rectangle at `yaw` round the axle's
+    cell (centre K, K), grown by half a cell (a cell counts if it may overlap)."""
+    fp, res = fld.footprint, fld.map.resolution_m
+    k = math.ceil((fp.reach_m + res) / res)
+    off = np.arange(-k, k + 1) * res
+    px, py = np.meshgrid(off, off)
+    c, s = math.cos(yaw), math.sin(yaw)
+    u, v = c * px + s * py, -s * px + c * py  # into the chair frame
+    g = res * 0.5 * (abs(c) + abs(s))  # half a cell's extent along the chair's axes
+    inside = (u >= -fp.rear_m - g) & (u <= fp.front_m + g) & (np.abs(v) <= fp.half_width_m + g)
+    return inside.astype(np.float64), k
+
+
+@dataclass(frozen=True)
+class Moves:
+    """Per heading k: successor headings, lattice offsets (di rows = y, dj cols = x), path
+    lengths (m) and whether the move is an in-place turn."""
+
+    k2: I64
+    di: I64
+    dj: I64
+    length: F64
+    turn: Bool
+
+
+def moves(p: LatticeParams) -> list[Moves]:
+    n, res = p.headings, p.resolution_m
+    step = 2 * math.pi / n
+    chord = 2 * p.arc_radius_m * math.sin(step / 2)
+    out = []
+    for k in range(n):
+        th = k * step
+        rows: list[tuple[int, int, int, float, bool]] = []
+        # straight: the nearest lattice vector of ~0.2 m along the heading
+        dj, di = round(2 * math.cos(th)), round(2 * math.sin(th))
+        if abs(dj) == 2 and abs(di) == 2:
+            dj, di = dj // 2, di // 2
+        rows.append((k, di, dj, math.hypot(di, dj) * res, False))
+        for s in (1, -1):  # an arc of one heading step
+            a = th + s * step / 2
+            rows.append(((k + s) % n, round(chord * math.sin(a) / res),
+                         round(chord * math.cos(a) / res),
+                         p.arc_radius_m * step * p.arc_factor, False))
+            rows.append(((k + s) % n, 0, 0, p.turn_m_per_rad * step, True))  # in place
+        out.append(Moves(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
+                         np.array([r[2] for r in rows]), np.array([r[3] for r in rows]),
+                         np.array([r[4] for r in rows])))
+    return out
+
+
+@dataclass(frozen=True)
+class HeadingField:
+    """Costs-to-go (metres at full speed) to one goal pose over a window's (x, y, θ) states."""
+
+    cost: F64  # (K, H, W); p.max_cost: no way from there (or not free)
+    free: Bool  # (K, H, W)
+    origin_x_m: float  # world position of cell (0, 0)'s centre
+    origin_y_m: float
+    params: LatticeParams
+    offset: float  # median of (least cost over headings − 2-D φ) on the window's border
+    goal: tuple[float, float, float]
+
+    @property
+    def step(self) -> float:
+        return 2 * math.pi / self.params.headings
+
+    def at(self, x: F64, y: F64, yaw: F64) -> tuple[F64, Bool]:
+        """Costs-to-go at poses (...): bilinear in position, linear in heading, over the
+        reachable of the eight neighbouring states; and where that is defined (inside the
+        window, reachable neighbours carry ≥ 1/4 of the weight)."""
+        k, h, w = self.cost.shape
+        res = self.params.resolution_m
+        fx = (np.asarray(x) - self.origin_x_m) / res
+        fy = (np.asarray(y) - self.origin_y_m) / res
+        inside = (fx >= 0) & (fx <= w - 1) & (fy >= 0) & (fy <= h - 1)
+        fx, fy = np.clip(fx, 0, w - 1.0001), np.clip(fy, 0, h - 1.0001)
+        x0, y0 = fx.astype(np.intp), fy.astype(np.intp)
+        ax, ay = fx - x0, fy - y0
+        fk = np.remainder(np.asarray(yaw) / self.step, k)
+        k0 = np.floor(fk).astype(np.intp) % k
+        k1 = (k0 + 1) % k
+        ak = fk - np.floor(fk)
+        c, cap = self.cost, self.params.max_cost
+        total = np.zeros(np.shape(fx))
+        weight = np.zeros(np.shape(fx))
+        for kk, wk in ((k0, 1 - ak), (k1, ak)):
+            for dy, wy in ((0, 1 - ay), (1, ay)):
+                for dx, wx in ((0, 1 - ax), (1, ax)):
+                    v = c[kk, y0 + dy, x0 + dx]
+                    wt = np.where(v < cap, wk * wy * wx, 0.0)
+                    total += wt * np.minimum(v, cap)
+                    weight += wt
+        # (over the reachable neighbours only: near walls some of the eight are not free)
+        ok = inside & (weight >= 0.25)
+        return np.where(ok, total / np.maximum(weight, 1e-9), cap), ok
+
+    def inside(self, x: F64, y: F64) -> npt.NDArray[np.bool_]:
+        _, h, w = self.cost.shape
+        res = self.params.resolution_m
+        fx = (np.asarray(x) - self.origin_x_m) / res
+        fy = (np.asarray(y) - self.origin_y_m) / res
+        return (fx >= 0) & (fx <= w - 1) & (fy >= 0) & (fy <= h - 1)  # type: ignore[no-any-return]
+
+    def state(self, x: float, y: float, yaw: float) -> tuple[int, int, int] | None:
+        k, h, w = self.cost.shape
+        res = self.params.resolution_m
+        j = round((x - self.origin_x_m) / res)
+        i = round((y - self.origin_y_m) / res)
+        if not (0 <= i < h and 0 <= j < w):
+            return None
+        return round(yaw / self.step) % k, i, j
+
+    def pose(self, s: tuple[int, int, int]) -> tuple[float, float, float]:
+        res = self.params.resolution_m
+        return (self.origin_x_m + s[2] * res, self.origin_y_m + s[1] * res,
+                float(np.remainder(s[0] * self.step + math.pi, 2 * math.pi) - math.pi))
+
+    def best_path(self, x: float, y: float, yaw: float, max_steps: int = 80
+                  ) -> list[tuple[tuple[float, float, float], bool]]:
+        """The lattice's best way from the state nearest the pose: (pose, reached by an
+        in-place turn) per step, greedily down the costs-to-go; [] if that state has none."""
+        s = self.state(x, y, yaw)
+        if s is None:
+            return []
+        c = self.cost
+        kk, h, w = c.shape
+        if c[s] >= self.params.max_cost:  # the nearest state is not free: the best neighbour
+            best = None
+            for dk in (-1, 0, 1):
+                for di in (-1, 0, 1):
+                    for dj in (-1, 0, 1):
+                        t = ((s[0] + dk) % kk, s[1] + di, s[2] + dj)
+                        if 0 <= t[1] < h and 0 <= t[2] < w and c[t] < self.params.max_cost \
+                                and (best is None or c[t] < c[best]):
+                            best = t
+            if best is None:
+                return []
+            s = best
+        mv = moves(self.params)
+        out: list[tuple[tuple[float, float, float], bool]] = []
+        for _ in range(max_steps):
+            m = mv[s[0]]
+            ii, jj = s[1] + m.di, s[2] + m.dj
+            ok = (ii >= 0) & (ii < h) & (jj >= 0) & (jj < w)
+            if not ok.any():
+                break
+            cand = np.full(len(m.k2), np.inf)
+            cand[ok] = c[m.k2[ok], ii[ok], jj[ok]]
+            j = int(np.argmin(cand))
+            if not cand[j] < c[s]:  # the goal region (cost = its seed) or a plateau
+                break
+            s = (int(m.k2[j]), int(ii[j]), int(jj[j]))
+            out.append((self.pose(s), bool(m.turn[j])))
+        return out
+
+
+_KERNELS: dict[tuple[object, ...], npt.NDArray[np.complex128]] = {}
+
+
+def free_states(fld: NavField, box: tuple[int, int, int, int], f: int, n: int,
+                min_clear_m: float) -> Bool:
+    """(2n, H, W) free states at 2n orientations (the headings and the half steps between)
+    at every f-th map cell of rows i0..i1, columns j0..j1 (box, inclusive; cells off the map
+    count as obstacles). The rectangle's transforms are kept per window shape."""
+    gm = fld.map
+    i0, i1, j0, j1 = box
+    near = fld.clearance < min_clear_m  # includes the obstacles themselves
+    k = math.ceil((fld.footprint.reach_m + gm.resolution_m) / gm.resolution_m)
+    rows, cols = i1 - i0 + 1 + 2 * k, j1 - j0 + 1 + 2 * k
+    win = np.ones((rows, cols), dtype=np.float64)
+    mh, mw = near.shape
+    a0, a1 = max(i0 - k, 0), min(i1 + k + 1, mh)
+    b0, b1 = max(j0 - k, 0), min(j1 + k + 1, mw)
+    if a0 < a1 and b0 < b1:
+        win[a0 - (i0 - k):a1 - (i0 - k), b0 - (j0 - k):b1 - (j0 - k)] = near[a0:a1, b0:b1]
+    shape = (sfft.next_fast_len(rows, True), sfft.next_fast_len(cols, True))
+    key = (shape, gm.resolution_m, fld.footprint, n, k)
+    kers = _KERNELS.get(key)
+    if kers is None:
+        stack = []
+        for j in range(2 * n):
+            ker, _ = footprint_kernel(fld, j * math.pi / n)
+            stack.append(sfft.rfft2(ker[::-1, ::-1], shape))
+        kers = _KERNELS[key] = np.stack(stack)
+        if len(_KERNELS) > 8:
+            _KERNELS.pop(next(iter(_KERNELS)))
+    spec = sfft.rfft2(win, shape)
+    hits = sfft.irfft2(kers * spec[None], shape, axes=(-2, -1))
+    # circular correlation, valid where it did not wrap: from 2k on
+    return hits[:, 2 * k:rows:f, 2 * k:cols:f] < 0.5  # type: ignore[no-any-return]
+
+
+def window(fld: NavField, goal: tuple[float, float, float],
+           start: tuple[float, float, float] | None, p: LatticeParams, f: int
+           ) -> tuple[int, int, int, int]:
+    """Map-cell box (i0, i1, j0, j1) of the lattice: `half_m` round the goal, stretched
+    towards the chair (to `start_margin_m` round it) up to `reach_m` from the goal; sizes
+    rounded up to whole metres (the rectangle's transforms are kept per shape); the goal's
+    cell on the lattice."""
+    gm = fld.map
+    res = gm.resolution_m
+    g = (math.floor((goal[1] - gm.origin_y_m) / res), math.floor((goal[0] - gm.origin_x_m) / res))
+    s = (g if start is None else (math.floor((start[1] - gm.origin_y_m) / res),
+                                  math.floor((start[0] - gm.origin_x_m) / res)))
+    half, margin, reach = (round(v / res) for v in (p.half_m, p.start_margin_m, p.reach_m))
+    step = f * round(1.0 / (f * res)) if f * res <= 1.0 else f  # whole metres, in cells
+    out = []
+    for gc, sc in zip(g, s, strict=True):
+        lo = min(gc - half, max(sc - margin, gc - reach))
+        hi = max(gc + half, min(sc + margin, gc + reach))
+        lo = gc - math.ceil((gc - lo) / step) * step
+        hi = gc + math.ceil((hi - gc) / step) * step
+        out += [lo, hi]
+    return out[0], out[1], out[2], out[3]
+
+
+def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None = None,
+          params: LatticeParams | None = None, start: tuple[float, float, float] | None = None
+          ) -> HeadingField | None:
+    """The heading-aware costs-to-go to `goal` in a window round it (and towards `start`);
+    None if no free state lies in the goal region. `ctg_phi`: the 2-D costs-to-go (map
+    grid) for the offset."""
+    p = params or LatticeParams()
+    gm = fld.map
+    f = max(1, round(p.resolution_m / gm.resolution_m))
+    res = f * gm.resolution_m
+    p = LatticeParams(**{**p.__dict__, "resolution_m": res})
+    box = window(fld, goal, start, p, f)
+    n = p.headings
+    both = free_states(fld, box, f, n, p.min_clear_m)
+    full, half_steps = both[0::2], both[1::2]
+    _, h, w = full.shape
+    i0, j0 = box[0], box[2]
+    gi = math.floor((goal[1] - gm.origin_y_m) / gm.resolution_m)
+    gj = math.floor((goal[0] - gm.origin_x_m) / gm.resolution_m)
+    ii_map = np.clip(i0 + np.arange(h) * f, 0, gm.occupied.shape[0] - 1)
+    jj_map = np.clip(j0 + np.arange(w) * f, 0, gm.occupied.shape[1] - 1)
+    speed = fld.speed[np.ix_(ii_map, jj_map)]
+    ox = gm.origin_x_m + (j0 + 0.5) * gm.resolution_m
+    oy = gm.origin_y_m + (i0 + 0.5) * gm.resolution_m
+    idx = np.arange(n * h * w).reshape(n, h, w)
+    src: list[I64] = []
+    dst: list[I64] = []
+    cost: list[F64] = []
+    for k, m in enumerate(moves(p)):
+        for k2, di, dj, length, turn in zip(m.k2, m.di, m.dj, m.length, m.turn, strict=True):
+            a = (slice(max(0, -di), h - max(0, di)), slice(max(0, -dj), w - max(0, dj)))
+            b = (slice(max(0, di), h - max(0, -di)), slice(max(0, dj), w - max(0, -dj)))
+            ok = full[k][a] & full[k2][b]
+            if turn:  # the swept body: the half step between the two headings
+                ok &= half_steps[k if k2 == (k + 1) % n else k2][a]
+            sp = np.minimum(speed[a], speed[b])
+            src.append(idx[k][a][ok])
+            dst.append(idx[k2][b][ok])
+            cost.append((length / sp)[ok] if not turn else np.full(int(ok.sum()), length))
+    # The goal region: a virtual node joined to free states near the goal pose.
+    gx, gy, gyaw = goal
+    ii, jj = np.mgrid[0:h, 0:w]
+    dist = np.hypot(ox + jj * res - gx, oy + ii * res - gy)
+    near_cells = dist <= p.goal_radius_m + 1e-9
+    near_cells[(gi - i0) // f, (gj - j0) // f] = True  # the goal's own cell
+    step = 2 * math.pi / n
+    kb = math.floor(gyaw / step)
+    seeds_s: list[I64] = []
+    seeds_c: list[F64] = []
+    for kk in (kb % n, (kb + 1) % n):
+        turn = abs(float(np.remainder(kk * step - gyaw + math.pi, 2 * math.pi) - math.pi))
+        ok = near_cells & full[kk]
+        seeds_s.append(idx[kk][ok])
+        seeds_c.append(dist[ok] + p.turn_m_per_rad * turn)
+    s_seed = np.concatenate(seeds_s)
+    if s_seed.size == 0:
+        return None
+    virtual = idx.size
+    s_all = np.concatenate([*dst, np.full(s_seed.size, virtual)])  # reversed graph
+    d_all = np.concatenate([*src, s_seed])
+    c_all = np.concatenate([*cost, np.concatenate(seeds_c) + 1e-6])
+    graph = csr_matrix((c_all, (s_all, d_all)), shape=(virtual + 1, virtual + 1))
+    d = np.asarray(dijkstra(graph, indices=virtual), dtype=np.float64)[:virtual]
+    d = np.where(np.isfinite(d), d, p.max_cost).reshape(n, h, w)
+    offset = 0.0
+    if ctg_phi is not None:  # where MPEPC moves from the 2-D field onto this: the border
+        best = d.min(0)
+        ring = np.zeros((h, w), dtype=np.bool_)
+        bw = max(1, round(0.3 / res))
+        ring[:bw], ring[-bw:], ring[:, :bw], ring[:, -bw:] = True, True, True, True
+        use = ring & (best < p.max_cost)
+        if not use.any():
+            use = best < p.max_cost
+        if use.any():
+            phi2 = ctg_phi[np.ix_(ii_map, jj_map)]
+            offset = float(np.median(best[use] - phi2[use]))
+    return HeadingField(d, full, ox, oy, p, offset, goal)

@@ -1,0 +1,98 @@
+"""Heading-aware navigation function (nav/lattice.py): pure, small grids."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from autochair.control.core import ControlConfig
+from autochair.nav import lattice
+from autochair.nav.field import Footprint, GridMap, NavField
+from autochair.nav.mpepc import Mpepc, MpepcParams
+from autochair.nav.planner import free_field
+
+FP = Footprint()
+LAW = ControlConfig().law(0.025)
+
+
+def field(segments: list[list[float]], resolution_m: float = 0.05) -> NavField:
+    gm = GridMap.from_shapes(np.array(segments, dtype=float), np.zeros((0, 3)), resolution_m)
+    return NavField(gm, FP)
+
+
+def dead_end(width_m: float = 1.0) -> NavField:
+    """A corridor 3 m long and `width_m` wide, open at x = 0 into a 4 × 4 m hall, closed at
+    x = 3: too narrow for the 1.2 m chair to turn round in."""
+    h = width_m / 2
+    return field([[0, h, 3, h], [3, h, 3, -h], [3, -h, 0, -h],
+                  [0, h, 0, 2], [0, 2, -4, 2], [-4, 2, -4, -2], [-4, -2, 0, -2], [0, -2, 0, -h]])
+
+
+def test_free_space_costs_count_the_turns_a_forward_only_chair_must_make() -> None:
+    fld = free_field([(-3.0, -3.0), (3.0, 3.0)], FP, resolution_m=0.05)
+    hf = lattice.build(fld, (0.0, 0.0, 0.0))
+    assert hf is not None
+
+    def cost(x: float, y: float, yaw: float) -> float:
+        c, ok = hf.at(np.array(x), np.array(y), np.array(yaw))
+        assert bool(ok)
+        return float(c)
+
+    behind = cost(-1.0, 0.0, 0.0)  # 1 m behind the goal, at its yaw: drive straight on
+    assert 0.95 < behind < 1.15
+    # 10 cm beside it at its yaw: not "there" (turn, drive, turn), yet far cheaper than
+    # arriving facing the wrong way (turning round: ≥ 1.33 m per rad · π).
+    aside = cost(0.0, 0.1, 0.0)
+    assert aside > 1.0
+    facing_away = cost(0.0, 0.0, math.pi)
+    assert facing_away > 1.33 * math.pi - 0.1
+    assert cost(1.0, 0.0, 0.0) > behind + 1.0  # in front of it: a detour or a turn round
+
+
+def test_a_dead_end_too_narrow_to_turn_in_has_no_way_to_face_out() -> None:
+    fld = dead_end()
+    hall = (-1.2, 0.0, 0.0)
+    inward = lattice.build(fld, (2.0, 0.0, 0.0), start=hall)  # facing the dead end: drive in
+    # facing out: it would have to reverse
+    outward = lattice.build(fld, (2.0, 0.0, math.pi), start=hall)
+    assert inward is not None and outward is not None
+    start = (np.array(-1.2), np.array(0.0), np.array(0.0))  # in the hall, facing the corridor
+    c_in, ok_in = inward.at(*start)
+    assert bool(ok_in) and float(c_in) < 8.0  # positive control: the way in is found
+    _, ok_out = outward.at(*start)
+    assert not bool(ok_out)
+    # In the hall the chair can turn in place: every heading has a way in.
+    assert all(bool(inward.at(np.array(-1.2), np.array(0.0), np.array(a))[1])
+               for a in np.linspace(-math.pi, math.pi, 9))
+
+
+def test_free_states_keep_the_footprint_clear_of_walls() -> None:
+    fld = dead_end(1.2)
+    hf = lattice.build(fld, (1.5, 0.0, 0.0))
+    assert hf is not None
+    k, i, j = np.nonzero(hf.free)
+    res = hf.params.resolution_m
+    x, y = hf.origin_x_m + j * res, hf.origin_y_m + i * res
+    yaw = k * hf.step
+    indoors = (np.abs(y) < 1.6) & (x > -3.6) & (x < 2.0)  # (outside: the map edge)
+    clr = fld.footprint_clearance(x[indoors], y[indoors], yaw[indoors])
+    # the planner's own outline check (0.15 m spacing, bilinear) agrees within its grid
+    assert clr.min() > hf.params.min_clear_m - 0.03
+    # positive control: across the corridor (heading 90°) the 1.2 m chair does not fit
+    inside = (np.abs(hf.origin_y_m + np.arange(hf.free.shape[1]) * res) < 0.05)
+    col = round((1.5 - hf.origin_x_m) / res)
+    assert hf.free[0][inside, col].all() and not hf.free[4][inside, col].any()
+
+
+def test_mpepc_turns_in_place_where_the_lattice_says_the_chair_must() -> None:
+    # The chair in the hall facing away from the corridor: the way in starts with a turn.
+    fld = dead_end()
+    goal = (2.0, 0.0, 0.0)
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    hf = lattice.build(fld, goal, ctg.phi if ctg is not None else None, start=(-1.2, 0.0, 0.0))
+    assert ctg is not None and hf is not None
+    mp = Mpepc(fld, LAW, MpepcParams(lattice_within_m=10.0))  # (the default: the last 2 m)
+    plan = mp.plan((-1.2, 0.0, math.pi), 0.0, 0.0, goal, ctg, heading=hf)
+    assert plan.progress_m > 1.0
+    assert abs(plan.path[-1, 2]) < math.pi / 2  # it has turned round towards the corridor
