@@ -625,7 +625,10 @@ class ControlCore:
         goal = self.waypoints[-1]
         r = math.hypot(goal.x_m - o.x, goal.y_m - o.y)
         capture = self.tol_m * cfg.capture_fraction
-        if r <= capture:
+        if r <= capture or (r <= self.tol_m and not self.limiter.v.moving):
+            # Inside the tolerance a stopped chair only turns in place, over a checked sweep
+            # (H40): the law's approach there is a spin about a point off the axle that no
+            # plan has swept (it touched a bench in the navigation suite).
             self.aligning = True
         elif r > self.tol_m:
             self.aligning = False  # drifted out: approach again
