@@ -221,9 +221,7 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
     jbound = max(scurve_time(d_straight, cfg.vmax_mps, cfg.a_max_mps2, cfg.jerk_max_mps3),
                  scurve_time(abs(wrap(gyaw - syaw)), cfg.omega_max_radps,
                              cfg.omega_acc_max_radps2, cfg.omega_jerk_max_radps3))
-    ref = cached(start, goal, Limits(cfg.vmax_mps, cfg.a_max_mps2, cfg.jerk_max_mps3,
-                                     cfg.omega_max_radps, cfg.omega_acc_max_radps2,
-                                     cfg.omega_jerk_max_radps3))
+    ref = cached(start, goal, Limits.of(cfg))
     cmd = np.array(cmds)
     cmd_a = np.diff(cmd[:, 0]) * cfg.rate_hz
     cmd_wd = np.diff(cmd[:, 1]) * cfg.rate_hz

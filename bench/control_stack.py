@@ -162,9 +162,7 @@ def main(argv: list[str] | None = None) -> int:
                                      cfg.a_max_mps2, cfg.jerk_max_mps3),
                          scurve_time(abs(goal[2]), cfg.omega_max_radps,
                                      cfg.omega_acc_max_radps2, cfg.omega_jerk_max_radps3))
-                ref = cached((0.0, 0.0, 0.0), goal, Limits(
-                    cfg.vmax_mps, cfg.a_max_mps2, cfg.jerk_max_mps3, cfg.omega_max_radps,
-                    cfg.omega_acc_max_radps2, cfg.omega_jerk_max_radps3))
+                ref = cached((0.0, 0.0, 0.0), goal, Limits.of(cfg))
                 r.update(name=name, time_ratio=round(r.get("time_s", 0) / bound, 2),
                          time_ratio_jerk=round(r.get("time_s", 0) / jb, 2),
                          time_ratio_min=round(r.get("time_s", 0) / ref.time_s, 2),

@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize
 
+from autochair.control.core import ControlConfig
+
 Array = np.ndarray[Any, Any]
 CACHE = Path(__file__).parent / "results" / "min_time.json"  # solved once: ~10 min for 28
 GL_T = np.array([0.5 - math.sqrt(15) / 10, 0.5, 0.5 + math.sqrt(15) / 10])  # nodes in [0, 1]
@@ -40,13 +42,20 @@ GL_W = np.array([5.0, 8.0, 5.0]) / 18.0
 
 @dataclass(frozen=True)
 class Limits:
-    v_max: float = 1.2
-    a_max: float = 1.0
-    jerk_max: float = 2.0
-    w_max: float = 0.9
-    wdot_max: float = 2.8
-    wjerk_max: float = 7.7
+    v_max: float
+    a_max: float
+    jerk_max: float
+    w_max: float
+    wdot_max: float
+    wjerk_max: float
     v_min: float = 0.0  # forward only (see the module doc)
+
+    @classmethod
+    def of(cls, cfg: ControlConfig | None = None) -> Limits:
+        """The comfort limits the control law runs with (one source: ControlConfig)."""
+        c = cfg or ControlConfig()
+        return cls(c.vmax_mps, c.a_max_mps2, c.jerk_max_mps3, c.omega_max_radps,
+                   c.omega_acc_max_radps2, c.omega_jerk_max_radps3)
 
 
 @dataclass(frozen=True)
@@ -235,7 +244,7 @@ def _near_half_turn(start: tuple[float, float, float], goal: tuple[float, float,
 def min_time(start: tuple[float, float, float], goal: tuple[float, float, float],
              lim: Limits | None = None, n: int = 48, coarse: int = 24) -> Result:
     """The least rest-to-rest time found (see the module doc)."""
-    lim = lim or Limits()
+    lim = lim or Limits.of()
     best: Result | None = None
     for flip in (0, 1, 2):
         if flip and not _near_half_turn(start, goal, flip):
@@ -295,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
         if args and not any(a in name for a in args):
             continue
         t0 = time.perf_counter()
-        r = cached(s, g, Limits())
+        r = cached(s, g, Limits.of())
         print(f"{name:32s} {r.time_s:6.3f} s ok={r.ok} err={r.end_error:.1e} "
               f"exc={r.violation:.3f} {r.detail} ({time.perf_counter() - t0:.1f} s)")
     return 0

@@ -3,6 +3,7 @@ ChainAxis) and the minimum-time reference of the control-law suite (bench/min_ti
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -163,7 +164,8 @@ def test_min_time_of_an_in_place_turn_is_the_rotational_bound() -> None:
 def test_min_time_forward_only_versus_reversing() -> None:
     """0.5 m straight back: reversing allowed, the straight-line bound; forward only, the chair
     must turn round (at least a full turn of heading, ≥ 2π/ω_max = 7 s)."""
-    back = min_time((0, 0, 0), (-0.5, 0, 0), Limits(v_min=-1.2), n=24, coarse=12)
+    reversing = dataclasses.replace(Limits.of(), v_min=-1.2)
+    back = min_time((0, 0, 0), (-0.5, 0, 0), reversing, n=24, coarse=12)
     assert back.ok and back.time_s == pytest.approx(scurve_time(0.5, 1.2, 1.0, 2.0), rel=0.03)
     fwd = min_time((0, 0, 0), (-0.5, 0, 0))
     assert fwd.ok and fwd.time_s >= 2 * math.pi / 0.9
