@@ -38,7 +38,6 @@ from autochair_msgs import (
     Odometry,
     People,
     SafetyLimit,
-    TrackedPerson,
     VelocityCommand,
     keys,
 )
@@ -92,10 +91,7 @@ class ControlNode:
         with self.lock:
             self.core.people = [Person(q.x_m, q.y_m, q.vx_mps, q.vy_mps, q.radius_m)
                                 for q in found]
-        self.people_pub.put(People(stamp_ns=msg.stamp_ns, frame_id="odom", people=[
-            TrackedPerson(track_id=q.track_id, x_m=round(q.x_m, 3), y_m=round(q.y_m, 3),
-                          vx_mps=round(q.vx_mps, 3), vy_mps=round(q.vy_mps, 3),
-                          radius_m=round(q.radius_m, 3)) for q in found]))
+        self.people_pub.put(People(stamp_ns=msg.stamp_ns, frame_id="odom", people=found))
 
     def on_estop(self, msg: EStopState) -> None:
         with self.lock:

@@ -33,7 +33,7 @@ from scipy import ndimage
 
 from autochair.geometry import Pose, sweep_poses
 from autochair.mapping.core import OdomBuffer
-from autochair_msgs import OccupancyGrid, Odometry
+from autochair_msgs import OccupancyGrid, Odometry, TrackedPerson
 
 F64 = npt.NDArray[np.float64]
 
@@ -96,18 +96,6 @@ class StaticMap:
         out = np.ones(len(pts), np.bool_)
         out[inside] = self.near[row[inside], col[inside]]
         return out
-
-
-@dataclass(frozen=True)
-class Tracked:
-    """A confirmed person, in the scans' frame."""
-
-    track_id: int
-    x_m: float
-    y_m: float
-    vx_mps: float
-    vy_mps: float
-    radius_m: float
 
 
 @dataclass
@@ -195,7 +183,7 @@ class PeopleTracker:
                 out.append(d)
         return np.array(out).reshape(-1, 3)
 
-    def update(self, pts: F64, origin: tuple[float, float], t: float) -> list[Tracked]:
+    def update(self, pts: F64, origin: tuple[float, float], t: float) -> list[TrackedPerson]:
         """One scan (see `detect`) at time `t` (s): the confirmed people."""
         p = self.p
         det = self.detect(pts, origin)
@@ -224,9 +212,10 @@ class PeopleTracker:
         self._tracks = [tr for tr in self._tracks if t - tr.seen_t <= p.coast_s]
         return self.people()
 
-    def people(self) -> list[Tracked]:
-        return [Tracked(tr.track_id, float(tr.x[0]), float(tr.x[1]), float(tr.x[2]),
-                        float(tr.x[3]), tr.radius_m)
+    def people(self) -> list[TrackedPerson]:
+        return [TrackedPerson(track_id=tr.track_id, x_m=float(tr.x[0]), y_m=float(tr.x[1]),
+                              vx_mps=float(tr.x[2]), vy_mps=float(tr.x[3]),
+                              radius_m=tr.radius_m)
                 for tr in self._tracks if tr.hits >= self.p.confirm]
 
 
@@ -259,7 +248,7 @@ class ScanPeople:
 
     def on_scan(self, stamp_ns: int, ranges: list[float], angle_min: float, angle_inc: float,
                 range_min: float, range_max: float, time_increment_s: float = 0.0
-                ) -> list[Tracked] | None:
+                ) -> list[TrackedPerson] | None:
         """The confirmed people after this scan, in the odometry's frame; None when no
         odometry places it. Beam i is placed with the pose at its own time, stamp +
         i·`time_increment_s` (a chair turning at 0.9 rad/s turns 3.4° during a URG-04LX's
