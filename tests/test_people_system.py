@@ -42,10 +42,12 @@ def test_a_person_crossing_is_tracked_on_their_line_at_their_speed(
                     if m.stamp_ns > since for q in m.people]
 
         def walking() -> tuple[float, float, float, float] | None:
-            return next((t for t in tracks() if abs(t[0] - 4.0) < 0.25 and abs(t[1]) < 1.5
-                         and abs(abs(t[3]) - 0.8) < 0.25 and abs(t[2]) < 0.25), None)
+            return next((t for t in tracks() if abs(t[0] - 4.0) < 0.3 and abs(t[1]) < 1.5
+                         and abs(abs(t[3]) - 0.8) < 0.3 and abs(t[2]) < 0.3), None)
 
-        x, y, vx, vy = wait_for(walking, 40, "the crossing person tracked at walking speed")
+        # (they are in view half the time, 3.75 s a crossing; a loaded CI host once needed
+        # more than 40 s)
+        x, y, vx, vy = wait_for(walking, 75, "the crossing person tracked at walking speed")
         print(f"tracked at ({x:.2f}, {y:.2f}) moving ({vx:.2f}, {vy:.2f}) m/s")
         # Positive control above; now nothing else: every track lies on the person's line.
         wrong = [(round(t[0], 2), round(t[1], 2)) for t in tracks()
