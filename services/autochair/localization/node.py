@@ -160,10 +160,10 @@ class LocalizationService:
     def process(self, msg: LaserScan) -> None:
         health = self.node.health
         max_dt = int(self.cfg.max_odom_dt_s * 1e9)
-        sweep_ns = int((len(msg.ranges_m) - 1) * msg.time_increment_s * 1e9)
         with self.lock:
             pose = self.odom.at(msg.stamp_ns, max_dt)  # the first beam's: the scan's pose
-            end = self.odom.at(msg.stamp_ns + sweep_ns, max_dt) if sweep_ns > 0 else None
+            end = self.odom.at_last_beam(msg.stamp_ns, len(msg.ranges_m), msg.time_increment_s,
+                                         max_dt)
         if pose is None:
             health.count("scans_no_odom")
             return

@@ -186,6 +186,13 @@ class OdomBuffer:
             return None
         return self._poses[best]
 
+    def at_last_beam(self, stamp_ns: int, beams: int, time_increment_s: float,
+                     max_dt_ns: int) -> Pose | None:
+        """The pose at a scan's last beam (beam i is taken at stamp + i·time_increment_s);
+        None for a scan taken at one instant, or when odometry cannot say."""
+        sweep_ns = round(time_increment_s * 1e9 * max(beams - 1, 0))
+        return self.at(stamp_ns + sweep_ns, max_dt_ns) if sweep_ns > 0 else None
+
     def at(self, stamp_ns: int, max_dt_ns: int) -> Pose | None:
         """The pose at `stamp_ns`, interpolated between the samples either side (decimated
         odometry is 20 ms apart: 2 cm at 1 m/s if only the nearest were taken); the nearest

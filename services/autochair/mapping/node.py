@@ -95,10 +95,9 @@ class MappingService:
         r = np.asarray(scan.ranges_m, dtype=np.float64)
         # Each beam from where the laser was when it took it (the sweep lasts ~70 ms: 0.27 m
         # at 4.5 m turning at 0.9 rad/s); the pose at the stamp if odometry cannot say.
-        end_ns = scan.stamp_ns + round(scan.time_increment_s * 1e9 * max(r.size - 1, 0))
         with self.lock:
-            last = self.odom.at(end_ns, int(cfg.max_odom_dt_s * 1e9)) if end_ns > scan.stamp_ns \
-                else None
+            last = self.odom.at_last_beam(scan.stamp_ns, r.size, scan.time_increment_s,
+                                          int(cfg.max_odom_dt_s * 1e9))
         beams = sweep_poses(pose, last, self.mount, r.size) if last is not None else None
         self.mapper.integrate(r, scan.angle_min_rad, scan.angle_increment_rad, laser, beams)
         self.cloud.add(scan_points(r, scan.angle_min_rad, scan.angle_increment_rad, laser),

@@ -137,12 +137,6 @@ def watch_alive(session: zenoh.Session, on_change: Callable[[str, bool], None],
                                                    history=True)
 
 
-def service_alive(session: zenoh.Session, service: str, timeout_s: float = 1.0) -> bool:
-    """Whether a liveliness token of this chair's `service` is up (this session's own too)."""
-    return any(r.ok is not None for r in session.liveliness().get(
-        f"{keys.PREFIX}/alive/{service}", timeout=timeout_s))
-
-
 def alive_services(session: zenoh.Session, timeout_s: float = 1.0) -> set[str]:
     """Names of the services whose liveliness token is up (in the session's chair)."""
     names: set[str] = set()

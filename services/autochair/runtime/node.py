@@ -149,7 +149,7 @@ class Node:
         start = time.monotonic()
         try:
             while True:
-                alive = client.service_alive(ask, name)
+                alive = name in client.alive_services(ask)
                 waited = time.monotonic() - start
                 if alive and waited > grace_s:
                     raise ConfigError(f"another {name} is already running for this chair; "
