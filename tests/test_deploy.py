@@ -81,10 +81,11 @@ def test_compose_profiles_volumes_and_the_tls_listener() -> None:
     for name in ("sim", "sim-gateway", "lidar-sim", "sim-lidar"):
         assert "autochair-sim-pts:/dev/pts" in services[name]["volumes"]  # type: ignore[operator]
     assert doc["volumes"]["autochair-sim-pts"]["driver_opts"]["type"] == "devpts"  # type: ignore[index]
-    # Every watched service runs under the hung-process watchdog, as under supervisord.
-    assert services["pid"]["command"][:4] == [  # type: ignore[index]
-        "autochair-watchdog", "--timeout", str(deploy.WATCHDOG_TIMEOUT_S), "--"]
-    assert services["router"]["command"][0] == "autochair-router"  # type: ignore[index]
+    # Every service, the hub too, runs under the hung-process watchdog, as under supervisord.
+    for name in ("pid", "router"):
+        assert services[name]["command"][:5] == [  # type: ignore[index]
+            "autochair-watchdog", "--timeout", str(deploy.WATCHDOG_TIMEOUT_S), "--",
+            f"autochair-{name}"]
 
 
 def test_dockerfile_takes_its_base_and_installs_offline_as_a_user() -> None:

@@ -189,3 +189,41 @@ def test_a_frozen_process_is_killed_when_its_pings_stop(
         return stack.pid("odometry") not in (None, old_pid) and child.state == "up"
 
     wait_for(back_up, 20, "odometry restarted")
+
+
+def test_a_frozen_hub_is_killed_restarted_and_its_services_come_back(
+        stack_factory: Callable[..., Launcher]) -> None:
+    """The hub pings its watchdog only while it answers its own probe through a client link:
+    frozen, it is killed within the watchdog timeout and restarted, and the services reconnect.
+    Positive control: the hub pings (it is armed) before it is frozen."""
+    stack = stack_factory(["odometry"])
+    stack.restart = True
+    hub = stack.children["router"]
+    assert hub.notify is not None
+
+    def armed() -> bool:
+        stack.poll()
+        return hub.notify is not None and hub.notify.watch.pings > 2 and hub.notify.watch.ready
+
+    wait_for(armed, 5, "the hub's first pings")
+    old_pid = stack.pid("router")
+    assert old_pid is not None
+    t_stop = time.monotonic()
+    os.kill(old_pid, signal.SIGSTOP)
+
+    def hung() -> bool:
+        stack.poll()
+        return hub.hangs >= 1
+
+    wait_for(hung, 5, "the launcher to see the frozen hub")
+    assert hub.hung_at is not None
+    print(f"\nfrozen hub killed after {hub.hung_at - t_stop:.2f} s: {hub.hung_reason}")
+    assert hub.hung_reason.startswith("no watchdog ping for")
+    assert hub.hung_at - t_stop < DETECT_S
+
+    def back_up() -> bool:
+        stack.poll()
+        return (stack.pid("router") not in (None, old_pid) and hub.notify is not None
+                and hub.notify.watch.pings > 0 and stack.children["odometry"].state == "up")
+
+    wait_for(back_up, 20, "the hub restarted and odometry's token seen through it")

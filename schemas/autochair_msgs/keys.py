@@ -150,6 +150,7 @@ SAFETY_LIMIT = Topic("autochair/safety/limit", SafetyLimit, 10, True,
 HEALTH = Topic("autochair/health/*", Health, 1, True, "Health of each service")
 LOG = Topic("autochair/log", LogEvent, None, True, "Service events and faults")
 ALIVE = "autochair/alive/*"  # liveliness tokens, one per running service
+HUB_PROBE = "autochair/hub/probe"  # the hub's own queryable, asked by its watchdog probe
 
 TOPICS: tuple[Topic[msgspec.Struct], ...] = tuple(
     v for v in list(globals().values()) if isinstance(v, Topic)

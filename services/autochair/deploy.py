@@ -38,15 +38,14 @@ CHAIR_VALUES: dict[str, str] = {
     "state_dir": "/var/lib/autochair/state",  # the e-stop latch: kept across restarts
     "safety_required": "true",  # every deployed stack runs the safety monitor
 }
-# Hung-process watchdog (runtime/watchdog.py): every service but the router (not a Node: no
-# loops, no pings) sends sd_notify pings while its loops run. systemd kills a unit whose pings
-# stop for WatchdogSec; under supervisord the `autochair-watchdog` wrapper does, after
+# Hung-process watchdog (runtime/watchdog.py): every service sends sd_notify pings while its
+# loops run (the hub while it answers its own probe). systemd kills a unit whose pings stop for
+# WatchdogSec; under supervisord the `autochair-watchdog` wrapper does, after
 # WATCHDOG_TIMEOUT_S. Both act at once when a service reports itself hung (WATCHDOG=trigger).
-# Docker has no equivalent, so compose runs every watched service under the same wrapper as
+# Docker has no equivalent, so compose runs every service under the same wrapper as
 # supervisord (it exits when it kills a hung service, and Docker's restart policy restarts it).
 WATCHDOG_TIMEOUT_S = 1.5
 SYSTEMD_WATCHDOG_SEC = 2
-UNWATCHED = ("router",)
 # Which placeholder names the device a `hardware` entry owns (mapped into containers).
 HARDWARE_PLACEHOLDER = {"serial": "serial_port", "lidar": "lidar_url"}
 
@@ -126,16 +125,9 @@ def command(proc: Process, values: Mapping[str, str], bin_dir: str = "") -> list
     return [script, *fill(proc, values)]
 
 
-def watched(proc: Process) -> bool:
-    """Whether the process pings the hung-process watchdog (every Node-based service)."""
-    return proc.name not in UNWATCHED
-
-
 def supervised_command(proc: Process, values: Mapping[str, str], bin_dir: str = "") -> list[str]:
-    """supervisord's command: the service under `autochair-watchdog` when it is watched."""
+    """supervisord's (and compose's) command: the service under `autochair-watchdog`."""
     cmd = command(proc, values, bin_dir)
-    if not watched(proc):
-        return cmd
     wrapper = f"{bin_dir}/autochair-watchdog" if bin_dir else "autochair-watchdog"
     return [wrapper, "--timeout", str(WATCHDOG_TIMEOUT_S), "--", *cmd]
 
@@ -308,8 +300,7 @@ def systemd_units(procs: Iterable[Process], values: Mapping[str, str],
         groups = "SupplementaryGroups=dialout\n" if p.hardware else ""
         # Type=notify: started once it says READY=1; killed (SIGABRT) and restarted when its
         # pings stop for WatchdogSec or it sends WATCHDOG=trigger.
-        kind = (f"Type=notify\nNotifyAccess=main\nWatchdogSec={SYSTEMD_WATCHDOG_SEC}\n"
-                if watched(p) else "Type=simple\n")
+        kind = f"Type=notify\nNotifyAccess=main\nWatchdogSec={SYSTEMD_WATCHDOG_SEC}\n"
         units[f"autochair-{p.name}.service"] = (
             f"# {HEADER}\n[Unit]\nDescription=autochair {p.name}: {p.doc}\n"
             f"PartOf=autochair.target\n"

@@ -23,6 +23,8 @@ def keys_table() -> str:
         rows.append(f"| `{t.key}` | {kind} | {rate} | {'yes' if t.logged else 'no'} "
                     f"| {t.doc} |")
     rows.append(f"| `{keys.ALIVE}` | liveliness token | — | no | one per running service |")
+    rows.append(f"| `{keys.HUB_PROBE}` | query, empty reply | 4 Hz | no | the hub asks itself "
+                "through a client link; its watchdog pings only while it answers |")
     return "\n".join(rows)
 
 
