@@ -1,8 +1,11 @@
-"""No unexpected start-up across processes: an e-stop under an active goal, then a release."""
+"""No unexpected start-up across processes: an e-stop under an active goal, then a release;
+two command streams; the hub killed under a goal."""
 
 from __future__ import annotations
 
 import math
+import os
+import signal
 import time
 from collections.abc import Callable
 
@@ -129,5 +132,49 @@ def test_two_command_streams_are_never_mixed_and_the_older_never_resumes(
             time.sleep(0.05)
         moved = math.hypot(truth.latest().x_m - rest.x_m, truth.latest().y_m - rest.y_m)
         assert moved < 0.01, f"the older stream drove again ({moved:.3f} m)"
+    finally:
+        session.close()
+
+
+def test_the_hub_dies_under_a_goal_the_chair_stops_and_does_not_resume_when_it_is_back(
+        stack_factory: Callable[..., Launcher], hub: str) -> None:
+    """The hub relays the control service's commands (a Zenoh client): killed mid-goal (or by
+    its own watchdog) and restarted, the chair stops, and once every service is back it stays
+    at rest: the goal's old stream began before the stop. Positive control: it was cruising."""
+    stack = stack_factory(STACK)
+    stack.restart = True
+    session = client_session(hub)
+    try:
+        truth = Recorder(session, keys.SIM_TRUTH)
+        status = Recorder(session, keys.GOAL_STATUS)
+        pid_ready(session)
+        wait_for(truth.latest, 10, "ground truth")
+        assert request(session, keys.GOAL_SET, GoalRequest(waypoints=[Pose2D(8.0, 0.0, 0.0)]),
+                       GoalReply).ok
+        wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair cruising to the goal")
+        old_hub = stack.pid("router")
+        assert old_hub is not None
+        killed_ns = time.time_ns()
+        os.kill(old_hub, signal.SIGKILL)
+
+        def back() -> bool:
+            stack.poll()
+            return (stack.pid("router") not in (None, old_hub)
+                    and all(c.state == "up" for c in stack.children.values()))
+
+        wait_for(back, 30, "the hub restarted and every service up through it")
+        fresh = wait_for(lambda: (lambda m: m if m is not None and m.stamp_ns > killed_ns
+                                  else None)(truth.latest()), 10, "ground truth again")
+        wait_for(lambda: abs(truth.latest().v_mps) < 0.005, 10, "the chair at rest")
+        rest, t0 = truth.latest(), time.monotonic()
+        print(f"\nhub back; chair at rest {rest.x_m - fresh.x_m:+.2f} m after the first "
+              f"fresh truth; goal: {status.latest().state if status.latest() else None}: "
+              f"{status.latest().reason if status.latest() else None}")
+        wait_for(lambda: (stack.poll(), time.monotonic() - t0 > 3.0)[1], 5,
+                 "three seconds with the hub back")
+        moved = math.hypot(truth.latest().x_m - rest.x_m, truth.latest().y_m - rest.y_m)
+        assert moved < 0.01, f"the chair drove again by itself ({moved:.3f} m)"
+        s = status.latest()
+        assert s is not None and s.state != "driving", "the goal drives on after the stop"
     finally:
         session.close()
