@@ -154,21 +154,18 @@ def test_a_hung_pid_is_killed_restarted_and_the_chair_holds_neutral(
         session.close()
 
 
-def test_a_frozen_process_is_killed_when_its_pings_stop(
-        stack_factory: Callable[..., Launcher]) -> None:
-    """SIGSTOP freezes everything, the watchdog thread too: no trigger, the pings just stop.
-    The launcher's own timeout (watchdog_s) must catch it."""
-    stack = stack_factory(["odometry"])
+def freeze_until_restarted(stack: Launcher, name: str) -> None:
+    """SIGSTOP `name` once it pings (positive control), assert the launcher kills it within
+    DETECT_S for its silence, and wait until it runs again and every child is up."""
     stack.restart = True
-    child = stack.children["odometry"]
-    assert child.notify is not None
+    child = stack.children[name]
 
     def armed() -> bool:
         stack.poll()
-        return child.notify is not None and child.notify.watch.pings > 0
+        return child.notify is not None and child.notify.watch.pings > 2
 
-    wait_for(armed, 5, "the first ping")
-    old_pid = stack.pid("odometry")
+    wait_for(armed, 5, f"{name}'s first pings")
+    old_pid = stack.pid(name)
     assert old_pid is not None
     t_stop = time.monotonic()
     os.kill(old_pid, signal.SIGSTOP)
@@ -177,53 +174,31 @@ def test_a_frozen_process_is_killed_when_its_pings_stop(
         stack.poll()
         return child.hangs >= 1
 
-    wait_for(hung, 5, "the launcher to see the frozen process")
+    wait_for(hung, 5, f"the launcher to see the frozen {name}")
     assert child.hung_at is not None
     detect_s = child.hung_at - t_stop
-    print(f"\nfrozen odometry killed after {detect_s:.2f} s: {child.hung_reason}")
+    print(f"\nfrozen {name} killed after {detect_s:.2f} s: {child.hung_reason}")
     assert child.hung_reason.startswith("no watchdog ping for")
     assert stack.watchdog_s - 0.3 <= detect_s < DETECT_S  # last ping up to 0.25 s before
 
     def back_up() -> bool:
         stack.poll()
-        return stack.pid("odometry") not in (None, old_pid) and child.state == "up"
+        return (stack.pid(name) not in (None, old_pid)
+                and all(c.state == "up" for c in stack.children.values()))
 
-    wait_for(back_up, 20, "odometry restarted")
+    wait_for(back_up, 20, f"{name} restarted and every service up")
+
+
+def test_a_frozen_process_is_killed_when_its_pings_stop(
+        stack_factory: Callable[..., Launcher]) -> None:
+    """SIGSTOP freezes everything, the watchdog thread too: no trigger, the pings just stop.
+    The launcher's own timeout (watchdog_s) must catch it."""
+    freeze_until_restarted(stack_factory(["odometry"]), "odometry")
 
 
 def test_a_frozen_hub_is_killed_restarted_and_its_services_come_back(
         stack_factory: Callable[..., Launcher]) -> None:
     """The hub pings its watchdog only while it answers its own probe through a client link:
-    frozen, it is killed within the watchdog timeout and restarted, and the services reconnect.
-    Positive control: the hub pings (it is armed) before it is frozen."""
-    stack = stack_factory(["odometry"])
-    stack.restart = True
-    hub = stack.children["router"]
-    assert hub.notify is not None
-
-    def armed() -> bool:
-        stack.poll()
-        return hub.notify is not None and hub.notify.watch.pings > 2 and hub.notify.watch.ready
-
-    wait_for(armed, 5, "the hub's first pings")
-    old_pid = stack.pid("router")
-    assert old_pid is not None
-    t_stop = time.monotonic()
-    os.kill(old_pid, signal.SIGSTOP)
-
-    def hung() -> bool:
-        stack.poll()
-        return hub.hangs >= 1
-
-    wait_for(hung, 5, "the launcher to see the frozen hub")
-    assert hub.hung_at is not None
-    print(f"\nfrozen hub killed after {hub.hung_at - t_stop:.2f} s: {hub.hung_reason}")
-    assert hub.hung_reason.startswith("no watchdog ping for")
-    assert hub.hung_at - t_stop < DETECT_S
-
-    def back_up() -> bool:
-        stack.poll()
-        return (stack.pid("router") not in (None, old_pid) and hub.notify is not None
-                and hub.notify.watch.pings > 0 and stack.children["odometry"].state == "up")
-
-    wait_for(back_up, 20, "the hub restarted and odometry's token seen through it")
+    frozen, it is killed within the watchdog timeout and restarted, and odometry's token is
+    seen through the new hub."""
+    freeze_until_restarted(stack_factory(["odometry"]), "router")
