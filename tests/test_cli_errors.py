@@ -47,6 +47,17 @@ def test_up_unknown_map(tmp_path: Path) -> None:
     one_line_error(proc, "no map 'hal'", "known: hall", "autochair map save")
 
 
+def test_up_keepout_needs_a_map_and_an_existing_mask(tmp_path: Path) -> None:
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps" / "hall.yaml").write_text("image: hall.pgm\n")
+    hub = f"tcp/127.0.0.1:{free_port()}"
+    one_line_error(run("-m", "autochair.cli", "up", "--sim", "--keepout", "hall", "--state-dir",
+                       str(tmp_path), "--hub", hub), "--keepout needs --map")
+    one_line_error(run("-m", "autochair.cli", "up", "--sim", "--map", "hall", "--keepout",
+                       "stairs", "--state-dir", str(tmp_path), "--hub", hub),
+                   "no mask 'stairs'", "known: hall")
+
+
 def test_drive_out_of_range() -> None:
     one_line_error(run("-m", "autochair.cli", "drive", "5", "0"), "|v|")
 

@@ -170,8 +170,11 @@ def test_the_hub_dies_under_a_goal_the_chair_stops_and_does_not_resume_when_it_i
         print(f"\nhub back; chair at rest {rest.x_m - fresh.x_m:+.2f} m after the first "
               f"fresh truth; goal: {status.latest().state if status.latest() else None}: "
               f"{status.latest().reason if status.latest() else None}")
-        wait_for(lambda: (stack.poll(), time.monotonic() - t0 > 3.0)[1], 5,
-                 "three seconds with the hub back")
+        def three_seconds() -> bool:
+            stack.poll()
+            return time.monotonic() - t0 > 3.0
+
+        wait_for(three_seconds, 5, "three seconds with the hub back")
         moved = math.hypot(truth.latest().x_m - rest.x_m, truth.latest().y_m - rest.y_m)
         assert moved < 0.01, f"the chair drove again by itself ({moved:.3f} m)"
         s = status.latest()

@@ -20,7 +20,7 @@ import pytest
 from autochair.launcher import Launcher
 from autochair.runtime.client import Publisher
 from autochair.sim.lidar.node import BLIND_SIGNAL
-from autochair_msgs import Health, LaserScan, SafetyLimit, VelocityCommand, keys
+from autochair_msgs import Health, LaserScan, Odometry, SafetyLimit, VelocityCommand, keys
 from tests.helpers import Recorder, Spawn, client_session, spawned, stop_process, wait_for
 
 pytestmark = pytest.mark.slow
@@ -98,10 +98,6 @@ def test_blinded_laser_does_not_drive_forward(stack_factory: Callable[..., Launc
         assert x_max - x1 > 0.2, f"with sight back the chair moved only {x_max - x1:.3f} m"
     finally:
         session.close()
-
-
-
-
 
 
 @pytest.fixture
@@ -185,5 +181,57 @@ def test_a_late_scan_is_a_stop(spawn: tuple[str, Spawn]) -> None:
         assert (stop.v_max_fwd_mps, stop.v_max_rev_mps, stop.omega_max_radps) == (0, 0, 0)
         wait_for(lambda: (lambda m: m is not None and m.v_max_fwd_mps > 0.5)(
             latest_after(0.1)), 5, "open again for fresh scans", interval=0.1)
+    finally:
+        session.close()
+
+
+def test_keepout_zones_stop_the_chair_where_the_laser_sees_nothing(
+        spawn: tuple[str, Spawn], tmp_path: Path) -> None:
+    """H42 through a real monitor process: a keep-out band (stairs down, say) on a mask map,
+    invisible to the laser, limits the chair like a wall once localization places it, is a
+    stop while no localization is heard, and a stop with the chair's front over it."""
+    from autochair.mapping.mapfile import save_map
+    from tests.test_nav_frames_system import localization
+    from tests.test_safety_keepout import mask
+
+    hub, start = spawn
+    path = save_map(mask([(2.5, -2.0, 3.0, 3.0)]), tmp_path / "keepout.yaml")
+    session = client_session(hub)
+    try:
+        limits = Recorder(session, keys.SAFETY_LIMIT)
+        start("autochair.safety.node", "--set", f"keepout_map={path}")
+        scans, odom = Publisher(session, keys.SCAN), Publisher(session, keys.ODOM_SLOW)
+        n = 682
+        inc = math.radians(240) / (n - 1)
+
+        def at(x_odom: float) -> SafetyLimit | None:
+            """A fresh open scan with the chair at rest at odom (x, 0, 0); the newest limit."""
+            now = time.time_ns()
+            odom.put(Odometry(stamp_ns=now, x_m=x_odom, y_m=0.0, yaw_rad=0.0, v_mps=0.0,
+                              omega_radps=0.0))
+            scans.put(LaserScan(stamp_ns=now, frame_id="laser", angle_min_rad=-(n - 1) / 2 * inc,
+                                angle_increment_rad=inc, range_min_m=0.02, range_max_m=5.6,
+                                ranges_m=[4.0] * n))
+            return limits.latest()  # type: ignore[no-any-return]
+
+        def reason(x_odom: float, text: str) -> Callable[[], SafetyLimit | None]:
+            return lambda: (lambda m: m if m is not None and text in m.reason else None)(
+                at(x_odom))
+
+        unplaced = wait_for(reason(-3.0, "keep-out zones cannot be placed"), 20,
+                            "a stop while no localization is heard", interval=0.1)
+        print(unplaced)
+        assert (unplaced.v_max_fwd_mps, unplaced.omega_max_radps) == (0.0, 0.0)
+        with localization(session):  # map → odom (1, 0.5, 0): odom x −3 is map x −2
+            far = wait_for(reason(-3.0, "clear"), 10, "open with the band 4.5 m ahead",
+                           interval=0.1)
+            near = wait_for(reason(0.0, "free fwd"), 10, "limited 1.5 m before the band",
+                            interval=0.1)
+            print(f"band 4.5 m ahead: {far.v_max_fwd_mps:.2f} m/s; 1.5 m ahead: "
+                  f"{near.v_max_fwd_mps:.2f} m/s ({near.reason})")
+            assert 0.0 < near.v_max_fwd_mps < far.v_max_fwd_mps
+            over = wait_for(reason(1.0, "free fwd 0.00"), 10, "the front over the band",
+                            interval=0.1)
+            assert over.v_max_fwd_mps == 0.0
     finally:
         session.close()

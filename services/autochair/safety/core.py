@@ -441,15 +441,20 @@ class SafetyCore:
         geometry alone (no beam validity, no field of view: see `assess`)."""
         return self._limit(pts, v, omega, None)
 
-    def assess(self, scan: Scan, v: float, omega: float, frame_id: str = "laser") -> Limit:
+    def assess(self, scan: Scan, v: float, omega: float, frame_id: str = "laser",
+               unseen: F64 | None = None) -> Limit:
         """Bounds for a whole scan: rejected if absurd, blind sectors blocked, |ω| capped by the
-        unseen footprint swing, autonomy reverse 0 unless the rear is seen or allowed."""
+        unseen footprint swing, autonomy reverse 0 unless the rear is seen or allowed.
+        `unseen`: chair-frame points (N, 2) of obstacles the laser cannot see (keep-out zones),
+        judged like the scan's own."""
         kind, why = check_scan(scan, frame_id, self.p)
         if kind:
             return stop_limit(f"scan rejected: {why}", rejected=kind)
         valid = scan.valid()
         pts = scan_points(scan.ranges, scan.angle_min, scan.angle_inc, scan.range_min,
                           scan.range_max, self.p.mount)
+        if unseen is not None and unseen.shape[0]:
+            pts = np.concatenate((pts, unseen))
         return self._limit(pts, v, omega, (scan, valid))
 
     def _limit(self, pts: F64, v: float, omega: float, beams: tuple[Scan, BOOL] | None

@@ -7,7 +7,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from autochair.geometry import Pose
+
 from .core import DIRECTIONS, EStopAction, Fault, Limit, MonitorState, SafetyCore, Scan, stop_limit
+from .keepout import Keepout
 
 
 @dataclass(frozen=True)
@@ -35,14 +38,26 @@ class TickVerdict:
 
 class Monitor:
     def __init__(self, core: SafetyCore, stale_s: float, odometry_s: float, clear_hold_s: float,
-                 frame_id: str, max_age_s: float = 0.35, skew_s: float = 0.1) -> None:
+                 frame_id: str, max_age_s: float = 0.35, skew_s: float = 0.1,
+                 keepout: Keepout | None = None) -> None:
         self.core, self.odometry_s, self.frame_id = core, odometry_s, frame_id
         self.max_age_s, self.skew_s = max_age_s, skew_s
         self.state = MonitorState(stale_s=stale_s, clear_hold_s=clear_hold_s)
         self._motion = (0.0, 0.0, -math.inf)  # v, ω, when
+        self._pose: Pose | None = None  # in odom
+        self.keepout = keepout
 
-    def on_odom(self, v: float, omega: float, now: float) -> None:
-        self._motion = (v, omega, now)
+    def on_odom(self, v: float, omega: float, now: float, pose: Pose | None = None) -> None:
+        self._motion, self._pose = (v, omega, now), pose
+
+    def on_correction(self, map_to_odom: Pose) -> None:
+        """Localization's `map` → `odom` correction (places the keep-out zones)."""
+        if self.keepout is not None:
+            self.keepout.frame.on_correction(map_to_odom)
+
+    def on_loc_state(self, state: str, now: float) -> None:
+        if self.keepout is not None:
+            self.keepout.frame.on_state(state, now)
 
     def on_mount(self, error: str) -> tuple[Limit | None, bool]:
         """A tf_static check: a stop to publish at once when it disagrees, and whether
@@ -59,7 +74,11 @@ class Monitor:
         stale = now - t > self.odometry_s
         if stale:
             v, w = 0.0, 0.0
-        lim = self.core.assess(scan, v, w, self.frame_id)
+        unseen, unplaced = None, ""
+        if self.keepout is not None:  # H42: zones it cannot place are a stop (unknown: unsafe)
+            unseen, unplaced = self.keepout.points(None if stale else self._pose, now)
+        lim = (stop_limit(unplaced) if unplaced
+               else self.core.assess(scan, v, w, self.frame_id, unseen))
         # A scan that arrives late (a backlog after a stall, a starved process) shows the world
         # as it was: judged as now it could clear a path a person has since stepped into (H38).
         if not -self.skew_s <= age_s <= self.max_age_s:
@@ -79,8 +98,9 @@ class Monitor:
         blind_changed = st.on_blind(blind)
         return ScanVerdict(published, lim, action, imminent, imminent_changed, blind,
                            blind_changed, stale, v,
-                           published is not lim or bool(lim.rejected) or bool(lim.blind),
-                           self._detail(published, lim))
+                           published is not lim or bool(lim.rejected) or bool(lim.blind)
+                           or bool(unplaced),
+                           f"stop: {unplaced}" if unplaced else self._detail(published, lim))
 
     def tick(self, now: float) -> TickVerdict:
         silent = self.state.stale(now)

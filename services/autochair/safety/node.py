@@ -23,10 +23,22 @@ from typing import Annotated
 import msgspec
 import numpy as np
 
+from autochair.geometry import quaternion_yaw
+from autochair.mapping.mapfile import MapFileError, load_map
 from autochair.runtime import Node, service_main
-from autochair_msgs import EStopAssert, FrameTransform, LaserScan, Odometry, SafetyLimit, keys
+from autochair.runtime.config import ConfigError
+from autochair_msgs import (
+    EStopAssert,
+    FrameTransform,
+    LaserScan,
+    LocalizedPose,
+    Odometry,
+    SafetyLimit,
+    keys,
+)
 
 from .core import EStopAction, Limit, SafetyCore, SafetyParams, SafetyTuning, Scan
+from .keepout import Keepout
 from .monitor import Monitor, ScanVerdict
 
 IMMINENT = "imminent collision"
@@ -39,6 +51,9 @@ class SafetyConfig(SafetyTuning, kw_only=True, frozen=True):
     estop_on_imminent: bool = True  # assert the e-stop on a collision it could not prevent
     frame_id: str = "laser"  # scans in any other frame are rejected (a stop)
     clear_hold_s: Annotated[float, msgspec.Meta(ge=0)] = 1.0  # e-stop clear repeated this long
+    # A mask map (map_server YAML) whose occupied cells are keep-out zones the laser cannot see
+    # (stairs down, kerbs, glass): placed with localization, a stop while they cannot be (H42).
+    keepout_map: str = ""
 
 
 def start(node: Node, cfg: SafetyConfig) -> None:
@@ -46,7 +61,8 @@ def start(node: Node, cfg: SafetyConfig) -> None:
     core = SafetyCore(SafetyParams.of(cfg, chair.front_m, chair.rear_m, chair.half_width_m,
                                       chair.laser_mount))
     monitor = Monitor(core, node.stale.scan_s, node.stale.odometry_s, cfg.clear_hold_s,
-                      cfg.frame_id, node.stale.scan_age_s, node.stale.clock_skew_s)
+                      cfg.frame_id, node.stale.scan_age_s, node.stale.clock_skew_s,
+                      _keepout(cfg.keepout_map))
     node.health.thresholds.update(
         scan_s=node.stale.scan_s, scan_age_s=node.stale.scan_age_s,
         odometry_s=node.stale.odometry_s, decel_mps2=cfg.decel_mps2,
@@ -59,7 +75,22 @@ def start(node: Node, cfg: SafetyConfig) -> None:
     node.subscribe(keys.ODOM_SLOW, wiring.on_odom)
     node.subscribe(keys.TF_STATIC, wiring.on_tf)
     node.subscribe(keys.SCAN, wiring.on_scan)
+    if monitor.keepout is not None:
+        node.health.thresholds["keepout_edge_cells"] = len(monitor.keepout.edges)
+        node.log.info("keep-out zones from %s: %d edge cells", cfg.keepout_map,
+                      len(monitor.keepout.edges))
+        node.subscribe(keys.TF, wiring.on_correction)
+        node.subscribe(keys.LOC_POSE, wiring.on_loc)
     node.every(0.1, wiring.tick, "watchdog")
+
+
+def _keepout(path: str) -> Keepout | None:
+    if not path:
+        return None
+    try:
+        return Keepout(load_map(path))
+    except MapFileError as e:
+        raise ConfigError(f"[safety] keepout_map: {e}") from None
 
 
 class _Wiring:
@@ -89,7 +120,18 @@ class _Wiring:
 
     def on_odom(self, o: Odometry) -> None:
         with self.lock:
-            self.monitor.on_odom(o.v_mps, o.omega_radps, time.monotonic())
+            self.monitor.on_odom(o.v_mps, o.omega_radps, time.monotonic(),
+                                 (o.x_m, o.y_m, o.yaw_rad))
+
+    def on_correction(self, msg: FrameTransform) -> None:
+        if msg.parent_frame_id == "map" and msg.child_frame_id == "odom":
+            t, r = msg.translation, msg.rotation
+            with self.lock:
+                self.monitor.on_correction((t.x, t.y, quaternion_yaw(r.x, r.y, r.z, r.w)))
+
+    def on_loc(self, msg: LocalizedPose) -> None:
+        with self.lock:
+            self.monitor.on_loc_state(msg.state, time.monotonic())
 
     def on_tf(self, tf: FrameTransform) -> None:
         if tf.child_frame_id != self.cfg.frame_id:

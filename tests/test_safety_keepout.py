@@ -1,0 +1,116 @@
+"""Keep-out zones in the safety monitor (H42, safety/keepout.py): places the laser cannot see
+(stairs down, a kerb, glass) marked on a mask map, placed with localization; a stop while they
+cannot be placed."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from autochair.mapping.mapfile import MapFile, load_map, save_map
+from autochair.safety.core import SafetyCore, SafetyParams, SafetyTuning, Scan
+from autochair.safety.keepout import Keepout, zone_edges
+from autochair.safety.monitor import Monitor
+
+RES = 0.05
+CORRECTION = (1.0, 0.5, 0.0)  # map → odom: odometry's origin at (1, 0.5) on the map
+
+
+def mask(zones: list[tuple[float, float, float, float]], size_m: float = 10.0) -> MapFile:
+    """A mask over [-size/2, size/2]² in map; each zone (x0, y0, x1, y1) occupied."""
+    n = round(size_m / RES)
+    occ = np.zeros((n, n), dtype=bool)
+    origin = -size_m / 2
+    for x0, y0, x1, y1 in zones:
+        c0, c1 = round((x0 - origin) / RES), round((x1 - origin) / RES)
+        r0, r1 = round((y0 - origin) / RES), round((y1 - origin) / RES)
+        occ[r0:r1, c0:c1] = True
+    return MapFile(occ, ~occ, RES, origin, origin)
+
+
+def open_scan() -> Scan:
+    """Nothing within 4 m all round the laser's 240°: the path is clear for the laser."""
+    n = 682
+    inc = math.radians(240) / (n - 1)
+    return Scan(np.full(n, 4.0), -(n - 1) / 2 * inc, inc, 0.02, 5.6, "laser")
+
+
+def monitor(keepout: Keepout | None) -> Monitor:
+    core = SafetyCore(SafetyParams.of(SafetyTuning(), 0.95, 0.25, 0.35, (0.8636, 0.0, 0.0)))
+    return Monitor(core, 0.5, 0.3, 1.0, "laser", keepout=keepout)
+
+
+def localized(m: Monitor, now: float, state: str = "tracking") -> None:
+    m.on_correction(CORRECTION)
+    m.on_loc_state(state, now)
+
+
+def test_zone_edges_are_the_cells_touching_the_outside() -> None:
+    m = mask([(0.0, 0.0, 0.2, 0.2)])  # 4 × 4 cells
+    edges = zone_edges(m)
+    assert len(edges) == 12  # 16 cells less the 2 × 2 inside
+    assert edges[:, 0].min() == pytest.approx(0.025) and edges[:, 0].max() == pytest.approx(0.175)
+
+
+def test_a_mask_file_round_trips(tmp_path: Path) -> None:
+    """The format a person draws zones in: a map_server PGM + YAML."""
+    path = save_map(mask([(2.0, -1.0, 2.5, 1.0)]), tmp_path / "keepout.yaml")
+    assert len(zone_edges(load_map(path))) == len(zone_edges(mask([(2.0, -1.0, 2.5, 1.0)])))
+
+
+def test_a_zone_ahead_limits_the_chair_like_a_wall_and_one_aside_does_not() -> None:
+    now = 100.0
+    # A band across the path 1.5 m ahead of the chair's centre (map x 2.5: the chair is at
+    # map (1, 0.5) when odometry says (0, 0)).
+    ahead = monitor(Keepout(mask([(2.5, -2.0, 3.0, 3.0)])))
+    localized(ahead, now)
+    ahead.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
+    lim = ahead.on_scan(open_scan(), now).published
+    assert lim.free_fwd_m == pytest.approx(1.5 - 0.95, abs=0.06)
+    assert 0.0 < lim.v_fwd < 1.0
+    # Positive control: the same zone 3 m to the side does not limit forward motion.
+    aside = monitor(Keepout(mask([(2.5, 3.5, 3.0, 4.5)])))
+    localized(aside, now)
+    aside.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
+    free = aside.on_scan(open_scan(), now).published
+    assert free.free_fwd_m == math.inf and free.v_fwd > lim.v_fwd
+    # Turned 90° in odom, the band is to the chair's right: forward is free again.
+    ahead.on_odom(0.0, 0.0, now, (0.0, 0.0, math.pi / 2))
+    assert ahead.on_scan(open_scan(), now).published.free_fwd_m == math.inf
+
+
+def test_zones_that_cannot_be_placed_are_a_stop_with_the_reason() -> None:
+    now = 100.0
+    m = monitor(Keepout(mask([(2.5, -2.0, 3.0, 3.0)])))
+    m.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
+    v = m.on_scan(open_scan(), now)
+    assert (v.published.v_fwd, v.published.v_rev, v.published.omega) == (0.0, 0.0, 0.0)
+    assert "keep-out zones cannot be placed: no localization heard" in v.published.reason
+    assert v.degraded and v.detail.startswith("stop: keep-out")
+    localized(m, now, "lost")
+    assert "not tracking" in m.on_scan(open_scan(), now).published.reason
+    localized(m, now)
+    assert m.on_scan(open_scan(), now).published.v_fwd > 0.0  # placed: not a stop
+    assert "silent" in m.on_scan(open_scan(), now + 3.0).published.reason
+    m.on_odom(0.0, 0.0, now + 3.0, (0.0, 0.0, 0.0))
+    localized(m, now + 3.0)
+    stale = m.on_scan(open_scan(), now + 3.5)  # odometry 0.5 s old
+    assert "no fresh odometry pose" in stale.published.reason
+    # Positive control: the same scans with no keep-out configured drive.
+    plain = monitor(None)
+    plain.on_odom(0.0, 0.0, now, None)
+    assert plain.on_scan(open_scan(), now).published.v_fwd > 0.0
+
+
+def test_a_chair_inside_a_zone_is_stopped() -> None:
+    now = 100.0
+    m = monitor(Keepout(mask([(0.0, -1.0, 3.0, 2.0)])))  # around map (1, 0.5)
+    localized(m, now)
+    m.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
+    lim = m.on_scan(open_scan(), now).published
+    assert lim.v_fwd == 0.0 and "inside a keep-out zone" in lim.reason
+    m.on_odom(0.0, 0.0, now, (-4.0, 0.0, math.pi))  # map (-3, 0.5): outside, facing away
+    assert m.on_scan(open_scan(), now).published.v_fwd > 0.0
