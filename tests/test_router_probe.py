@@ -9,11 +9,11 @@ import threading
 import pytest
 
 from autochair.launcher import free_port
-from autochair.router.node import PROBE_PERIOD_S, answers, probe_endpoint, probe_loop
+from autochair.router.node import PROBE_PERIOD_S, probe_endpoint, probe_loop
+from autochair.runtime.client import answer_hub_probe, hub_answers
 from autochair.runtime.config import ZenohSettings
 from autochair.runtime.session import client_settings, open_session
 from autochair.runtime.watchdog import Notifier, parse
-from autochair_msgs import keys
 from tests.helpers import wait_for
 
 
@@ -26,7 +26,7 @@ def test_probe_endpoint_is_the_first_tcp_listener_on_loopback() -> None:
 def test_the_probe_pings_while_the_hub_answers_and_stops_when_it_does_not() -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     hub = open_session(ZenohSettings(mode="router", listen=[endpoint], connect=[]))
-    queryable = hub.declare_queryable(keys.HUB_PROBE, lambda q: q.reply(q.key_expr, b""))
+    queryable = answer_hub_probe(hub)
     client = open_session(client_settings(endpoint))
     supervisor = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     supervisor.bind(f"\0autochair-test-probe-{free_port()}")
@@ -40,7 +40,7 @@ def test_the_probe_pings_while_the_hub_answers_and_stops_when_it_does_not() -> N
         assert parse(supervisor.recv(256)) == {"READY": "1", "WATCHDOG": "1"}
         assert parse(supervisor.recv(256)) == {"WATCHDOG": "1"}
         queryable.undeclare()  # the hub runs but does not answer: as if its routing were stuck
-        wait_for(lambda: not answers(client), 5, "the probe to go unanswered")
+        wait_for(lambda: not hub_answers(client, 0.5), 5, "the probe to go unanswered")
         # At most the probes already answered arrive; then 4 periods and more of silence.
         supervisor.settimeout(4 * PROBE_PERIOD_S)
         late = 0

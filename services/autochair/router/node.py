@@ -19,11 +19,11 @@ import threading
 
 import zenoh
 
+from autochair.runtime.client import answer_hub_probe, hub_answers
 from autochair.runtime.config import ConfigError, ZenohSettings, load_section
 from autochair.runtime.node import _install_signal_handlers, setup_logging, wait_for_stop
 from autochair.runtime.session import client_settings, open_session
 from autochair.runtime.watchdog import Notifier
-from autochair_msgs import keys
 
 PROBE_PERIOD_S = 0.25
 # One lost probe leaves a gap of period + timeout + period = 1 s between pings, inside the
@@ -43,17 +43,11 @@ def probe_endpoint(listen: list[str]) -> str | None:
     return None
 
 
-def answers(client: zenoh.Session) -> bool:
-    """Whether the hub answered its own queryable through this client's link."""
-    return any(r.ok is not None for r in list(client.get(keys.HUB_PROBE,
-                                                         timeout=PROBE_TIMEOUT_S)))
-
-
 def probe_loop(client: zenoh.Session, notifier: Notifier, stop: threading.Event) -> None:
     """READY=1 at the first answer, then WATCHDOG=1 after every answer, until `stop`."""
     ready = False
     while not stop.wait(PROBE_PERIOD_S):
-        if answers(client):
+        if hub_answers(client, PROBE_TIMEOUT_S):
             notifier.send("WATCHDOG=1" if ready else "READY=1\nWATCHDOG=1")
             ready = True
 
@@ -84,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     _install_signal_handlers(stop)
     log.info("listening on %s", ", ".join(settings.listen))
-    session.declare_queryable(keys.HUB_PROBE, lambda q: q.reply(q.key_expr, b""))
+    answer_hub_probe(session)
     if notifier is not None and probe_at is not None:
         client = open_session(client_settings(probe_at, settings.namespace))
         threading.Thread(target=probe_loop, args=(client, notifier, stop), name="probe",

@@ -209,3 +209,13 @@ def pid_caps(session: zenoh.Session, timeout_s: float = 1.5) -> tuple[float, flo
         return None
     t = got[0].thresholds
     return t["v_max_fwd_mps"], t.get("v_max_rev_mps", 0.0), t.get("omega_max_radps", 0.0)
+
+
+def answer_hub_probe(session: zenoh.Session) -> zenoh.Queryable[None]:
+    """The hub's own queryable (keys.HUB_PROBE): an empty reply to every ask."""
+    return session.declare_queryable(keys.HUB_PROBE, lambda q: q.reply(q.key_expr, b""))
+
+
+def hub_answers(session: zenoh.Session, timeout_s: float) -> bool:
+    """Whether the hub answered its probe through this session's link within `timeout_s`."""
+    return any(r.ok is not None for r in list(session.get(keys.HUB_PROBE, timeout=timeout_s)))
