@@ -235,3 +235,39 @@ def test_keepout_zones_stop_the_chair_where_the_laser_sees_nothing(
             assert over.v_max_fwd_mps == 0.0
     finally:
         session.close()
+
+
+def test_keepout_zones_are_painted_into_the_live_grid_once_placed(
+        spawn: tuple[str, Spawn], tmp_path: Path) -> None:
+    """H42, navigation's side, through a real mapping process: the live grid in `odom` carries
+    the zones as occupied once localization places them (so MPEPC plans round them and a goal
+    in one is refused), and not before."""
+    import numpy as np
+
+    from autochair.mapping.mapfile import save_map
+    from tests.test_nav_frames_system import CORRECTION, localization
+    from tests.test_safety_keepout import mask
+
+    hub, start = spawn
+    path = save_map(mask([(2.5, -1.0, 3.0, 1.0)]), tmp_path / "keepout.yaml")
+    session = client_session(hub)
+    try:
+        grids = Recorder(session, keys.MAP_GRID)
+        start("autochair.mapping.node", "--set", f"keepout_map={path}")
+
+        def zone_cells() -> int | None:
+            g = grids.latest()
+            return None if g is None else int((np.frombuffer(g.data, np.uint8) == 100).sum())
+
+        wait_for(lambda: zone_cells() is not None, 20, "a grid before localization")
+        assert zone_cells() == 0  # not placed yet: the monitor stops meanwhile
+        with localization(session):
+            wait_for(lambda: (zone_cells() or 0) >= 400, 10, "the zone painted (10 × 40 cells)")
+            g = grids.latest()
+            occ = np.frombuffer(g.data, np.uint8).reshape(g.height, g.width) == 100
+            # The zone's centre (2.75, 0) in map, in odom (the correction has no rotation):
+            x, y = 2.75 - CORRECTION[0], 0.0 - CORRECTION[1]
+            assert occ[int((y - g.origin_y_m) / g.resolution_m),
+                       int((x - g.origin_x_m) / g.resolution_m)]
+    finally:
+        session.close()

@@ -12,8 +12,9 @@ import pytest
 
 from autochair.mapping.mapfile import MapFile, load_map, save_map
 from autochair.safety.core import SafetyCore, SafetyParams, SafetyTuning, Scan
-from autochair.safety.keepout import Keepout, zone_edges
+from autochair.safety.keepout import Keepout, paint, zone_edges
 from autochair.safety.monitor import Monitor
+from autochair_msgs import OccupancyGrid
 
 RES = 0.05
 CORRECTION = (1.0, 0.5, 0.0)  # map → odom: odometry's origin at (1, 0.5) on the map
@@ -114,3 +115,24 @@ def test_a_chair_inside_a_zone_is_stopped() -> None:
     assert lim.v_fwd == 0.0 and "inside a keep-out zone" in lim.reason
     m.on_odom(0.0, 0.0, now, (-4.0, 0.0, math.pi))  # map (-3, 0.5): outside, facing away
     assert m.on_scan(open_scan(), now).published.v_fwd > 0.0
+
+
+def test_zones_are_painted_into_the_live_grid_in_odom_where_localization_puts_them() -> None:
+    """The mapping service's side: the whole zone, every cell, at any correction."""
+    grid = OccupancyGrid(stamp_ns=0, frame_id="odom", resolution_m=RES, width=200, height=200,
+                         origin_x_m=-5.0, origin_y_m=-5.0, data=bytes(200 * 200))
+    k = Keepout(mask([(2.5, -0.5, 3.0, 0.5)]))  # 10 × 20 cells in map
+    assert k.in_odom(0.0)[0] is None  # positive control below: placed once localized
+    for correction in (CORRECTION, (1.0, 0.5, math.radians(30))):
+        k.frame.on_correction(correction)
+        k.frame.on_state("tracking", 0.0)
+        pts, why = k.in_odom(0.0)
+        assert pts is not None and not why
+        cells = np.frombuffer(paint(grid, pts).data, np.uint8).reshape(200, 200) == 100
+        assert cells.sum() >= 200  # no cell of the zone skipped at 30°
+        # The zone's centre (2.75, 0) in map is here in odom:
+        ox, oy, oth = correction
+        c, s = math.cos(oth), math.sin(oth)
+        x, y = c * (2.75 - ox) + s * (0.0 - oy), -s * (2.75 - ox) + c * (0.0 - oy)
+        assert cells[math.floor((y + 5.0) / RES), math.floor((x + 5.0) / RES)]
+        assert not cells[100, 100]  # odom's origin is outside the zone

@@ -35,7 +35,8 @@ def register(sub: Any) -> None:
     p.add_argument("--keepout", metavar="NAME",
                    help="keep-out zones (stairs down, kerbs, glass: what the laser cannot see) "
                    "from mask map NAME of maps/, drawn over the --map; the safety monitor stops "
-                   "the chair at them, and everywhere while localization cannot place them")
+                   "the chair at them, and everywhere while localization cannot place them; "
+                   "navigation plans round them")
     p.add_argument("--hub", default="tcp/127.0.0.1:7447", help="Zenoh endpoint of the hub")
     add_chair_arg(p, "run the stack as chair NAME (every process gets $AUTOCHAIR_CHAIR)")
     p.add_argument("--join", action="store_true",
@@ -125,17 +126,17 @@ def run(args: argparse.Namespace) -> int:
     if args.keepout and not args.map:
         raise CliError("--keepout needs --map: the zones are placed by localization on that map")
     maps = state_dir / "maps"
-    for name, what, service, setting in (
-            (args.map, "map", "localization", f"map={args.map}"),
-            (args.keepout, "mask", "safety", f"keepout_map={maps / f'{args.keepout}.yaml'}")):
+    mask = f"keepout_map={maps / f'{args.keepout}.yaml'}"
+    for name, what, settings in ((args.map, "map", {"localization": f"map={args.map}"}),
+                                 (args.keepout, "mask", {"safety": mask, "mapping": mask})):
         if not name:
             continue
         if not (maps / f"{name}.yaml").exists():
             known = sorted(f.stem for f in maps.glob("*.yaml")) if maps.is_dir() else []
             raise CliError(f"no {what} {name!r} in {maps} (known: {', '.join(known) or 'none'};"
                            " save one with `autochair map save NAME`)")
-        procs = [dataclasses.replace(p, args=(*p.args, "--set", setting))
-                 if p.name == service else p for p in procs]
+        procs = [dataclasses.replace(p, args=(*p.args, "--set", settings[p.name]))
+                 if p.name in settings else p for p in procs]
     record = args.record or os.path.join(DEFAULT_RECORD_DIR, chair)
     values = processes.local_values(run_dir, hub, record_path=str(Path(record).resolve()),
                                     state_dir=str(state_dir),

@@ -14,9 +14,10 @@ from typing import Annotated
 import msgspec
 import numpy as np
 
-from autochair.geometry import Pose, compose, sweep_poses
+from autochair.geometry import Pose, compose, quaternion_yaw, sweep_poses
 from autochair.runtime.node import Node, service_main
-from autochair_msgs import FrameTransform, LaserScan, Odometry, keys
+from autochair.safety.keepout import load_keepout, paint
+from autochair_msgs import FrameTransform, LaserScan, LocalizedPose, Odometry, keys
 
 from .core import GridSpec, MoveGate, OccupancyMapper, OdomBuffer, VoxelCloud, scan_points
 
@@ -40,6 +41,9 @@ class MappingConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     laser_frame: str = "laser"
     # A parked chair's scans are integrated once a second, not at the scan rate (MoveGate).
     still_period_s: Annotated[float, msgspec.Meta(ge=0)] = 1.0
+    # Keep-out zones (a mask map, as [safety] keepout_map) painted into the published grid
+    # while localization places them, so navigation plans round them and refuses goals in them.
+    keepout_map: str = ""
 
     def __post_init__(self) -> None:
         if self.width_m * self.height_m / self.resolution_m**2 > 50e6:
@@ -61,6 +65,8 @@ class MappingService:
         self.tf_error = ""
         self.lock = threading.Lock()
         self.grid_pub = node.publisher(keys.MAP_GRID)
+        self.keepout = load_keepout("mapping", cfg.keepout_map)
+        self.unplaced = ""
         self.cloud_pub = node.publisher(keys.MAP_CLOUD)
 
     def on_odom(self, msg: Odometry) -> None:
@@ -104,9 +110,30 @@ class MappingService:
                        self.node.chair.laser_z_m)
         health.count("scans_mapped")
 
+    def on_correction(self, msg: FrameTransform) -> None:
+        if msg.parent_frame_id == "map" and msg.child_frame_id == "odom" and self.keepout:
+            t, r = msg.translation, msg.rotation
+            with self.lock:
+                self.keepout.frame.on_correction((t.x, t.y, quaternion_yaw(r.x, r.y, r.z, r.w)))
+
+    def on_loc(self, msg: LocalizedPose) -> None:
+        if self.keepout is not None:
+            with self.lock:
+                self.keepout.frame.on_state(msg.state, time.monotonic())
+
     def publish(self) -> None:
         now = time.time_ns()
-        self.grid_pub.put(self.mapper.to_msg(now, self.cfg.frame_id))
+        grid = self.mapper.to_msg(now, self.cfg.frame_id)
+        if self.keepout is not None:
+            with self.lock:
+                pts, why = self.keepout.in_odom(time.monotonic())
+            if pts is not None:
+                grid = paint(grid, pts)
+            if why != self.unplaced:  # the safety monitor stops meanwhile (H42)
+                self.node.event("warning" if why else "info",
+                                f"mapping: {why}" if why else "mapping: keep-out zones placed")
+                self.unplaced = why
+        self.grid_pub.put(grid)
         self.cloud_pub.put(self.cloud.to_msg(now, self.cfg.frame_id))
         self.node.health.count("maps_published")
 
@@ -115,6 +142,9 @@ def start(node: Node, cfg: MappingConfig) -> None:
     svc = MappingService(node, cfg)
     node.subscribe(keys.ODOM_SLOW, svc.on_odom)  # 50 Hz, interpolated at the scan stamps
     node.subscribe(keys.TF_STATIC, svc.on_tf)
+    if svc.keepout is not None:
+        node.subscribe(keys.TF, svc.on_correction)
+        node.subscribe(keys.LOC_POSE, svc.on_loc)
     # The ray updates run on a worker thread, not the Zenoh thread; 8 scans may wait.
     node.subscribe(keys.SCAN, node.worker("map", svc.integrate, 8, "scans_dropped_busy"))
     node.every(cfg.publish_period_s, svc.publish, "publish")

@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import math
 
+import msgspec
 import numpy as np
 import numpy.typing as npt
 
 from autochair.geometry import Pose, compose
-from autochair.mapping.mapfile import MapFile
+from autochair.mapping.mapfile import MapFile, MapFileError, load_map
 from autochair.nav.frames import MapFrame
+from autochair_msgs import OccupancyGrid
 
 F64 = npt.NDArray[np.float64]
 
@@ -38,13 +40,40 @@ def zone_edges(mask: MapFile) -> F64:
                             mask.origin_y_m + s * local[:, 0] + c * local[:, 1]))
 
 
+def zone_samples(mask: MapFile) -> F64:
+    """Map-frame points (N, 2) covering every zone cell, 2 × 2 a cell, so that painted into a
+    grid of the same resolution at any rotation no cell of a zone is skipped."""
+    rows, cols = np.nonzero(mask.occupied)
+    qx, qy = np.array([0.25, 0.25, 0.75, 0.75]), np.array([0.25, 0.75, 0.25, 0.75])
+    lx = ((cols[:, None] + qx[None, :]) * mask.resolution_m).ravel()
+    ly = ((rows[:, None] + qy[None, :]) * mask.resolution_m).ravel()
+    c, s = math.cos(mask.origin_yaw), math.sin(mask.origin_yaw)
+    return np.column_stack((mask.origin_x_m + c * lx - s * ly, mask.origin_y_m + s * lx + c * ly))
+
+
 class Keepout:
-    """The zones of one mask, placed in the chair frame for each scan."""
+    """The zones of one mask, placed in the chair frame for each scan (the safety monitor) or in
+    `odom` (the mapping service paints them into the live grid, so navigation plans round them
+    and refuses goals in them)."""
 
     def __init__(self, mask: MapFile, stale_s: float = 2.5) -> None:
         self.mask = mask
         self.edges = zone_edges(mask)
         self.frame = MapFrame(stale_s)  # localization's correction and state (H33's rule)
+        self._samples: F64 | None = None
+
+    def in_odom(self, now: float) -> tuple[F64 | None, str]:
+        """Every zone's sample points in `odom`, or (None, why they cannot be placed)."""
+        why = self.frame.why_not(now)
+        if why:
+            return None, f"keep-out zones cannot be placed: {why}"
+        if self._samples is None:
+            self._samples = zone_samples(self.mask)
+        assert self.frame.correction is not None
+        ox, oy, oth = self.frame.correction  # the pose of odom in map
+        c, s = math.cos(oth), math.sin(oth)
+        dx, dy = self._samples[:, 0] - ox, self._samples[:, 1] - oy
+        return np.column_stack((c * dx + s * dy, -s * dx + c * dy)), ""
 
     def inside(self, x: float, y: float) -> bool:
         """Whether the map point (x, y) lies in a zone cell."""
@@ -70,3 +99,27 @@ class Keepout:
         c, s = math.cos(th), math.sin(th)
         dx, dy = self.edges[:, 0] - x, self.edges[:, 1] - y
         return np.column_stack((c * dx + s * dy, -s * dx + c * dy)), ""
+
+
+def paint(grid: OccupancyGrid, odom_pts: F64) -> OccupancyGrid:
+    """`grid` (in `odom`) with the cells under `odom_pts` occupied (100): a copy."""
+    data = np.frombuffer(grid.data, np.uint8).copy()
+    ix = np.floor((odom_pts[:, 0] - grid.origin_x_m) / grid.resolution_m).astype(np.int64)
+    iy = np.floor((odom_pts[:, 1] - grid.origin_y_m) / grid.resolution_m).astype(np.int64)
+    ok = (ix >= 0) & (ix < grid.width) & (iy >= 0) & (iy < grid.height)
+    data[iy[ok] * grid.width + ix[ok]] = 100
+    return msgspec.structs.replace(grid, data=data.tobytes())
+
+
+def load_keepout(section: str, path: str) -> Keepout | None:
+    """The zones of the mask at `path` ("" = none); ConfigError naming `[section]` if bad.
+    (The nodes' file edge: the runtime's error type is imported here only, keeping the module
+    free of Zenoh for the pure users above.)"""
+    from autochair.runtime.config import ConfigError
+
+    if not path:
+        return None
+    try:
+        return Keepout(load_map(path))
+    except MapFileError as e:
+        raise ConfigError(f"[{section}] keepout_map: {e}") from None

@@ -24,9 +24,7 @@ import msgspec
 import numpy as np
 
 from autochair.geometry import quaternion_yaw
-from autochair.mapping.mapfile import MapFileError, load_map
 from autochair.runtime import Node, service_main
-from autochair.runtime.config import ConfigError
 from autochair_msgs import (
     EStopAssert,
     FrameTransform,
@@ -38,7 +36,7 @@ from autochair_msgs import (
 )
 
 from .core import EStopAction, Limit, SafetyCore, SafetyParams, SafetyTuning, Scan
-from .keepout import Keepout
+from .keepout import load_keepout
 from .monitor import Monitor, ScanVerdict
 
 IMMINENT = "imminent collision"
@@ -62,7 +60,7 @@ def start(node: Node, cfg: SafetyConfig) -> None:
                                       chair.laser_mount))
     monitor = Monitor(core, node.stale.scan_s, node.stale.odometry_s, cfg.clear_hold_s,
                       cfg.frame_id, node.stale.scan_age_s, node.stale.clock_skew_s,
-                      _keepout(cfg.keepout_map))
+                      load_keepout("safety", cfg.keepout_map))
     node.health.thresholds.update(
         scan_s=node.stale.scan_s, scan_age_s=node.stale.scan_age_s,
         odometry_s=node.stale.odometry_s, decel_mps2=cfg.decel_mps2,
@@ -82,15 +80,6 @@ def start(node: Node, cfg: SafetyConfig) -> None:
         node.subscribe(keys.TF, wiring.on_correction)
         node.subscribe(keys.LOC_POSE, wiring.on_loc)
     node.every(0.1, wiring.tick, "watchdog")
-
-
-def _keepout(path: str) -> Keepout | None:
-    if not path:
-        return None
-    try:
-        return Keepout(load_map(path))
-    except MapFileError as e:
-        raise ConfigError(f"[safety] keepout_map: {e}") from None
 
 
 class _Wiring:
