@@ -52,7 +52,6 @@ CASES: list[tuple[str, str, Pose, Pose, bool]] = [
     ("hallway: into office B", "hallway", (0, 0, 0), (12.4, 2.5, D(90)), True),
     ("hallway: office B, at the desk", "hallway", (0, 0, 0), (12.0, 2.6, 0), True),
     ("hallway: into the store room", "hallway", (0, 0, 0), (8.5, -2.3, D(-90)), True),
-    ("hallway: around the pillar", "hallway", (0, 0, 0), (20.8, -0.8, 0), False),
     ("hallway: to the dead end", "hallway", (0, 0, 0), (20.9, 0.5, 0), False),
     ("hallway: past the bench", "hallway", (0, 0, 0), (19.5, 0.4, 0), False),
     ("hallway: recessed door", "hallway", (0, 0, 0), (16.5, -0.5, 0), False),
@@ -74,7 +73,6 @@ CASES: list[tuple[str, str, Pose, Pose, bool]] = [
      True),
     ("clutter: far side", "cluttered", (0, 0, 0), (5.8, 0.0, 0), False),
     ("clutter: behind the cabinet", "cluttered", (0, 0, 0), (5.9, 2.0, 0), False),
-    ("clutter: past the plant", "cluttered", (0, 0, 0), (3.0, -2.2, 0), False),
     ("clutter: behind the table", "cluttered", (0, 0, 0), (1.0, 2.0, D(180)), False),
     ("clutter: far corner", "cluttered", (0, 0, 0), (5.9, -2.3, 0), False),
     ("person: down the corridor", "crossing", (0, 0, 0), (10.0, 0.0, 0), False),
@@ -91,6 +89,12 @@ REFUSED: list[tuple[str, str, Pose, Pose]] = [
     ("behind the L's walls", "l_corridor", (0, 0, 0), (3.0, 5.0, 0)),
     ("beside the bench, too close", "hallway", (0, 0, 0), (18.5, 0.6, 0)),
     ("5 cm from office B's desk (tolerance 5 cm)", "hallway", (0, 0, 0), (12.5, 2.6, D(90))),
+    # No forward way in with 2 cm to spare (nav/planner.py REACH_CLEAR_M; nav/lattice.py): the
+    # chair fits at the pose but could only back into it (session 6: were goals that ended
+    # blocked next to them, 30–50° off).
+    ("behind the pillar, facing on (no forward way in)", "hallway", (0, 0, 0),
+     (20.8, -0.8, 0)),
+    ("past the plant, facing on (no forward way in)", "cluttered", (0, 0, 0), (3.0, -2.2, 0)),
 ]
 
 
@@ -138,6 +142,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     plan_ms: list[float] = []
     clear: list[float] = []
     speeds: list[float] = []  # true |v| at each clearance sample
+    where: list[tuple[float, float, float]] = []  # true pose at each clearance sample
     states: set[str] = set()
     t_end: float | None = None
     k = 0
@@ -166,6 +171,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         if k % TRUTH_EVERY == 0:
             clear.append(truth_clearance(world, fp, outline, model.x, model.y, model.yaw, t))
             speeds.append(abs(model.v))
+            where.append((model.x, model.y, model.yaw))
         if t_end is None and not core.active:
             t_end = t
         # (recorded until the chair is at rest: a goal aborted at speed would otherwise end
@@ -178,6 +184,9 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     cl, sp = np.array(clear), np.array(speeds)
     starts = (cl <= 0.0) & np.concatenate([[True], cl[:-1] > 0.0])
     result["collisions_moving"] = int(np.sum(starts & (sp > 0.05)))  # the chair was driving
+    i = int(np.argmin(cl))  # where the least clearance was (what limits it)
+    result["min_clearance_at"] = (round(where[i][0], 2), round(where[i][1], 2),
+                                  round(math.degrees(where[i][2])), round(float(sp[i]), 2))
     return result
 
 
@@ -279,8 +288,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-save", action="store_true", help="do not write the results file")
     ap.add_argument("--seed", type=int, default=MpepcParams().seed,
                     help="MPEPC's sampler seed (another seed: the results file is not written)")
-    ap.add_argument("--lattice", action="store_true",
-                    help="MPEPC with the heading-aware lattice (nav/lattice.py), to compare")
+    ap.add_argument("--no-lattice", action="store_true",
+                    help="MPEPC without the heading-aware lattice (nav/lattice.py), to compare")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [control] setting")
     args = ap.parse_args(argv)
@@ -303,7 +312,9 @@ def main(argv: list[str] | None = None) -> int:
         planner._planners.clear()  # a fresh planner (and sampler) per case: order-independent
         planner._lattices.clear()
         r = run_case(world, fld, start, goal, cfg, fp,
-                     MpepcParams(seed=args.seed, heading_lattice=args.lattice))
+                     MpepcParams(seed=args.seed,
+                                 heading_lattice=MpepcParams().heading_lattice
+                                 and not args.no_lattice))
         r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
         runs.append(r)
         if r["state"] == "refused":
@@ -329,8 +340,8 @@ def main(argv: list[str] | None = None) -> int:
     summary["refused_reachable"] = len(runs) - len(ok_runs)
     summary["seed"] = args.seed
     print(json.dumps(summary, indent=1))
-    summary["heading_lattice"] = args.lattice
-    if not (args.only or args.quick or args.no_save or args.lattice
+    summary["heading_lattice"] = MpepcParams().heading_lattice and not args.no_lattice
+    if not (args.only or args.quick or args.no_save or args.no_lattice
             or args.seed != MpepcParams().seed):
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         for r in runs:

@@ -159,6 +159,25 @@ class HeadingField:
         ok = inside & (weight >= 0.25)
         return np.where(ok, total / np.maximum(weight, 1e-9), cap), ok
 
+    def way_in(self, x: float, y: float, yaw: float, near_m: float = 0.1) -> bool:
+        """Whether a forward-only way into the goal pose starts where the chair can be: at a
+        state within `near_m` and one heading step of the chair's pose (if it lies in the
+        window), or at a free state on the window's border (the chair comes in from there).
+        False: every state with a way in lies inside the window, none at the chair (e.g. a
+        goal pose the chair could only back into)."""
+        c, cap = self.cost, self.params.max_cost
+        kk, h, w = c.shape
+        s = self.state(x, y, yaw)
+        if s is not None:
+            r = max(1, round(near_m / self.params.resolution_m))
+            ks = [(s[0] + dk) % kk for dk in (-1, 0, 1)]
+            i0, j0 = max(s[1] - r, 0), max(s[2] - r, 0)
+            if (c[ks, i0:s[1] + r + 1, j0:s[2] + r + 1] < cap).any():
+                return True
+        ring = np.zeros((h, w), dtype=np.bool_)
+        ring[0], ring[-1], ring[:, 0], ring[:, -1] = True, True, True, True
+        return bool((c[:, ring] < cap).any())
+
     def inside(self, x: F64, y: F64) -> npt.NDArray[np.bool_]:
         _, h, w = self.cost.shape
         res = self.params.resolution_m

@@ -91,6 +91,13 @@ class MpepcParams:
     # 0.2 s steps the predicted heading after one plan period was off by up to 14°, measured).
     fine_s: float = 1.0
     fine_substeps: int = 2
+    # The motion a plan commits the chair to (its first `commit_s`) and the stop after it are
+    # what the collision check must get right: they are simulated at `exact_dt_s` with v's jerk
+    # limit, as the core's limiter runs them. Coarser, the stop erred by 3° of yaw braking a
+    # turn (the S-curve at 0.1 s steps) and a braking chair was predicted 0.1–0.2 m short (no
+    # jerk), which let a plan start a turn whose real stop swung into the bench (nav_eval
+    # seed 1, "past the bench"; measured).
+    exact_dt_s: float = 0.05
     # v's jerk limit in the predicted motions (the stop after commit_s always has it). Off:
     # with it MPEPC slowed to 0.13 m/s at intermediate waypoints (tests/test_control.py), as
     # the law's slowdown towards a target then predicts an overshoot the core never drives.
@@ -122,10 +129,14 @@ class MpepcParams:
     # Inside the heading-aware window, a state from which the lattice has no way to the goal
     # costs this much more than the 2-D field says (nav/lattice.py).
     no_way_cost: float = 1.0
-    # Progress on the heading-aware lattice near the goal (nav/lattice.py). Off: measured
-    # 24/34 on nav_eval against 23 without (same core), but with it 28 of the obstacle-free
-    # goals of tests/test_control.py stop short (session 5 notes); bench: --lattice.
-    heading_lattice: bool = False
+    # Progress on the heading-aware lattice near the goal (nav/lattice.py), where the map has
+    # obstacles and the chair is not already at the goal (planner.compute). Session 6, with
+    # the prediction that follows the core: nav_eval seed 7 29/32 arrive against 27/32 without
+    # (the store room, the L's corner: goals that need the right heading in a tight spot).
+    # Also used at the goal itself it made 30/32, but there it takes the chair round a post
+    # the other way instead of refusing the blocked final turn (tests/test_control.py).
+    # `python -m bench.nav_eval --no-lattice` compares.
+    heading_lattice: bool = True
     lattice_within_m: float = 2.0  # ... within this (2-D costs-to-go) of the goal
     lined_up_m: float = 0.3  # see Mpepc.lined_up
     progress_ahead_m: float = 0.0
@@ -251,8 +262,9 @@ class Mpepc:
                  goal: tuple[float, float, float] | None = None, last: bool = True
                  ) -> tuple[F64, F64, F64, F64, F64, F64]:
         """Predicted (x, y, yaw, v, ω), each (N, T), of candidates z (N, 4), from the limiter's
-        state (v0, a0; ω0, ω̇0); and (3, N, B) poses braking to rest from the state after
-        `commit_s` (the earliest a next plan can stop the chair). Candidates targeting `goal`
+        state (v0, a0; ω0, ω̇0); and (3, N, B) poses of the motion committed to until
+        `commit_s` (the earliest a next plan can stop the chair) and the stop after it
+        (`committed`). Candidates targeting `goal`
         itself, if it is the `last` waypoint, are driven on the core's final approach."""
         g, dt = self.law, self.p.dt_s
         n = z.shape[0]
@@ -269,31 +281,57 @@ class Mpepc:
                 & (np.abs(tgt[:, 1] - goal[1]) < 1e-6) & ~in_place
         out = np.empty((5, n, self.steps))
         commit = min(self.steps, max(1, math.ceil(g.commit_s / dt - 1e-9)))
+        sure = self.committed(x, y, yaw, st.copy(), tgt, vmax, turning.copy(), arrived.copy(),
+                              final, commit * dt)
         fine = math.ceil(self.p.fine_s / dt - 1e-9)
         for k in range(self.steps):
-            if k == commit:
-                brake = self.braking(x, y, yaw, st.copy())
             n_sub = self.p.fine_substeps if k < fine else 1
             for _ in range(n_sub):
                 x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
-                                          dt / n_sub)
+                                          dt / n_sub, self.p.v_jerk)
             out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
             out[3, :, k], out[4, :, k] = st[0], st[2]
-        if commit >= self.steps:
-            brake = self.braking(x, y, yaw, st.copy())
-        return out[0], out[1], out[2], out[3], out[4], brake
+        return out[0], out[1], out[2], out[3], out[4], sure
+
+    def committed(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
+                  turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
+                  final: npt.NDArray[np.bool_], span_s: float) -> F64:
+        """(3, N, B) poses of what a plan commits the chair to: its first `span_s` as the
+        core's limiter drives it (v's jerk on, steps of `exact_dt_s`), then braking to rest from
+        there. The drive chain's lag (dead time, the PID's prefilter: control/core.py
+        ChainAxis) is in the start pose: the core plans from its chain predictor's pose (where
+        the chair would stand once the commands already sent have acted), and what the chain
+        passes on integrates to the commands, so the stop ends where the lagging chair comes to
+        rest (measured 2 cm / 0.7° after a braked 35° swing) and the body's real sweep lies
+        within 2.5 cm of the predicted one (tests/test_nav_stop.py), inside `brake_clear_m`."""
+        h = self.p.exact_dt_s
+        n = max(1, math.ceil(span_s / h - 1e-9))
+        every = max(1, round(0.5 * self.p.dt_s / h))  # poses kept: the sweep at ~0.1 s
+        kept = []
+        for k in range(n):
+            x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
+                                      span_s / n, True)
+            if (k + 1) % every == 0 or k == n - 1:
+                kept.append(np.stack([x, y, yaw]))
+        return np.concatenate([np.stack(kept, -1), self.braking(x, y, yaw, st)], -1)
 
     def law_step(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                  turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
-                 final: npt.NDArray[np.bool_], dt: float) -> tuple[F64, F64, F64]:
+                 final: npt.NDArray[np.bool_], dt: float, v_jerk: bool = False
+                 ) -> tuple[F64, F64, F64]:
         """The 50 Hz loop over dt: the law (or the in-place turn) towards the targets, then the
         limiter; `turning` and `arrived` are updated in place."""
         g, n = self.law, x.size
         tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
         dx, dy = tx - x, ty - y
         r = np.hypot(dx, dy)
-        arrived |= r < g.capture_m
-        turning &= np.abs(wrap(tyaw - yaw)) >= ALIGNED_RAD
+        # As the core's _follow_plan decides every tick (not once): an in-place candidate turns
+        # while its yaw error is ≥ 2·ALIGNED_RAD, and the law stops translating only within the
+        # capture radius of the target. A chair still rolling when it turned (or past the
+        # target) gets the law towards a point behind it, which spins it round: predicted so
+        # (a sticky "arrived" predicted a stop; the core's spin touched the bench, seed 1).
+        arrived[:] = r < g.capture_m
+        turning &= np.abs(wrap(tyaw - yaw)) >= 2 * ALIGNED_RAD
         captured = turning | arrived
         alpha = np.arctan2(dy, dx)
         th, de = wrap(tyaw - alpha), wrap(yaw - alpha)
@@ -317,7 +355,11 @@ class Mpepc:
                                              np.sqrt(2 * g.align_brake_radps2 * np.abs(e)),
                                              g.align_gain_1ps * np.abs(e)])
         vd, wd = np.where(captured, 0.0, vd), np.where(captured, wa, wd)
-        return self.advance(x, y, yaw, st, vd, wd, dt, self.p.v_jerk)
+        # vmax 0 (only the stop seed; the search keeps vmax ≥ v_min): the law's v and ω are 0,
+        # i.e. the limiter brakes (v, ω) to rest, as the core does when a plan is blocked.
+        halt = vmax <= 0.0
+        vd, wd = np.where(halt, 0.0, vd), np.where(halt, 0.0, wd)
+        return self.advance(x, y, yaw, st, vd, wd, dt, v_jerk)
 
     def advance(self, x: F64, y: F64, yaw: F64, st: F64, vd: F64, wd: F64, dt: float,
                 v_jerk: bool = True) -> tuple[F64, F64, F64]:
@@ -330,15 +372,22 @@ class Mpepc:
 
     def braking(self, x: F64, y: F64, yaw: F64, st: F64) -> F64:
         """(3, N, B) poses while the limiter brakes to rest (v, ω desired 0, as the core does
-        when a plan says blocked) from state st; B covers the longest stop."""
-        g, h = self.law, 0.5 * self.p.dt_s  # half steps: the S-curve's path within ~4 cm
-        stop_s = g.vmax_mps / g.a_mps2 + 2 * g.a_mps2 / g.jerk_mps3
-        out = np.empty((3, x.size, max(1, math.ceil(stop_s / h))))
+        when a plan says blocked) from state st, at `exact_dt_s` (kept every ~0.1 s), until
+        every candidate is at rest."""
+        g, h = self.law, self.p.exact_dt_s
+        stop_s = g.vmax_mps / g.a_mps2 + 2 * g.a_mps2 / g.jerk_mps3  # the longest stop
+        steps = max(1, math.ceil(stop_s / h))
+        every = max(1, round(0.5 * self.p.dt_s / h))  # poses kept: the sweep at ~0.1 s
+        kept = []
         zero = np.zeros(x.size)
-        for k in range(out.shape[2]):
+        for k in range(steps):
             x, y, yaw = self.advance(x, y, yaw, st, zero, zero, h)
-            out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
-        return out
+            done = not st.any()  # every candidate at rest: the rest is where it stands
+            if (k + 1) % every == 0 or k == steps - 1 or done:
+                kept.append(np.stack([x, y, yaw]))
+            if done:
+                break
+        return np.stack(kept, -1)
 
     # --- cost ---------------------------------------------------------------------------------
     def evaluate(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
@@ -357,6 +406,7 @@ class Mpepc:
         # A motion is only as safe as the stop after it: the next plan can brake the chair
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
+        # Both that motion and its stop as the core's limiter really drives them (committed).
         d_brake = fld.clearance_at(place(fld.outline, brake[0], brake[1], brake[2])).min(-1)
         hit[:, -1] |= d_brake.min(1) < min(p.brake_clear_m, d0 - 0.005)
         d_all = d_static
@@ -416,6 +466,32 @@ class Mpepc:
             return False
         return bool(hf.at(np.array(pose[0]), np.array(pose[1]), np.array(pose[2]))[1])
 
+    def handover(self, pose: tuple[float, float, float], v0: float,
+                 goal: tuple[float, float, float]) -> bool:
+        """Whether the core's own final approach does what row 0 predicts. Beyond
+        `in_place_r_m` it is the law towards the goal (predicted). Nearer, row 0 is an
+        in-place turn, and the core turns in place only within its capture radius, or at rest
+        within the position tolerance (twice that radius by default, ControlConfig
+        .capture_fraction); elsewhere it runs the law, whose κ ~ 1/r spins the chair at the ω
+        floor about a point off the axle (measured: 14° swung on beside office B's wall, 1 mm
+        left). There MPEPC keeps the goal and plans the turn itself, unless the goal lies
+        straight ahead within the capture radius of the chair's line: the core's straight final
+        then drives onto it without steering (over a sweep checked here) and turns in place over
+        its own checked sweep (a chair lined up 8 cm short otherwise stood there, measured)."""
+        r = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+        cap = self.law.capture_m
+        if r >= self.p.in_place_r_m or r <= cap or (r <= 2 * cap and abs(v0) < 0.01):
+            return True
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        dx, dy = goal[0] - pose[0], goal[1] - pose[1]
+        along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
+        if along <= 0.0 or lateral > cap:
+            return False
+        k = np.linspace(0.0, 1.0, 5)
+        clear = self.field.footprint_clearance(pose[0] + k * along * c, pose[1] + k * along * s,
+                                               np.full(5, pose[2]))
+        return bool(clear.min() >= self.p.contact_m)
+
     def lined_up(self, pose: tuple[float, float, float], ctg: CostToGo,
                  hf: HeadingField | None) -> bool:
         """The goal may be handed to the core's own final approach (a straight final, then
@@ -457,11 +533,16 @@ class Mpepc:
         vmax = self.law.vmax_mps
         rows = []
         r_goal, th, de = self.relative(pose, goal)
+        if r_goal < self.p.in_place_r_m:
+            # A goal within in_place_r_m: turn there onto its yaw (θ − δ), do not drive on. Its
+            # line of sight (δ) means nothing this close: a goal 1 cm behind the axle was out
+            # of δ's bounds, never offered, and the chair stood 8° off it, "blocked" (measured).
+            th, de = float(wrap(np.array(goal[2] - pose[2]))), 0.0
         has_goal = r_goal <= self.p.r_max_m and abs(de) <= self.p.delta_max_rad
-        if has_goal:  # (a goal within in_place_r_m: turn there, do not drive on)
+        if has_goal:
             rows.append([r_goal, th, de,
                          vmax if r_goal >= self.p.in_place_r_m else self.p.v_min_mps])
-        rows.append([0.0, 0.0, 0.0, self.p.v_min_mps])  # stop (row `has_goal`)
+        rows.append([0.0, 0.0, 0.0, 0.0])  # brake to rest (row `has_goal`; vmax 0: law_step)
         if has_goal and r_goal >= self.p.in_place_r_m:
             rows.append([r_goal, 0.0, de, vmax])  # to the goal's position, facing it
         want = float(ctg.descent(self.field.map, np.array(pose[:2])))
@@ -585,7 +666,8 @@ class Mpepc:
             ends = math.hypot(float(info["x"][0, -1]) - goal[0], float(info["y"][0, -1]) - goal[1])
             if float(info["clearance"][0]) >= self.p.contact_m and ends < 0.3 \
                     and float(cost[0]) <= best_c + self.p.goal_slack \
-                    and self.lined_up(pose, ctg, heading):
+                    and self.lined_up(pose, ctg, heading) \
+                    and (not final or self.handover(pose, v0, goal)):
                 best_z, best_c, best = z[0].copy(), float(cost[0]), {k: v[0]
                                                                      for k, v in info.items()}
                 is_goal = True

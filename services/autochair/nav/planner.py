@@ -91,14 +91,34 @@ def free_field(points: list[tuple[float, float]], footprint: Footprint,
     return NavField(gm, footprint)
 
 
+# A goal pose is reachable when a forward-only way leads into it (nav/lattice.py: straight
+# 5 cm steps, arcs and in-place turns over 16 headings) along which the footprint keeps this
+# clear of obstacles. Less than MPEPC's own margin (`MpepcParams.contact_m`, 5 cm), so that
+# the lattice's coarser motions do not refuse what the planner can do (measured: at 4 cm the
+# cluttered room's far corner, which the chair reaches, had no way in).
+REACH_CLEAR_M = 0.02
+
+
 def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, float],
-               goal: tuple[float, float, float]) -> str:
+               goal: tuple[float, float, float], way_in: bool = True) -> str:
+    """'' if the chair can get to `goal` from `pose`, else why not: no path for the axle
+    (the 2-D field), or (`way_in`, the goal's own heading) no forward-only way into the goal
+    pose. Autonomy may not reverse blind, so a pose the chair could only back into (behind a
+    pillar, beside a plant: turning there sweeps the body into it) is refused at once rather
+    than driven at and aborted."""
     if ctg is None:
         return (f"no path: the goal ({goal[0]:.2f}, {goal[1]:.2f}) is closer than "
                 f"{fld.pass_m:.2f} m to an obstacle or outside the map")
     if not math.isfinite(fld.start_cost(ctg, pose[0], pose[1])):
         return (f"no path from ({pose[0]:.2f}, {pose[1]:.2f}) to ({goal[0]:.2f}, "
                 f"{goal[1]:.2f}) that the chair fits through")
+    if way_in:
+        hf = lattice.build(fld, goal, None, lattice.LatticeParams(min_clear_m=REACH_CLEAR_M),
+                           start=pose)
+        if hf is None or not hf.way_in(*pose):
+            return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
+                    f"{math.degrees(goal[2]):.0f}°): the chair cannot turn onto that heading "
+                    f"there with {REACH_CLEAR_M:.2f} m to spare, and it may not reverse blind")
     return ""
 
 
@@ -134,12 +154,17 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
     fld, ctg = req.field, req.ctg
     if ctg is None:
         ctg = fld.cost_to_go(req.goal[0], req.goal[1])
-    error = path_error(fld, ctg, req.pose, req.goal)
+    error = path_error(fld, ctg, req.pose, req.goal, way_in=False)  # (checked at set_goal)
     if error or ctg is None:
         return PlanResult(req.goal_id, req.index, fld, ctg, None, error=error)
     # (the last waypoint only: line-up poses before doors are passed within 0.2 m / 0.3 rad,
     # which the lattice's exact goal pose does not express; measured: door cases lost)
-    use = (params or MpepcParams()).heading_lattice and req.final
+    # (and only where there is something to manoeuvre round: in free space (no map yet) the
+    # 2-D field's descent is the way, and the free field's 0.1 m cells are too coarse for it;
+    # and not once at the goal, where only the final turn is left: see MpepcParams)
+    mp = params or MpepcParams()
+    use = mp.heading_lattice and req.final and bool(fld.map.occupied.any()) and math.hypot(
+        req.goal[0] - req.pose[0], req.goal[1] - req.pose[1]) >= mp.in_place_r_m
     hf = lattice_for(fld, req.goal, ctg, req.pose) if use else None
     plan = planner_for(fld, req.law, params).plan(req.pose, req.v, req.omega, req.goal, ctg,
                                               req.people, req.previous, req.rates,
@@ -149,8 +174,9 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         # Every motion is predicted to touch something: stand still (blocked) rather than
         # take the least bad contact.
         blocked = blocker(fld, ctg, req.pose, req.people)
-    elif not plan.is_goal and plan.progress_m < blocked_progress_m \
-            and plan.cost > plan.stop_cost - blocked_gain:
-        # No progress, and nothing (a turn towards the path included) beats standing still.
+    elif not plan.is_goal and (plan.vmax_mps <= 0.0 or (
+            plan.progress_m < blocked_progress_m and plan.cost > plan.stop_cost - blocked_gain)):
+        # No progress, and nothing (a turn towards the path included) beats standing still; or
+        # braking to rest is the best motion (the core brakes while blocked, as predicted).
         blocked = blocker(fld, ctg, req.pose, req.people)
     return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked)
