@@ -11,7 +11,7 @@ import pytest
 from bench.control_eval import scurve_time
 from bench.min_time import Limits, min_time
 
-from autochair.control.core import ChainAxis, ControlConfig, ControlCore, OdomSample
+from autochair.control.core import ChainAxis, ControlConfig, ControlCore, LeadAxis, OdomSample
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
 from autochair.geometry import wrap_angle as wrap
 from autochair.pid.core import PidConfig
@@ -109,6 +109,31 @@ def test_chain_prediction_is_the_motion_still_to_come() -> None:
     assert abs(window - (total - so_far)) > math.radians(1.0)  # positive control
 
 
+def test_lead_passes_the_plan_through_the_prefilter() -> None:
+    """The PID's prefilter (two lags) fed the led command returns the planned velocity itself;
+    fed the plan, it trails it by 2τ (positive control). `ahead` (motion sent ahead of the
+    plan) returns to 0 once the plan is at rest."""
+    cfg = ControlConfig()
+    tau, h = cfg.predict_lag_s, 1.0 / cfg.rate_hz
+    w = ComfortLimiter(cfg.limits).w
+    plan: list[float] = []
+    left = math.radians(90)  # a rest-to-rest turn at the planned limits
+    while not plan or w.moving:
+        plan.append(w.move(left, h))
+        left -= plan[-1] * h
+    plan += [0.0] * 50
+    lead = LeadAxis(tau)
+    led, plain = ChainAxis(2 * tau, tau), ChainAxis(2 * tau, tau)
+    err_led = err_plain = 0.0
+    for r in plan:
+        led.push(h, lead.step(r, h, w.amax, w.jmax))
+        plain.push(h, r)
+        err_led, err_plain = max(err_led, abs(led.x2 - r)), max(err_plain, abs(plain.x2 - r))
+    assert abs(led.x2) < 1e-3 and abs(lead.ahead) < 1e-3
+    assert err_led < 0.05  # rad/s (the plan moves by up to ω̇·h = 0.055 a step)
+    assert err_plain > 0.3  # positive control: without the lead it trails by 2τ
+
+
 def test_predictor_defaults_are_the_identified_drive_chain() -> None:
     cfg, pid = ControlConfig(), PidConfig()
     assert pid.v_model is not None and pid.omega_model is not None
@@ -118,10 +143,13 @@ def test_predictor_defaults_are_the_identified_drive_chain() -> None:
                                                 abs=0.005)
 
 
-def test_in_place_turn_on_a_lagging_chair_lands_without_reversal() -> None:
+@pytest.mark.parametrize("lead", [False, True])
+def test_in_place_turn_on_a_lagging_chair_lands_without_reversal(lead: bool) -> None:
     """A chair that follows each command through the predictor's own chain (delay + two lags):
-    the turn arrives in about the optimum plus the chain's lag, ω one-signed, within 3°."""
-    cfg = ControlConfig()
+    the turn arrives in about the optimum plus the chain's lag, ω one-signed, within 3°. With
+    the lead (the command leads the two lags) only the dead time is added to the optimum, and
+    what swings back is below what counts as at rest (the lead's discrete residue)."""
+    cfg = ControlConfig(lead=lead)
     core = ControlCore(cfg)
     axes = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
             ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
@@ -132,20 +160,22 @@ def test_in_place_turn_on_a_lagging_chair_lands_without_reversal() -> None:
     t, ws = 0.0, []
     while core.active and t < 10:
         core.on_odom(OdomSample(x, y, yaw, axes[0].x2, axes[1].x2, t))
+        w0 = axes[1].x2
         for ax, u in zip(axes, core.step(t) or (0.0, 0.0), strict=True):
             ax.push(DT, u)
         x += axes[0].x2 * math.cos(yaw) * DT
         y += axes[0].x2 * math.sin(yaw) * DT
-        yaw = wrap(yaw + axes[1].x2 * DT)
+        yaw = wrap(yaw + 0.5 * (w0 + axes[1].x2) * DT)  # (as the predictor integrates)
         ws.append(axes[1].x2)
         t += DT
     best = scurve_time(abs(goal), cfg.omega_max_radps, cfg.omega_acc_max_radps2,
                        cfg.omega_jerk_max_radps3)
     assert core.state == "arrived", core.reason
     assert abs(wrap(goal - yaw)) <= math.radians(3) and math.hypot(x, y) < 0.01
-    assert all(w <= 1e-6 for w in ws)  # one-signed
+    assert max(ws) <= (cfg.rest_mps if lead else 1e-6)  # one-signed
     assert min(ws) < -0.5  # (positive control: it did turn)
-    assert t <= best + cfg.predict_omega_s + 1.0, t
+    dead = cfg.predict_omega_s - 2 * cfg.predict_lag_s
+    assert t <= best + (dead + 0.2 if lead else cfg.predict_omega_s + 1.0), t
 
 
 # --- the minimum-time reference (bench/min_time.py) ----------------------------------------
