@@ -577,3 +577,20 @@ def test_a_goal_whose_final_turn_would_hit_a_post_ends_without_turning() -> None
     core, turned = run(POST)
     assert turned < math.radians(3), f"turned {math.degrees(turned):.0f}° into the post"
     assert core.state == "aborted" and core.reason, core.reason
+
+
+def test_the_law_approach_near_the_goal_is_checked_over_its_sweep() -> None:
+    """The final approach between the tolerance and 0.1 m of the goal runs the law at its ω
+    floor, a spin about a point within r of the axle (it swung a chair 14° on beside a wall in
+    the navigation suite): checked like an in-place turn (H40) over every yaw between the
+    chair's, the bearing to the goal and the goal's, with room for the last r."""
+    core = fresh_core(INSTANT)
+    here = OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    left = Pose2D(2.0, 0.07, math.pi / 2)  # 7 cm to the left, facing left
+    core.on_field(_post_field(np.zeros((0, 3))))  # type: ignore[arg-type]
+    assert core._room_to_approach(here, left, 0.07)  # positive control: no post
+    core.on_field(_post_field(POST))  # type: ignore[arg-type]
+    assert core._room_to_turn(here, 0.0, 0.0, 0.07)  # where the chair stands is clear
+    assert not core._room_to_approach(here, left, 0.07)  # turning left crosses the post
+    right = Pose2D(2.0, -0.07, -math.pi / 2)
+    assert core._room_to_approach(here, right, 0.07)  # the other way round is clear

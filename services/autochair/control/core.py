@@ -719,6 +719,15 @@ class ControlCore:
             self._land_left = None
         if self.aligning:
             return self._align(goal, o, now)
+        if not self.straight and r <= IN_PLACE_R_M and not self.limiter.v.moving \
+                and not self._room_to_approach(o, goal, r):
+            # Near the goal the law spins at the ω floor about a point within r of the axle, a
+            # sweep no plan has checked (it swung a chair into a wall in the navigation suite):
+            # refused like an in-place turn without room (H40), the goal goes back to MPEPC.
+            self.final = self.aligning = False
+            self._last_blocked = (NO_ROOM_TO_TURN, now)
+            self._count("approaches_refused")
+            return 0.0, 0.0
         out = park_kuipers(o.x, o.y, o.yaw, goal.x_m, goal.y_m, goal.yaw_rad, self.gains,
                            self.vmax, omega_floor=cfg.omega_floor_radps)
         along = r * math.cos(out.delta_rad)
@@ -814,15 +823,25 @@ class ControlCore:
         self._move = (v_to, e)
         return 0.0, 0.0
 
-    def _room_to_turn(self, o: OdomSample, e: float) -> bool:
-        """Whether the footprint turned in place from its yaw by `e` keeps clear of the map
-        (5 cm steps at the corners)."""
+    def _room_to_turn(self, o: OdomSample, e: float, lo: float = 0.0, grow_m: float = 0.0
+                      ) -> bool:
+        """Whether the footprint turned in place from its yaw + `lo` to its yaw + `e` keeps
+        clear of the map by `grow_m` more than an in-place turn needs (5 cm steps at the
+        corners)."""
         fld = self.field
         if fld is None:
             return True  # no map: nothing known to hit (the safety monitor still guards)
-        steps = max(2, math.ceil(abs(e) * self.footprint.reach_m / 0.05) + 1)
-        clear = fld.footprint_clearance(o.x, o.y, o.yaw + np.linspace(0.0, e, steps))
-        return bool(clear.min() > TURN_CLEARANCE_M)
+        steps = max(2, math.ceil(abs(e - lo) * self.footprint.reach_m / 0.05) + 1)
+        clear = fld.footprint_clearance(o.x, o.y, o.yaw + np.linspace(lo, e, steps))
+        return bool(clear.min() > TURN_CLEARANCE_M + grow_m)
+
+    def _room_to_approach(self, o: OdomSample, goal: Pose2D, r: float) -> bool:
+        """Whether the law's last `r` to the goal keeps clear: the body turned over every yaw
+        between its own, the bearing to the goal and the goal's, with room for the axle to
+        move `r` (the law turns towards the bearing, then to the goal's yaw)."""
+        e = (0.0, wrap(math.atan2(goal.y_m - o.y, goal.x_m - o.x) - o.yaw),
+             wrap(goal.yaw_rad - o.yaw))
+        return self._room_to_turn(o, max(e), min(e), r)
 
     def _end(self, state: str, reason: str, now: float) -> None:
         self.state, self.reason = state, reason
