@@ -33,8 +33,9 @@ from autochair.runtime.session import open_session
 from autochair_msgs import Health, keys
 
 RESULTS = Path(__file__).parent / "results" / "logger.json"
-MIX: list[keys.Topic[Any]] = [keys.ENCODERS, keys.JOYSTICK, keys.JOYSTICK_OUT, keys.ODOM,
-                              keys.TF, keys.PID_STATUS, keys.SIM_TRUTH]
+# The stack's logged 100 Hz streams and tf (logged rows only: the writer knows no other).
+MIX: list[keys.Topic[Any]] = [keys.ENCODERS, keys.JOYSTICK_OUT, keys.ODOM, keys.TF,
+                              keys.PID_STATUS, keys.SIM_TRUTH]
 RATES = [2000, 5000, 10000, 15000, 20000, 30000, 45000, 60000]
 QUEUE = 5000
 ENC = msgspec.msgpack.Encoder()
