@@ -1,7 +1,8 @@
 """The logger's pure core: decoded samples in, an MCAP file (or a rotated series) out.
 
 One channel per concrete key (JSON + JSON Schema), derived foxglove.* channels alongside,
-zstd chunks. log_time = receive time, publish_time = the message's own stamp. Time is passed
+zstd chunks. log_time = receive time (the node passes the sample's Zenoh arrival
+timestamp), publish_time = the message's own stamp. Time is passed
 in: `write` gets the receive time, `tick` the monotonic time that drives the periodic chunk
 flush (so a killed writer loses at most `flush_period_s` of data) and duration rotation uses
 receive times.
@@ -49,7 +50,9 @@ class LoggerConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # close the open chunk at least this often (crash loss bound)
     flush_period_s: Annotated[float, msgspec.Meta(gt=0)] = 1.0
     chunk_size_kib: Annotated[int, msgspec.Meta(ge=1)] = 1024  # ...or at this much data
-    queue_size: Annotated[int, msgspec.Meta(ge=1)] = 100_000  # waiting samples before drops
+    # samples waiting per logged key expression (Zenoh's ring for it) before its oldest
+    # are dropped (and counted); maps: at most logger.node.MAP_RING
+    queue_size: Annotated[int, msgspec.Meta(ge=1)] = 100_000
     compression: Literal["zstd", "lz4", "none"] = "zstd"
     # Maps (keys.MAP_GRID and its /map) recorded at most this often (by
     # receive time; the node's intake): each is the whole map (~240 kB), republished every
