@@ -53,8 +53,11 @@ class OccupancyMapper:
 
     def cells(self, pts: F64) -> npt.NDArray[np.int64]:
         """Flat cell indices of (N, 2) map-frame points; -1 outside the grid."""
-        ix = np.floor((pts[:, 0] - self.spec.origin_x_m) / self.res).astype(np.int64)
-        iy = np.floor((pts[:, 1] - self.spec.origin_y_m) / self.res).astype(np.int64)
+        return self._cells(pts[:, 0], pts[:, 1])
+
+    def _cells(self, x: F64, y: F64) -> npt.NDArray[np.int64]:
+        ix = np.floor((x - self.spec.origin_x_m) / self.res).astype(np.int64)
+        iy = np.floor((y - self.spec.origin_y_m) / self.res).astype(np.int64)
         inside = (ix >= 0) & (ix < self.w) & (iy >= 0) & (iy < self.h)
         return np.where(inside, iy * self.w + ix, -1)
 
@@ -67,19 +70,19 @@ class OccupancyMapper:
             np.full(n, pose[0]), np.full(n, pose[1]), np.full(n, pose[2]))
         a = angle_min + angle_inc * np.arange(n) + lyaw
         ok = np.isfinite(ranges) & (ranges > 0) & (ranges <= self.max_range_m)
-        r, a, ox, oy = ranges[ok], a[ok], lx[ok][:, None], ly[ok][:, None]
+        r, a, ox, oy = ranges[ok], a[ok], lx[ok], ly[ok]
         if r.size == 0:
             return 0
         step = self.res / 2
         t = np.arange(0.0, float(r.max()), step)
-        cos, sin = np.cos(a)[:, None], np.sin(a)[:, None]
-        # Free samples stop a cell short of the end point so the hit cell is not cleared.
-        free_mask = t[None, :] < (r[:, None] - self.res)
-        fx = (ox + cos * t[None, :])[free_mask]
-        fy = (oy + sin * t[None, :])[free_mask]
-        free = self.cells(np.stack([fx, fy], axis=1))
-        hits = np.unique(self.cells(np.stack([ox[:, 0] + r * cos[:, 0],
-                                              oy[:, 0] + r * sin[:, 0]], axis=1)))
+        cos, sin = np.cos(a), np.sin(a)
+        # Free samples stop a cell short of the end point so the hit cell is not cleared; only
+        # those are computed (a beam × sample product would be mostly past short beams' ends).
+        count = np.searchsorted(t, r - self.res)  # per beam, the samples t < r − res
+        beam = np.repeat(np.arange(r.size), count)
+        k = np.arange(beam.size) - np.repeat(np.cumsum(count) - count, count)
+        free = self._cells(ox[beam] + cos[beam] * t[k], oy[beam] + sin[beam] * t[k])
+        hits = np.unique(self._cells(ox + r * cos, oy + r * sin))
         free, hits = free[free >= 0], hits[hits >= 0]
         # Each cell once: a mask over the grid instead of sorting the (many) free samples.
         mask = self._mask
