@@ -191,3 +191,29 @@ def test_a_mask_without_any_zone_is_refused_at_start(tmp_path: Path) -> None:
         load_keepout("safety", str(save_map(mask([]), tmp_path / "empty.yaml")))
     k = load_keepout("safety", str(save_map(mask([(2.5, -1.0, 3.0, 1.0)]), tmp_path / "k.yaml")))
     assert k is not None and len(k.edges) > 0  # positive control
+
+
+def test_a_chair_whose_footprint_is_over_a_zone_is_stopped() -> None:
+    """Only the zones' edge cells are added to the scan, and a point already under the
+    footprint is no hit for the sweep: with the front 0.35–0.9 m past a deep zone's edge (a
+    stairwell; the axle still outside) forward read as open up to 1.17 m/s, free to the zone's
+    far edge. A localization correction that jumps by a few decimetres puts a parked chair
+    there. Over a zone is inside one: a stop."""
+    now = 100.0
+    deep = mask([(2.5, -2.0, 4.9, 3.0)])  # from map x 2.5 on; the axle at map x 1 + odom x
+    for front in (2.85, 3.0, 3.3):  # map x of the front (0.95 m ahead of the axle)
+        m = monitor(Keepout(deep))
+        localized(m, now)
+        m.on_odom(0.0, 0.0, now, (front - 0.95 - CORRECTION[0], 0.0, 0.0))
+        lim = m.on_scan(open_scan(), now).published
+        assert (lim.v_fwd, lim.v_rev, lim.omega) == (0.0, 0.0, 0.0), (front, lim.reason)
+        assert "over a keep-out zone" in lim.reason
+    # Positive controls: 0.5 m before the edge the zone limits like a wall, and facing away
+    # with the rear 0.1 m clear of it the chair drives off.
+    m = monitor(Keepout(deep))
+    localized(m, now)
+    m.on_odom(0.0, 0.0, now, (2.0 - 0.95 - CORRECTION[0], 0.0, 0.0))
+    before = m.on_scan(open_scan(), now).published
+    assert 0.0 < before.v_fwd < 1.0 and "free fwd" in before.reason
+    m.on_odom(0.0, 0.0, now, (2.4 - 0.25 - CORRECTION[0], 0.0, math.pi))
+    assert m.on_scan(open_scan(), now).published.v_fwd > 1.0

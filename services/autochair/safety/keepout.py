@@ -107,8 +107,10 @@ class Keepout:
         h, w = m.occupied.shape
         return 0 <= row < h and 0 <= col < w and bool(m.occupied[row, col])
 
-    def points(self, odom_pose: Pose | None, now: float) -> tuple[F64 | None, str]:
-        """The edges in the chair frame, or (None, why they cannot be placed: a stop)."""
+    def points(self, odom_pose: Pose | None, now: float,
+               footprint: tuple[float, float, float] | None = None) -> tuple[F64 | None, str]:
+        """The edges in the chair frame, or (None, why: a stop). `footprint` (front, rear,
+        half width from the axle): an edge under it is a stop too, as the axle in a zone."""
         why = self.why_not(now)
         if not why and (odom_pose is None or not all(math.isfinite(v) for v in odom_pose)):
             why = "no fresh odometry pose"  # (a NaN yaw would turn every edge into NaN: none)
@@ -120,7 +122,15 @@ class Keepout:
             return None, f"inside a keep-out zone at ({x:.2f}, {y:.2f}) in map"
         c, s = math.cos(th), math.sin(th)
         dx, dy = self.edges[:, 0] - x, self.edges[:, 1] - y
-        return np.column_stack((c * dx + s * dy, -s * dx + c * dy)), ""
+        pts = np.column_stack((c * dx + s * dy, -s * dx + c * dy))
+        # The sweep counts no point already under the footprint as a hit, and only edges are
+        # added: with the front past a deep zone's edge, forward read as open to its far edge.
+        if footprint is not None:
+            front, rear, half = footprint
+            under = (pts[:, 0] <= front) & (pts[:, 0] >= -rear) & (np.abs(pts[:, 1]) <= half)
+            if under.any():
+                return None, f"the chair stands over a keep-out zone at ({x:.2f}, {y:.2f}) in map"
+        return pts, ""
 
 
 def paint(grid: OccupancyGrid, odom_pts: F64) -> OccupancyGrid:

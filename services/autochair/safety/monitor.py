@@ -81,7 +81,9 @@ class Monitor:
             v, w = 0.0, 0.0
         unseen, unplaced = None, ""
         if self.keepout is not None:  # H42: zones it cannot place are a stop (unknown: unsafe)
-            unseen, unplaced = self.keepout.points(None if stale else self._pose, now)
+            p = self.core.p
+            unseen, unplaced = self.keepout.points(None if stale else self._pose, now,
+                                                   (p.front_m, p.rear_m, p.half_width_m))
         lim = (stop_limit(unplaced) if unplaced
                else self.core.assess(scan, v, w, self.frame_id, unseen))
         # A scan that arrives late (a backlog after a stall, a starved process) shows the world
