@@ -594,3 +594,27 @@ def test_the_law_approach_near_the_goal_is_checked_over_its_sweep() -> None:
     assert not core._room_to_approach(here, left, 0.07)  # turning left crosses the post
     right = Pose2D(2.0, -0.07, -math.pi / 2)
     assert core._room_to_approach(here, right, 0.07)  # the other way round is clear
+
+
+def test_a_non_finite_correction_stops_a_map_goal_like_a_lost_localization() -> None:
+    """H33: a NaN or inf `map` → `odom` correction made every waypoint NaN; the planner raised
+    on every control step (no command, the goal "driving" for ever). Unknown is unsafe: it is
+    a localization that cannot be trusted — blocked at rest, aborted after blocked_abort_s."""
+    core = fresh_core(ControlConfig(blocked_abort_s=3.0, predict_s=0.02, predict_omega_s=0.02,
+                                    lead=False))
+    core.on_correction((0.0, 0.0, 0.0))
+    core.on_loc_state("tracking", 0.0)
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6, 0, 0)], frame_id="map"), 0.0).ok
+    pose = [0.0, 0.0, 0.0]
+    t = run_unicycle(core, 0.0, 2.0, pose, lambda t: core.on_loc_state("tracking", t))
+    assert core.state == "driving" and core.limiter.v.value > 0.3  # positive control
+    core.on_correction((math.nan, 0.0, 0.0))
+    t = run_unicycle(core, t, t + 2.0, pose, lambda t: core.on_loc_state("tracking", t))
+    assert core.state == "blocked" and "correction is not finite" in core.reason
+    assert core.limiter.at_rest
+    reply = core.set_goal(GoalRequest(waypoints=[Pose2D(3, 0, 0)], frame_id="map"), t)
+    assert not reply.ok and "needs localization: its map → odom correction is not finite" \
+        in reply.error
+    core.on_correction((0.0, 0.0, math.inf))
+    run_unicycle(core, t, t + 4.0, pose, lambda t: core.on_loc_state("tracking", t))
+    assert core.state == "aborted" and "not finite" in core.reason

@@ -398,3 +398,34 @@ def test_a_stale_stream_aborts_a_probe_and_stops() -> None:
     assert not out.active and out.longitudinal_v == 2.5
     assert core.probe is not None and core.probe.is_(ProbeState.ABORTED)
     assert "stale" in core.probe.reason
+
+
+def test_a_limit_that_leaves_only_a_creep_of_turn_is_a_safety_stop() -> None:
+    """H03: a goal curving gently (ω 0.01 rad/s) meets a person ahead: the monitor's forward
+    bound goes to 0 and the chair stands (turning 0.6°/s). It was no stop because ω was not
+    zero, so when the person walked away the old stream drove on at 0.5 m/s by itself."""
+    def run(w: float) -> tuple[list[tuple[float, float] | None], list[bool]]:
+        core = driving_core(require_limit=True)
+        held = []
+        for i in range(HALF_S):  # the person ahead: forward bound 0, turning free
+            t = 1.0 + i * DT
+            core.set_estop(False, t, ns(t))
+            core.set_limit(0.0, 0.5, 1.0, t, 0.5)
+            drive(core, 0.5, w, t)
+            held.append(core.desired(t, ns(t)))
+            core.update(0.0, w, DT, t, ns(t))
+        after = []
+        for i in range(HALF_S):  # the person gone: the same stream goes on
+            t = 1.5 + i * DT
+            core.set_estop(False, t, ns(t))
+            core.set_limit(1.0, 0.5, 1.0, t, 0.5)
+            drive(core, 0.5, w, t)
+            after.append(core.update(0.0, w, DT, t, ns(t)).active)
+        return held, after
+
+    held, after = run(0.01)
+    assert held[0] is None and not any(after)  # a stop: the old stream never drives again
+    # Positive control: a visible turn in place (0.3 rad/s) is motion the limit allows, not a
+    # stop; the stream drives on (the chair never stood still).
+    held, after = run(0.3)
+    assert held[0] == (0.0, 0.3) and all(after)

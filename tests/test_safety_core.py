@@ -437,3 +437,21 @@ def test_coarse_to_fine_sweep_equals_testing_every_pose() -> None:
             checked += 1
             finite += math.isfinite(want)
     assert finite > checked // 4  # a positive control: many paths do hit something
+
+
+@pytest.mark.parametrize("v,omega", [(1.0, math.nan), (1.0, math.inf)])
+def test_non_finite_odometry_is_no_motion_known_not_a_clear_path(v: float, omega: float) -> None:
+    """H10 at the monitor: a NaN ω swept no arc, so a wall 1 m ahead read as "clear" at
+    1.2 m/s. A non-finite sample is stale odometry (assessed at rest, counted), never a path."""
+    from autochair.safety.monitor import Monitor
+
+    b = laser_bearings()
+    ahead = np.where(np.abs(b) < 1.2, 1.0 / np.cos(np.clip(b, -1.2, 1.2)), 5.0)  # a wall 1 m
+    m = Monitor(SafetyCore(P), stale_s=0.5, odometry_s=0.2, clear_hold_s=1.0, frame_id="laser")
+    m.on_odom(1.0, 0.0, 0.0)  # positive control: the same wall, finite odometry, limits
+    fine = m.on_scan(urg_scan(ahead), 0.05)
+    assert not fine.odometry_stale and 0.0 < fine.published.v_fwd < P.v_max_fwd_mps
+    m.on_odom(v, omega, 0.1)
+    bad = m.on_scan(urg_scan(ahead), 0.15)
+    assert bad.published.v_fwd <= fine.published.v_fwd and bad.published.free_fwd_m < 1.0
+    assert bad.odometry_stale and bad.v == 0.0

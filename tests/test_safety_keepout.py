@@ -46,7 +46,7 @@ def monitor(keepout: Keepout | None) -> Monitor:
 
 def localized(m: Monitor, now: float, state: str = "tracking") -> None:
     m.on_correction(CORRECTION)
-    m.on_loc_state(state, now)
+    m.on_loc_state(state, "localization", now)
 
 
 def test_zone_edges_are_the_cells_touching_the_outside() -> None:
@@ -125,7 +125,7 @@ def test_zones_are_painted_into_the_live_grid_in_odom_where_localization_puts_th
     assert k.in_odom(0.0)[0] is None  # positive control below: placed once localized
     for correction in (CORRECTION, (1.0, 0.5, math.radians(30))):
         k.frame.on_correction(correction)
-        k.frame.on_state("tracking", 0.0)
+        k.on_loc("tracking", "localization", 0.0)
         pts, why = k.in_odom(0.0)
         assert pts is not None and not why
         cells = np.frombuffer(paint(grid, pts).data, np.uint8).reshape(200, 200) == 100
@@ -136,3 +136,84 @@ def test_zones_are_painted_into_the_live_grid_in_odom_where_localization_puts_th
         x, y = c * (2.75 - ox) + s * (0.0 - oy), -s * (2.75 - ox) + c * (0.0 - oy)
         assert cells[math.floor((y + 5.0) / RES), math.floor((x + 5.0) / RES)]
         assert not cells[100, 100]  # odom's origin is outside the zone
+
+
+@pytest.mark.parametrize("correction,pose", [
+    (CORRECTION, (0.0, 0.0, math.nan)),  # every edge NaN: no zone at all, 1.2 m/s
+    (CORRECTION, (math.nan, 0.0, 0.0)),
+    ((1.0, 0.5, math.nan), (0.0, 0.0, 0.0)),
+    ((math.inf, 0.5, 0.0), (0.0, 0.0, 0.0)),
+])
+def test_a_non_finite_correction_or_pose_is_a_stop_not_a_lost_zone(
+        correction: tuple[float, float, float], pose: tuple[float, float, float]) -> None:
+    """Unknown is unsafe: a NaN yaw dropped every zone (the band ahead read as clear); a NaN
+    position or correction raised inside the scan callback (no limit for 0.5 s)."""
+    now = 100.0
+    k = Keepout(mask([(2.5, -2.0, 3.0, 3.0)]))
+    m = monitor(k)
+    localized(m, now)
+    m.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
+    fine = m.on_scan(open_scan(), now).published  # positive control: the band limits
+    assert 0.0 < fine.v_fwd < 1.0
+    m.on_correction(correction)
+    m.on_odom(0.0, 0.0, now, pose)
+    lim = m.on_scan(open_scan(), now).published
+    assert (lim.v_fwd, lim.v_rev, lim.omega) == (0.0, 0.0, 0.0)
+    assert "keep-out zones cannot be placed" in lim.reason
+    if not all(math.isfinite(c) for c in correction):  # mapping: nothing "placed" as NaN
+        assert k.in_odom(now)[0] is None
+
+
+def test_zones_are_not_placed_on_a_map_of_slams_own() -> None:
+    """A config with keepout_map but no map: localization runs SLAM, reports tracking, and its
+    `map` begins where the chair started: the zones would land beside the real stairs."""
+    now = 100.0
+    k = Keepout(mask([(2.5, -2.0, 3.0, 3.0)]))
+    m = monitor(k)
+    m.on_correction(CORRECTION)
+    m.on_loc_state("tracking", "mapping", now)
+    m.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
+    lim = m.on_scan(open_scan(), now).published
+    assert lim.v_fwd == 0.0 and "'mapping'" in lim.reason
+    assert k.in_odom(now)[0] is None
+    m.on_loc_state("tracking", "localization", now)  # positive control: on the saved map
+    assert m.on_scan(open_scan(), now).published.v_fwd > 0.0
+    assert k.in_odom(now)[0] is not None
+
+
+def test_a_mask_without_any_zone_is_refused_at_start(tmp_path: Path) -> None:
+    """Zones painted grey (unknown, below occupied_thresh) or none at all: the person believes
+    the stairs are marked while nothing is."""
+    from autochair.runtime.config import ConfigError
+    from autochair.safety.keepout import load_keepout
+
+    with pytest.raises(ConfigError, match=r"\[safety\] keepout_map: .*no keep-out zone"):
+        load_keepout("safety", str(save_map(mask([]), tmp_path / "empty.yaml")))
+    k = load_keepout("safety", str(save_map(mask([(2.5, -1.0, 3.0, 1.0)]), tmp_path / "k.yaml")))
+    assert k is not None and len(k.edges) > 0  # positive control
+
+
+def test_a_chair_whose_footprint_is_over_a_zone_is_stopped() -> None:
+    """Only the zones' edge cells are added to the scan, and a point already under the
+    footprint is no hit for the sweep: with the front 0.35–0.9 m past a deep zone's edge (a
+    stairwell; the axle still outside) forward read as open up to 1.17 m/s, free to the zone's
+    far edge. A localization correction that jumps by a few decimetres puts a parked chair
+    there. Over a zone is inside one: a stop."""
+    now = 100.0
+    deep = mask([(2.5, -2.0, 4.9, 3.0)])  # from map x 2.5 on; the axle at map x 1 + odom x
+    for front in (2.85, 3.0, 3.3):  # map x of the front (0.95 m ahead of the axle)
+        m = monitor(Keepout(deep))
+        localized(m, now)
+        m.on_odom(0.0, 0.0, now, (front - 0.95 - CORRECTION[0], 0.0, 0.0))
+        lim = m.on_scan(open_scan(), now).published
+        assert (lim.v_fwd, lim.v_rev, lim.omega) == (0.0, 0.0, 0.0), (front, lim.reason)
+        assert "over a keep-out zone" in lim.reason
+    # Positive controls: 0.5 m before the edge the zone limits like a wall, and facing away
+    # with the rear 0.1 m clear of it the chair drives off.
+    m = monitor(Keepout(deep))
+    localized(m, now)
+    m.on_odom(0.0, 0.0, now, (2.0 - 0.95 - CORRECTION[0], 0.0, 0.0))
+    before = m.on_scan(open_scan(), now).published
+    assert 0.0 < before.v_fwd < 1.0 and "free fwd" in before.reason
+    m.on_odom(0.0, 0.0, now, (2.4 - 0.25 - CORRECTION[0], 0.0, math.pi))
+    assert m.on_scan(open_scan(), now).published.v_fwd > 1.0

@@ -119,7 +119,7 @@ class MappingService:
     def on_loc(self, msg: LocalizedPose) -> None:
         if self.keepout is not None:
             with self.lock:
-                self.keepout.frame.on_state(msg.state, time.monotonic())
+                self.keepout.on_loc(msg.state, msg.mode, time.monotonic())
 
     def publish(self) -> None:
         now = time.time_ns()

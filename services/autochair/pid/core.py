@@ -348,8 +348,11 @@ class VelocityPidCore:
         fwd, rev, w, rev_auto = limit
         rev = rev if self.owner == "teleop" else rev_auto  # unattended: only what is sensed
         lv, lw = min(max(v, -rev), fwd), min(max(omega, -w), w)
-        if (lv, lw) == (0.0, 0.0) and (abs(v) > 1e-3 or abs(omega) > 1e-3):
-            self.stop(why, now_ns)  # stopped by the limit: brake by neutral, never reverse
+        # Stopped by the limit: brake by neutral, never reverse. Left only a creep of turn
+        # (≤ stop_eps: the chair stands) is stopped too, else the old stream drove on by
+        # itself once the limit re-opened (H03).
+        if lv == 0.0 and abs(lw) <= self.stop_eps and (abs(v) > 1e-3 or abs(omega - lw) > 1e-3):
+            self.stop(why, now_ns)
             return None
         return lv, lw
 

@@ -8,7 +8,8 @@ placed with localization's `map` → `odom` correction and the odometry pose; th
 stop distance and the imminent-collision e-stop then treat them like any obstacle.
 
 Unknown is unsafe: while the zones cannot be placed (no localization heard, silent, not
-tracking, or no fresh odometry pose) or the chair stands inside one, every limit is a stop.
+tracking, localizing on a map of its own (SLAM), a non-finite correction or pose, or no fresh
+odometry pose) or the chair stands inside one, every limit is a stop.
 """
 
 from __future__ import annotations
@@ -60,11 +61,32 @@ class Keepout:
         self.mask = mask
         self.edges = zone_edges(mask)
         self.frame = MapFrame(stale_s)  # localization's correction and state (H33's rule)
+        self.mode = ""  # localization's; only "localization" is on a fixed map, the mask's
         self._samples: F64 | None = None
+
+    def on_loc(self, state: str, mode: str, now: float) -> None:
+        """Localization's state and mode (keys.LOC_POSE)."""
+        self.frame.on_state(state, now)
+        self.mode = mode
+
+    def why_not(self, now: float) -> str:
+        """"" if the zones can be placed now, else why not (one line)."""
+        why = self.frame.why_not(now)
+        if why:
+            return why
+        # SLAM tracks too, but in a map of its own whose origin is where it started: the
+        # mask's zones would land at the wrong places (a config with keepout_map and no map).
+        if self.mode != "localization":
+            return (f"localization mode is {self.mode!r}, not 'localization' on the saved map "
+                    "the zones are drawn on")
+        assert self.frame.correction is not None
+        if not all(math.isfinite(v) for v in self.frame.correction):
+            return "the map → odom correction is not finite"
+        return ""
 
     def in_odom(self, now: float) -> tuple[F64 | None, str]:
         """Every zone's sample points in `odom`, or (None, why they cannot be placed)."""
-        why = self.frame.why_not(now)
+        why = self.why_not(now)
         if why:
             return None, f"keep-out zones cannot be placed: {why}"
         if self._samples is None:
@@ -85,20 +107,30 @@ class Keepout:
         h, w = m.occupied.shape
         return 0 <= row < h and 0 <= col < w and bool(m.occupied[row, col])
 
-    def points(self, odom_pose: Pose | None, now: float) -> tuple[F64 | None, str]:
-        """The edges in the chair frame, or (None, why they cannot be placed: a stop)."""
-        why = self.frame.why_not(now)
-        if not why and odom_pose is None:
-            why = "no fresh odometry pose"
+    def points(self, odom_pose: Pose | None, now: float,
+               footprint: tuple[float, float, float] | None = None) -> tuple[F64 | None, str]:
+        """The edges in the chair frame, or (None, why: a stop). `footprint` (front, rear,
+        half width from the axle): an edge under it is a stop too, as the axle in a zone."""
+        why = self.why_not(now)
+        if not why and (odom_pose is None or not all(math.isfinite(v) for v in odom_pose)):
+            why = "no fresh odometry pose"  # (a NaN yaw would turn every edge into NaN: none)
         if why:
             return None, f"keep-out zones cannot be placed: {why}"
-        assert self.frame.correction is not None
-        x, y, th = compose(self.frame.correction, odom_pose)  # type: ignore[arg-type]
+        assert self.frame.correction is not None and odom_pose is not None
+        x, y, th = compose(self.frame.correction, odom_pose)
         if self.inside(x, y):
             return None, f"inside a keep-out zone at ({x:.2f}, {y:.2f}) in map"
         c, s = math.cos(th), math.sin(th)
         dx, dy = self.edges[:, 0] - x, self.edges[:, 1] - y
-        return np.column_stack((c * dx + s * dy, -s * dx + c * dy)), ""
+        pts = np.column_stack((c * dx + s * dy, -s * dx + c * dy))
+        # The sweep counts no point already under the footprint as a hit, and only edges are
+        # added: with the front past a deep zone's edge, forward read as open to its far edge.
+        if footprint is not None:
+            front, rear, half = footprint
+            under = (pts[:, 0] <= front) & (pts[:, 0] >= -rear) & (np.abs(pts[:, 1]) <= half)
+            if under.any():
+                return None, f"the chair stands over a keep-out zone at ({x:.2f}, {y:.2f}) in map"
+        return pts, ""
 
 
 def paint(grid: OccupancyGrid, odom_pts: F64) -> OccupancyGrid:
@@ -120,6 +152,12 @@ def load_keepout(section: str, path: str) -> Keepout | None:
     if not path:
         return None
     try:
-        return Keepout(load_map(path))
+        mask = load_map(path)
     except MapFileError as e:
         raise ConfigError(f"[{section}] keepout_map: {e}") from None
+    # A mask with no zone (drawn in grey, below occupied_thresh, or not drawn at all) would
+    # protect nothing while the person believes the stairs are marked.
+    if not mask.occupied.any():
+        raise ConfigError(f"[{section}] keepout_map: {path}: no keep-out zone in the mask "
+                          "(zones are black: occupied cells)")
+    return Keepout(mask)

@@ -48,6 +48,11 @@ class Monitor:
         self.keepout = keepout
 
     def on_odom(self, v: float, omega: float, now: float, pose: Pose | None = None) -> None:
+        if not all(math.isfinite(x) for x in (v, omega, *(pose or ()))):
+            # Unknown motion is no motion known: as stale odometry, not as a NaN path (a NaN
+            # ω swept no arc, so a wall ahead read as clear) nor NaN zones (H10, H42).
+            self._motion, self._pose = (0.0, 0.0, -math.inf), None
+            return
         self._motion, self._pose = (v, omega, now), pose
 
     def on_correction(self, map_to_odom: Pose) -> None:
@@ -55,9 +60,9 @@ class Monitor:
         if self.keepout is not None:
             self.keepout.frame.on_correction(map_to_odom)
 
-    def on_loc_state(self, state: str, now: float) -> None:
+    def on_loc_state(self, state: str, mode: str, now: float) -> None:
         if self.keepout is not None:
-            self.keepout.frame.on_state(state, now)
+            self.keepout.on_loc(state, mode, now)
 
     def on_mount(self, error: str) -> tuple[Limit | None, bool]:
         """A tf_static check: a stop to publish at once when it disagrees, and whether
@@ -76,7 +81,9 @@ class Monitor:
             v, w = 0.0, 0.0
         unseen, unplaced = None, ""
         if self.keepout is not None:  # H42: zones it cannot place are a stop (unknown: unsafe)
-            unseen, unplaced = self.keepout.points(None if stale else self._pose, now)
+            p = self.core.p
+            unseen, unplaced = self.keepout.points(None if stale else self._pose, now,
+                                                   (p.front_m, p.rear_m, p.half_width_m))
         lim = (stop_limit(unplaced) if unplaced
                else self.core.assess(scan, v, w, self.frame_id, unseen))
         # A scan that arrives late (a backlog after a stall, a starved process) shows the world

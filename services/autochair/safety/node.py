@@ -120,7 +120,7 @@ class _Wiring:
 
     def on_loc(self, msg: LocalizedPose) -> None:
         with self.lock:
-            self.monitor.on_loc_state(msg.state, time.monotonic())
+            self.monitor.on_loc_state(msg.state, msg.mode, time.monotonic())
 
     def on_tf(self, tf: FrameTransform) -> None:
         if tf.child_frame_id != self.cfg.frame_id:
