@@ -280,6 +280,37 @@ def test_a_worker_thread_that_dies_is_a_fault_and_triggers_the_watchdog(
         t.join(10)
 
 
+def test_a_loop_that_fails_on_every_tick_triggers_the_watchdog(
+        supervised: NotifyChannel) -> None:
+    """A periodic step that raises on every tick (e.g. on a bad value it keeps) does nothing,
+    yet its thread runs on: it must count as stuck, not alive. Positive control: the same loop
+    failing on every other tick (a transient error among good ticks) keeps the pings going."""
+    node = Node("wdtest", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
+    ticks, always = [0], threading.Event()
+
+    def step() -> None:
+        ticks[0] += 1
+        if always.is_set() or ticks[0] % 2:
+            raise ValueError("bad waypoint")
+
+    node.every(0.05, step, "plan")
+    t = run_node(node)
+    try:
+        wait_for(lambda: ticks[0] >= 60, 10, "3 s of half-failing ticks")
+        assert supervised.poll(time.monotonic()) is None  # positive control: still alive
+        assert node.health.counters["errors:plan"] >= 25
+        t0 = time.monotonic()
+        always.set()
+        reason = wait_for(lambda: supervised.poll(time.monotonic()), 10, "a trigger")
+        detect = time.monotonic() - t0
+        print(f"failing loop detected after {detect:.2f} s: {reason}")
+        assert "plan" in reason
+        assert detect < node.stale.watchdog_s + CHECK_PERIOD_S + 0.5
+    finally:
+        node.stop_event.set()
+        t.join(10)
+
+
 def test_a_worker_that_ends_at_shutdown_is_no_fault(supervised: NotifyChannel) -> None:
     node = Node("wdtest", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
 

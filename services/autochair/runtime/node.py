@@ -337,7 +337,9 @@ class Node:
 
         Missed ticks are skipped (not bunched) and counted as `overruns:<name>`. Each completed
         tick is reported to the watchdog: a loop stuck for max(stale.watchdog_s, 3 × period_s)
-        gets the process restarted (see the class docstring).
+        gets the process restarted (see the class docstring). A tick that raises is counted and
+        reported but not completed, so a loop that fails on every tick is restarted like a stuck
+        one instead of counting as alive; one failure among good ticks is not.
         """
         self.liveness.add_loop(name, period_s, time.monotonic())
 
@@ -347,15 +349,18 @@ class Node:
                 if self._hung.is_set():
                     self.stop_event.wait()  # the SIGUSR2 test hook: a deadlocked loop
                     break
+                done = False
                 try:
                     fn()
+                    done = True
                 except Exception as e:
                     self.health.count(f"errors:{name}")
                     self.health.record_fault(f"{name}: {type(e).__name__}: {e}")
                     self.log.exception("periodic %s failed", name)
                 next_t += period_s
                 now = time.monotonic()
-                self.liveness.tick(name, now)
+                if done:
+                    self.liveness.tick(name, now)
                 if now > next_t:
                     skipped = int((now - next_t) / period_s) + 1
                     self.health.count(f"overruns:{name}", skipped)
