@@ -152,6 +152,7 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
                          omega_acc_radps2=lim.omega_acc_max_radps2,
                          align_brake_radps2=self.align_brake_fraction * lim.omega_acc_max_radps2,
                          align_gain_1ps=self.align_gain_1ps, capture_m=capture_m,
+                         tolerance_m=capture_m / self.capture_fraction,
                          jerk_mps3=lim.jerk_max_mps3, omega_jerk_radps3=lim.omega_jerk_max_radps3,
                          commit_s=1.0 / self.plan_rate_hz, brake_fraction=self.brake_fraction,
                          approach_rate_1ps=self.approach_rate_1ps)

@@ -50,6 +50,14 @@ class LatticeParams:
     resolution_m: float = 0.05
     headings: int = 16
     min_clear_m: float = 0.04  # the footprint's clearance in a free state
+    # Clearance-aware costs (as Nav2's inflation): a move whose states (or an in-place turn's
+    # swept half step) keep less than `roomy_clear_m` costs `tight_factor` times more. The
+    # least-cost way then turns where there is room when there is any: exact ways with 4 cm
+    # to spare are ways the law's tracking (a few cm) cannot follow, and beside them lie
+    # states costing metres more (office B's desk: the 90° turn at the goal clears by 5 cm,
+    # 6 cm to the side by 10; measured). 0: off (the refusal's lattice, planner.py).
+    roomy_clear_m: float = 0.10
+    tight_factor: float = 1.0
     arc_radius_m: float = 0.6
     # An arc's cost over its length: the law cannot follow chains of tight arcs (S-bends
     # before a door, a zig-zag in clutter) that the lattice finds cheap.
@@ -313,6 +321,10 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     n = p.headings
     both = free_states(fld, box, f, n, p.min_clear_m)
     full, half_steps = both[0::2], both[1::2]
+    tight = p.tight_factor > 0.0 and p.roomy_clear_m > p.min_clear_m
+    if tight:
+        roomy = free_states(fld, box, f, n, p.roomy_clear_m)
+        roomy_full, roomy_half = roomy[0::2], roomy[1::2]
     _, h, w = full.shape
     i0, j0 = box[0], box[2]
     gi = math.floor((goal[1] - gm.origin_y_m) / gm.resolution_m)
@@ -336,7 +348,13 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
             sp = np.minimum(speed[a], speed[b])
             src.append(idx[k][a][ok])
             dst.append(idx[k2][b][ok])
-            cost.append((length / sp)[ok] if not turn else np.full(int(ok.sum()), length))
+            c = (length / sp)[ok] if not turn else np.full(int(ok.sum()), length)
+            if tight:
+                room = roomy_full[k][a] & roomy_full[k2][b]
+                if turn:
+                    room &= roomy_half[k if k2 == (k + 1) % n else k2][a]
+                c = c * np.where(room[ok], 1.0, 1.0 + p.tight_factor)
+            cost.append(c)
     # The goal region: a virtual node joined to free states near the goal pose.
     gx, gy, gyaw = goal
     ii, jj = np.mgrid[0:h, 0:w]

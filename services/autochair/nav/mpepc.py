@@ -69,6 +69,7 @@ class LawParams(Gains, frozen=True, kw_only=True):
     align_brake_radps2: float
     align_gain_1ps: float
     capture_m: float
+    tolerance_m: float  # the goal's position tolerance (capture_m is a fraction of it)
     # The rest of the comfort limiter (control/limits.py): jerk bounds and the turn-rate
     # look-ahead of its curvature keeping. An acceleration-only model stops ~0.5 m short of the
     # S-curve when braking begins while the chair still accelerates (measured, 1 m/s).
@@ -453,6 +454,7 @@ class Mpepc:
         return cost, {"phi_end": phi[:, -1], "phi0": np.full(len(z), phi0),
                       "survival": ps[:, -1], "clearance": d_all.min(1), "near": near,
                       "in_lattice": in_lattice.astype(np.float64),
+                      "hit": hit.any(1).astype(np.float64),
                       "x": xs, "y": ys, "yaw": yaws}
 
     def lattice_active(self, hf: HeadingField, pose: tuple[float, float, float],
@@ -664,8 +666,16 @@ class Mpepc:
             goal_clear = min(float(info["clearance"][0]), float(info["clearance"][1]),
                              float(best["clearance"]))  # (< contact_m: every motion touches)
             ends = math.hypot(float(info["x"][0, -1]) - goal[0], float(info["y"][0, -1]) - goal[1])
+            # In the position tolerance only the goal's turn is left: it is taken whenever its
+            # sweep is clear, whatever it costs against standing still (which never arrives;
+            # the collision cost of a turn beside a wall outweighed its heading term, and the
+            # chair stood 83° off office B's desk, "blocked"; measured). The core checks the
+            # sweep again before it turns (H40).
+            # (not where it is a hit: a person's reach, the stop after the plan period)
+            there = final and float(info["hit"][0]) == 0.0 and math.hypot(
+                goal[0] - pose[0], goal[1] - pose[1]) <= self.law.tolerance_m
             if float(info["clearance"][0]) >= self.p.contact_m and ends < 0.3 \
-                    and float(cost[0]) <= best_c + self.p.goal_slack \
+                    and (there or float(cost[0]) <= best_c + self.p.goal_slack) \
                     and self.lined_up(pose, ctg, heading) \
                     and (not final or self.handover(pose, v0, goal)):
                 best_z, best_c, best = z[0].copy(), float(cost[0]), {k: v[0]

@@ -113,7 +113,8 @@ def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, fl
         return (f"no path from ({pose[0]:.2f}, {pose[1]:.2f}) to ({goal[0]:.2f}, "
                 f"{goal[1]:.2f}) that the chair fits through")
     if way_in:
-        hf = lattice.build(fld, goal, None, lattice.LatticeParams(min_clear_m=REACH_CLEAR_M),
+        hf = lattice.build(fld, goal, None, lattice.LatticeParams(min_clear_m=REACH_CLEAR_M,
+                                                                  tight_factor=0.0),
                            start=pose)
         if hf is None or not hf.way_in(*pose):
             return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
