@@ -73,10 +73,14 @@ def step_on_stack(session: Any, truth: list[Any], lock: threading.Lock, axis: st
         time.sleep(0.05)  # the command stream's own 20 Hz
     pub.undeclare()
     with lock:
+        # The step starts when the PID first drives: the first truth sample whose joystick is
+        # off neutral (published at once: only a neutral, still chair's truth is thinned to
+        # 10 Hz, so the last sample before the first command could be 0.1 s early), less the
+        # tick the volts took to act, as in lockstep.
+        sim_t0 = next((m.sim_time_s for m in truth if m.sim_time_s > sim_t0 and
+                       (m.longitudinal_v != 2.5 or m.angular_v != 2.5)), sim_t0) - 0.01
         rows = [(m.sim_time_s - sim_t0, m.v_mps if axis == "longitudinal" else m.omega_radps)
                 for m in truth if sim_t0 < m.sim_time_s <= sim_t0 + hold_s]
-    # The step starts when the PID first drives: the first true motion minus the dead time
-    # is not observable here, so time from the first command (sim clock, ±10 ms).
     return summary(metrics([r[0] for r in rows], [r[1] for r in rows], size))
 
 

@@ -376,6 +376,26 @@ def test_the_prefilter_is_governed_by_the_effort_window() -> None:
         [plain.effort(0.05, DT) for _ in range(HALF_S)]  # inside the window: the same
 
 
+def test_the_sample_that_starts_a_drive_advances_one_period() -> None:
+    """A parked chair's samples come every 50 ms (the gateway idles the chain): the sample
+    that starts a drive carries that as its dt, but its output acts for one period. The
+    first outputs are those of a drive started on a 10 ms sample (measured through the
+    processes before: the 0.5 step settled in 1.6-1.8 s instead of 1.16 s)."""
+    def first_efforts(first_dt: float, period_s: float = DT) -> list[float]:
+        core = core_(v_model=MODEL, period_s=period_s)
+        out = []
+        for i in range(20):
+            t = 0.1 + i * DT
+            core.set_estop(False, t, ns(t))
+            drive(core, 0.5, 0.0, t)
+            out.append(core.update(0.0, 0.0, first_dt if i == 0 else DT, t, ns(t)).v_effort)
+        return out
+
+    assert first_efforts(0.05) == pytest.approx(first_efforts(DT))
+    # positive control: without the bound the prefilter leaves the window's edge sooner
+    assert sum(first_efforts(0.05, 1.0)) < sum(first_efforts(DT)) - 0.05
+
+
 def test_without_a_model_the_loop_is_the_thesis_pid() -> None:
     plain, modelled = core_(), core_(v_model=MODEL)
     for core in (plain, modelled):

@@ -21,6 +21,7 @@ from typing import Annotated
 import msgspec
 
 from autochair.tune.core import ChainModel, Probe, ProbeState
+from autochair_msgs.keys import DRIVE_RATE_HZ
 
 NEUTRAL_V = 2.5
 VOLTS_PER_EFFORT = 1.5  # thesis eq. 5.17: V = 1.5·C + 2.5
@@ -207,6 +208,10 @@ class VelocityPidCore:
     omega_model: ChainModel | None = None
     prefilter_s: float = 0.1
     d_filter_n: float = 10.0
+    # The encoders' period: a parked chair's samples come every 50 ms (the gateway idles the
+    # chain), so the sample that starts a drive carries the parked interval as its dt, while
+    # its output acts only until the next sample, one period later.
+    period_s: float = 1.0 / DRIVE_RATE_HZ
     v_pid: PID = field(init=False)
     omega_pid: PID = field(init=False)
     probe: Probe | None = field(init=False, default=None)  # a tuning probe (autochair tune)
@@ -394,6 +399,10 @@ class VelocityPidCore:
         if not self._active:
             self._active = True  # re-seeded from the measured velocity: nothing lunges
             self._restart(v_meas, omega_meas)
+            # The feed-forward advances over the dt its output will act for: a parked
+            # interval's dt (50 ms) here advanced the prefilter 5 steps in one, and the 0.5
+            # step through the processes settled in 1.6-1.8 s instead of 1.16 s (measured).
+            dt = min(dt, self.period_s)
         meas = (v_meas, omega_meas)
         self._held = desired
         efforts = [self._axis(i, desired[i], meas[i], dt) for i in (0, 1)]
