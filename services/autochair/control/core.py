@@ -394,7 +394,7 @@ class ControlCore:
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
         map_waypoints = None
         if req.frame_id == "map":
-            why = self._why_not_map(now)
+            why = self.frames.why_not(now)
             if why:
                 self._count("rejected_goals")
                 return GoalReply(ok=False, error=f"a goal in map needs localization: {why}")
@@ -540,7 +540,7 @@ class ControlCore:
         o = self.odom
         if not self.active or o is None or now - self._plan_t < 1.0 / self.cfg.plan_rate_hz:
             return None
-        if self.map_waypoints is not None and self._why_not_map(now):
+        if self.map_waypoints is not None and self.frames.why_not(now):
             return None  # where the goal is in odom is unknown: nothing to plan to
         self._plan_t = now
         p = self._predicted(o)
@@ -589,24 +589,13 @@ class ControlCore:
         """Localization's state (keys.LOC_POSE)."""
         self.frames.on_state(state, now)
 
-    def _why_not_map(self, now: float) -> str:
-        """"" if goals in `map` can be driven now, else why not (H33): MapFrame's reasons,
-        and a non-finite correction (it made every waypoint NaN: the planner raised on every
-        tick and the goal hung, "driving", with no command)."""
-        why = self.frames.why_not(now)
-        if not why:
-            assert self.frames.correction is not None
-            if not all(math.isfinite(c) for c in self.frames.correction):
-                why = "its map → odom correction is not finite"
-        return why
-
     def _in_odom(self, now: float) -> bool:
         """For a goal in `map`: its waypoints re-expressed in `odom` with the newest
         correction; False (blocked at rest, aborted after `blocked_abort_s`) while
         localization is not trusted (H33). A goal in `odom`: True."""
         if self.map_waypoints is None:
             return True
-        why = self._why_not_map(now)
+        why = self.frames.why_not(now)
         if why:
             self._blocked(f"localization: {why}", now)
             return False

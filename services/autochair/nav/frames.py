@@ -39,6 +39,10 @@ class MapFrame:
             return f"localization silent for {now - self.heard_t:.1f} s"
         if self.state != TRACKING:
             return f"localization is {self.state}, not tracking"
+        if not all(math.isfinite(c) for c in self.correction):
+            # (it made every waypoint and zone NaN: the planner raised on every tick and the
+            # goal hung, "driving", with no command; the zones were silently dropped)
+            return "its map → odom correction is not finite"
         return ""
 
     def to_odom(self, p: Pose) -> Pose:

@@ -79,9 +79,6 @@ class Keepout:
         if self.mode != "localization":
             return (f"localization mode is {self.mode!r}, not 'localization' on the saved map "
                     "the zones are drawn on")
-        assert self.frame.correction is not None
-        if not all(math.isfinite(v) for v in self.frame.correction):
-            return "the map → odom correction is not finite"
         return ""
 
     def in_odom(self, now: float) -> tuple[F64 | None, str]:
