@@ -30,6 +30,7 @@ import json
 import math
 import statistics
 import time
+from collections import deque
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,7 @@ import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
 from autochair.geometry import wrap_angle as wrap
+from autochair.odometry.core import OdomState
 from autochair.pid.core import PidConfig, VelocityPidCore, make_core
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate, for all benches
 from autochair_msgs import GoalRequest, Pose2D
@@ -175,8 +177,17 @@ def turn_drive_turn_time(start: tuple[float, float, float], goal: tuple[float, f
 
 
 def run_case(start: tuple[float, float, float], goal: tuple[float, float, float],
-             cfg: ControlConfig, pid_kind: str = "tuned") -> dict[str, Any]:
+             cfg: ControlConfig, pid_kind: str = "tuned", odom_age_ticks: int = 0,
+             cmd_delay_ticks: int = 0) -> dict[str, Any]:
+    """One goal in lockstep. `odom_age_ticks` / `cmd_delay_ticks` (drive ticks, default 0:
+    none): the delays of the control's path through the processes, which lockstep lacks. The
+    control reads ODOM_SLOW (every second sample) on its own free-running 50 Hz timer, so it
+    acts on odometry 0–20 ms old; the PID takes its command up at its next odometry sample,
+    0–10 ms later (measured through the processes: 10 or 20 ms in all, by the timer's
+    phase; the PID's volts reach the chair on the next tick, as here)."""
     rig = Rig(make_pid(pid_kind), start=start)
+    seen: deque[tuple[float, OdomState]] = deque()  # odometry on its way to the control
+    sent: deque[Any] = deque()  # the control's commands on their way to the PID
     model = rig.chair
     core = ControlCore(cfg)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
@@ -187,14 +198,18 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
     while True:
         t = k * DT
         st = rig.sense()
-        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
+        seen.append((t, st))
+        if len(seen) > odom_age_ticks or k == 0:  # (at first the chair stands where placed)
+            ts, so = seen.popleft() if len(seen) > odom_age_ticks else seen[0]
+            core.on_odom(OdomSample(so.x, so.y, so.yaw, so.v, so.omega, ts))
         if k == 0:
             reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t)
             assert reply.ok, reply.error
         out = core.step(t) if k % ctrl_every == 0 else None
         if out is not None:  # the plan (what is sent leads it past the PID's prefilter)
             cmds.append((core.limiter.v.value, core.limiter.w.value))
-        rig.act(t, st.v, st.omega, out)
+        sent.append(out)
+        rig.act(t, st.v, st.omega, sent.popleft() if len(sent) > cmd_delay_ticks else None)
         rows.append((t, st.x, st.y, st.yaw, st.v, st.omega, st.distance,
                      model.x, model.y, model.yaw, model.v, model.omega))
         if t_arrive is None and not getattr(core, "active", core.state == "active"):
@@ -269,6 +284,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-save", action="store_true", help="do not write the results file")
     ap.add_argument("--pid", choices=("tuned", "thesis"), default="tuned",
                     help="velocity PID: [pid] as configured (default) or the thesis's ZN")
+    ap.add_argument("--odom-age-ticks", type=int, default=0, metavar="N",
+                    help="the control acts on odometry N drive ticks old (processes: 0–2)")
+    ap.add_argument("--cmd-delay-ticks", type=int, default=0, metavar="N",
+                    help="the PID takes the control's command up N drive ticks late (0–1)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [control] setting")
     args = ap.parse_args(argv)
@@ -279,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     t0 = time.perf_counter()
     for name, start, goal in cases:
-        r = run_case(start, goal, cfg, args.pid)
+        r = run_case(start, goal, cfg, args.pid, args.odom_age_ticks, args.cmd_delay_ticks)
         r.update(name=name, start=start, goal=goal)
         results.append(r)
         print(f"{name:32s} {r['state']:8s} t={r['time_s']:6.2f}s x{r['time_ratio']:<5} "
@@ -327,7 +346,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.no_save:
         return 0
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({"pid": args.pid,
+    RESULTS.write_text(json.dumps({"pid": args.pid, "odom_age_ticks": args.odom_age_ticks,
+                                   "cmd_delay_ticks": args.cmd_delay_ticks,
                                    "config": {f: getattr(cfg, f) for f in cfg.__struct_fields__},
                                    "summary": summary, "runs": results}, indent=1) + "\n")
     return 0

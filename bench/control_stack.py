@@ -50,6 +50,16 @@ def truth_peaks(rows: list[tuple[float, float, float]]) -> tuple[float, float, f
             float(np.abs(np.diff(w) / 0.01).max()))
 
 
+def sim_rate(truth: list[tuple[float, int]]) -> float:
+    """Simulated seconds per wall second over (sim_time_s, stamp_ns) truth samples. Below 1
+    the simulator skipped ticks (its loop overran under load): the chair's time then runs
+    slower than the control's wall clock, which no lockstep run has."""
+    if len(truth) < 2:
+        return math.nan
+    wall = (truth[-1][1] - truth[0][1]) / 1e9
+    return (truth[-1][0] - truth[0][0]) / wall if wall > 0 else math.nan
+
+
 def step_on_stack(session: Any, truth: list[Any], lock: threading.Lock, axis: str,
                   size: float = 0.5, hold_s: float = 5.0) -> dict[str, Any]:
     """A `drive`-like 0.5 step from rest through the stack, on the simulator's true velocity
@@ -110,12 +120,15 @@ def drive_case(session: Any, truth: list[Any], lock: threading.Lock, rel: tuple[
         end = truth[-1]
         rows = [(m.sim_time_s, m.v_mps, m.omega_radps) for m in truth
                 if m.sim_time_s >= sim_t0]
+        clock = [(m.sim_time_s, m.stamp_ns) for m in truth if m.sim_time_s >= sim_t0]
     a, j, wd = truth_peaks(rows)
+    rate = sim_rate(clock)
     return {"state": st.state if st else "?", "reason": st.reason if st else "",
             "time_s": round(end.sim_time_s - sim_t0, 3),
             "pos_error_m": round(math.hypot(gx - end.x_m, gy - end.y_m), 4),
             "truth_peak_a_mps2": round(a, 3), "truth_peak_jerk_mps3": round(j, 3),
-            "truth_peak_omega_dot_radps2": round(wd, 3)}
+            "truth_peak_omega_dot_radps2": round(wd, 3),
+            "sim_rate": round(rate, 3) if math.isfinite(rate) else None}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -177,7 +190,8 @@ def main(argv: list[str] | None = None) -> int:
                       f"(lockstep {lock_r['time_s']:.2f}s) x{r['time_ratio']} "
                       f"xmin{r['time_ratio_min']} "
                       f"a={r.get('truth_peak_a_mps2')} j={r.get('truth_peak_jerk_mps3')} "
-                      f"ω̇={r.get('truth_peak_omega_dot_radps2')}", flush=True)
+                      f"ω̇={r.get('truth_peak_omega_dot_radps2')} sim/wall={r.get('sim_rate')}",
+                      flush=True)
         finally:
             session.close()
             launcher.stop()
@@ -195,6 +209,8 @@ def main(argv: list[str] | None = None) -> int:
         "max_truth_jerk_mps3": max((r["truth_peak_jerk_mps3"] for r in done), default=None),
         "max_truth_omega_dot_radps2": max((r["truth_peak_omega_dot_radps2"] for r in done),
                                           default=None),
+        "min_sim_rate": min((r["sim_rate"] for r in results if r.get("sim_rate") is not None),
+                            default=None),
     }
     print(json.dumps(summary, indent=1))
     args.out.parent.mkdir(parents=True, exist_ok=True)

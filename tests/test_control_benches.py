@@ -1,0 +1,35 @@
+"""The control benches: lockstep's model of the control's path through the processes
+(bench/control_eval.py `run_case`: odometry age at the control, the PID's pick-up of its
+command) and the stack run's check that the simulator kept real time (bench/control_stack.py)."""
+
+from __future__ import annotations
+
+import math
+
+from bench.control_eval import run_case
+from bench.control_stack import sim_rate
+
+from autochair.control.core import ControlConfig
+
+
+def test_control_path_delay_reaches_the_chair() -> None:
+    """The same goal with the control's odometry 20 ms old and its command taken up 10 ms late
+    (as measured through the processes) still arrives, and ends further past the goal: the
+    delay acts (without it both runs are the same, deterministic run)."""
+    cfg, goal = ControlConfig(), (3.0, 0.0, 0.0)
+    plain = run_case((0.0, 0.0, 0.0), goal, cfg)
+    again = run_case((0.0, 0.0, 0.0), goal, cfg, odom_age_ticks=0, cmd_delay_ticks=0)
+    late = run_case((0.0, 0.0, 0.0), goal, cfg, odom_age_ticks=2, cmd_delay_ticks=1)
+    assert plain == again
+    assert plain["arrived"] and late["arrived"]
+    assert late["true_pos_error_m"] > plain["true_pos_error_m"] + 0.005
+    assert late["time_s"] >= plain["time_s"]
+
+
+def test_sim_rate_sees_skipped_ticks() -> None:
+    """Real time is 1; a simulator that skipped every tenth 10 ms tick ran at 0.9."""
+    real = [(k * 0.01, k * 10_000_000) for k in range(101)]
+    slow = [(k * 0.01, round(k * 10_000_000 / 0.9)) for k in range(101)]
+    assert sim_rate(real) == 1.0
+    assert abs(sim_rate(slow) - 0.9) < 1e-9
+    assert math.isnan(sim_rate(real[:1]))
