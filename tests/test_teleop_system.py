@@ -132,8 +132,11 @@ def test_a_gamepad_sampled_every_tick_drives_steadily_and_its_buttons_stop(
         state["now"] = ({}, {PAD.estop_button})
         wait_for(lambda: laptop is not None and laptop.link.estop_latched, 5,
                  "the e-stop latched by the pad's button")
-        latched = estop.latest()
-        assert latched.latched and any(c.source.startswith("teleop:") for c in latched.causes)
+        # The laptop saw the latch on its own subscription; this recorder's copy of the same
+        # state may arrive a moment later (two subscribers, no common order).
+        latched = wait_for(lambda: (m := estop.latest()) is not None and m.latched and m, 5,
+                           "the latched state on the chair's side")
+        assert any(c.source.startswith("teleop:") for c in latched.causes)
         assert laptop.core.estop_presses == 1
     finally:
         laptop.close()
