@@ -27,8 +27,10 @@ import numpy as np
 from autochair.control.core import ControlConfig
 from autochair.geometry import wrap_angle as wrap
 from autochair.launcher import Launcher, free_port
+from autochair.pid.core import NEUTRAL_V
 from autochair.processes import PROCESSES, local_values
 from autochair.runtime.config import load_section
+from autochair.tune.lockstep import DT
 
 from .control_eval import run_case, scurve_time, smooth, suite, trapezoid_time
 from .min_time import Limits, cached
@@ -88,7 +90,8 @@ def step_on_stack(session: Any, truth: list[Any], lock: threading.Lock, axis: st
         # 10 Hz, so the last sample before the first command could be 0.1 s early), less the
         # tick the volts took to act, as in lockstep.
         sim_t0 = next((m.sim_time_s for m in truth if m.sim_time_s > sim_t0 and
-                       (m.longitudinal_v != 2.5 or m.angular_v != 2.5)), sim_t0) - 0.01
+                       (m.longitudinal_v != NEUTRAL_V or m.angular_v != NEUTRAL_V)),
+                      sim_t0) - DT
         rows = [(m.sim_time_s - sim_t0, m.v_mps if axis == "longitudinal" else m.omega_radps)
                 for m in truth if sim_t0 < m.sim_time_s <= sim_t0 + hold_s]
     return summary(metrics([r[0] for r in rows], [r[1] for r in rows], size))
