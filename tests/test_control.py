@@ -493,15 +493,22 @@ def test_a_goal_in_map_ends_where_the_correction_puts_it() -> None:
     assert math.hypot(pose[0] - goal[0], pose[1] - goal[1]) > 0.3  # not the raw numbers
 
 
-def test_lost_localization_stops_a_map_goal_then_it_resumes_or_aborts() -> None:
-    core = fresh_core(ControlConfig(blocked_abort_s=6.0, predict_s=0.02, predict_omega_s=0.02,
-                                    lead=False))
+def driving_to_a_map_goal(blocked_abort_s: float) -> tuple[ControlCore, list[float], float]:
+    """A core driving to (6, 0) in `map` under a tracking localization for 2 s (asserted: the
+    positive control of the tests that then take the localization away)."""
+    core = fresh_core(ControlConfig(blocked_abort_s=blocked_abort_s, predict_s=0.02,
+                                    predict_omega_s=0.02, lead=False))
     core.on_correction((0.0, 0.0, 0.0))
     core.on_loc_state("tracking", 0.0)
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(6, 0, 0)], frame_id="map"), 0.0).ok
     pose = [0.0, 0.0, 0.0]
-    tracking = run_unicycle(core, 0.0, 2.0, pose, lambda t: core.on_loc_state("tracking", t))
-    assert core.state == "driving" and core.limiter.v.value > 0.3  # control: driving
+    t = run_unicycle(core, 0.0, 2.0, pose, lambda t: core.on_loc_state("tracking", t))
+    assert core.state == "driving" and core.limiter.v.value > 0.3
+    return core, pose, t
+
+
+def test_lost_localization_stops_a_map_goal_then_it_resumes_or_aborts() -> None:
+    core, pose, tracking = driving_to_a_map_goal(6.0)
     t = run_unicycle(core, tracking, tracking + 2.0, pose,
                      lambda t: core.on_loc_state("lost", t))
     assert core.state == "blocked" and core.reason == "localization: localization is lost, " \
@@ -600,14 +607,7 @@ def test_a_non_finite_correction_stops_a_map_goal_like_a_lost_localization() -> 
     """H33: a NaN or inf `map` → `odom` correction made every waypoint NaN; the planner raised
     on every control step (no command, the goal "driving" for ever). Unknown is unsafe: it is
     a localization that cannot be trusted — blocked at rest, aborted after blocked_abort_s."""
-    core = fresh_core(ControlConfig(blocked_abort_s=3.0, predict_s=0.02, predict_omega_s=0.02,
-                                    lead=False))
-    core.on_correction((0.0, 0.0, 0.0))
-    core.on_loc_state("tracking", 0.0)
-    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6, 0, 0)], frame_id="map"), 0.0).ok
-    pose = [0.0, 0.0, 0.0]
-    t = run_unicycle(core, 0.0, 2.0, pose, lambda t: core.on_loc_state("tracking", t))
-    assert core.state == "driving" and core.limiter.v.value > 0.3  # positive control
+    core, pose, t = driving_to_a_map_goal(3.0)  # positive control: driving
     core.on_correction((math.nan, 0.0, 0.0))
     t = run_unicycle(core, t, t + 2.0, pose, lambda t: core.on_loc_state("tracking", t))
     assert core.state == "blocked" and "correction is not finite" in core.reason
