@@ -1,6 +1,7 @@
 """`autochair localize X Y YAW_DEG`: tell the localization service where the chair is on the
 map (metres, metres, degrees counter-clockwise, in `map`); `autochair localize --global`: let
-it search the whole map. Prints the state it reports."""
+it search the whole map. Prints the state it reports: a pose given is a guess, checked
+against the next scan (searched for within 2σ of it) before it is tracked."""
 
 from __future__ import annotations
 
@@ -44,6 +45,9 @@ def run(args: argparse.Namespace) -> int:
     from autochair.commands.link import ask
     from autochair_msgs import LocalizeReply, keys
 
-    reply = ask(args, keys.LOC_SET_POSE, request_of(args), LocalizeReply)
-    print(f"localization: {reply.state}", flush=True)
+    req = request_of(args)
+    reply = ask(args, keys.LOC_SET_POSE, req, LocalizeReply)
+    what = ("the next scan is searched for near the pose given; tracked once it fits"
+            if req.pose is not None else "the whole map is searched")
+    print(f"localization: {reply.state} ({what}; `autochair status` shows it)", flush=True)
     return 0

@@ -6,9 +6,10 @@ Update: the scan refined on the map's distance field (matching.refine) from the 
 with the match's information matrix as measurement noise, so a corridor's weak axis is left to
 odometry. Quality is the fraction of scan points that fall on the map.
 
-States (LocState): INITIALIZING (no pose yet: global search over the map's free space),
-TRACKING, LOST (quality below `lost_quality` for `lost_after` scans: search around the last
-pose in a window that widens every scan until the scan fits again).
+States (LocState): INITIALIZING (no pose yet: global search over the map's free space, or
+a person's guess being checked by a search around it), TRACKING, LOST (quality below
+`lost_quality` for `lost_after` scans, or a guess that nothing fits near: search around the
+last pose in a window that widens every scan until the scan fits again).
 
 `correction` is the map→odom transform (REP-105): map pose ∘ odom pose⁻¹.
 """
@@ -25,6 +26,7 @@ from .matching import (
     F64,
     BoolGrid,
     DistanceField,
+    Match,
     between,
     compose,
     inverse,
@@ -49,16 +51,24 @@ class LocParams:
     lost_quality: float = 0.45  # a scan fitting worse than this is a bad scan
     found_quality: float = 0.85  # a search result must fit this well to be taken (0.7 let
     # a 5 m-wrong pose in the hallway through: a corridor looks much the same along it)
+    sure_quality: float = 0.95  # a lost search's fit below this is checked against the map's
+    alias_margin: float = 0.05  # ... best, which must fit this much better to be taken
     lost_after: int = 3  # consecutive bad scans: lost
     search_xy_m: float = 0.8  # first window half-size when lost (grows ×1.5 per scan)
     search_yaw: float = math.radians(30.0)  # first yaw window half-size when lost (grows too)
     max_search_xy_m: float = 8.0
     max_points: int = 200  # scan points used in matching (evenly subsampled)
     gate: float = 25.0  # χ² (3 dof) beyond which a match is not fused, unless it fits well
-    # ... for `jump_confirm` scans in a row (the chair was carried): one good-looking match
-    # far off is more often a slip of the matcher (measured: a single 13 cm jump at a turn in
-    # the hallway, fit 0.99) than a kidnap.
+    # ... for `jump_confirm` of the last `jump_window` scans (the chair was carried, or a
+    # person's hint was wrong): one good-looking match far off is more often a slip of the
+    # matcher (measured: a single 13 cm jump at a turn in the hallway, fit 0.99) than a
+    # kidnap. Not "in a row": from a wrong pose the matcher's own local minima fall inside
+    # the gate now and then, and each such scan restarted the count (measured: a 36 cm wrong
+    # hint on a saved map left "tracking" 10-20 cm off for 10-25 scans, > 40 s parked).
     jump_confirm: int = 3
+    jump_window: int = 5
+    jump_refines: int = 4  # a confirmed jump is refined again from its own result up to this
+    # often: from 20 cm off one refine goes only half-way along a corridor (measured)
     # The match's information counts every point as an independent measurement; its errors
     # are not (a submap's wall ends, grid quantisation), so it can be scaled down against
     # the odometry (mapping's tracker: along a corridor only a few points fix the position).
@@ -111,18 +121,36 @@ class Localizer:
         self._window = self.p.search_xy_m
         self.scans = 0
         self.searches = 0
-        self._far = 0  # good fits far from the prediction in a row
+        self._far: list[bool] = []  # per recent scan: a good fit far from the prediction
+        self._hint: tuple[float, float] | None = None  # a guess's search window (m, rad)
         self.odom_scale = 1.0  # × the translation noise (adapt_odometry)
         self._anchor: tuple[F64, F64] | None = None  # (odometry, matched pose) of a reference
         self._since_var = 0.0  # prediction variance (per axis) and travel since the reference
         self._since_m = 0.0
 
     def set_pose(self, pose: F64, sigma_xy_m: float = 0.1, sigma_yaw: float = 0.1) -> None:
-        """An initial pose (`autochair localize`): tracking from it."""
+        """A pose known to this accuracy (SLAM's own keyframe, a closed loop): tracking
+        from it."""
         self.pose = np.array(pose, dtype=np.float64)
         self.cov = np.diag([sigma_xy_m**2, sigma_xy_m**2, sigma_yaw**2])
         self.state, self._bad = LocState.TRACKING, 0
         self._anchor = None  # the map frame may have moved (a loop closed): a new reference
+
+    def hint(self, pose: F64, sigma_xy_m: float, sigma_yaw: float) -> None:
+        """A person's guess (`autochair localize X Y YAW`): not tracked until a scan fits
+        near it. The next scan is searched for over its 2σ window, as AMCL spreads its
+        particles over an initial pose's covariance; if nothing fits there, lost (searching
+        wider). Tracked from the guess itself, a 36 cm wrong hint stayed 'tracking' 10-20 cm
+        off for 10-25 scans on a saved map (the matcher's local minima along a corridor fit
+        0.98), and a parked chair is matched once a second."""
+        self.pose = np.array(pose, dtype=np.float64)
+        self.state, self._bad, self._far = LocState.INITIALIZING, 0, []
+        self._hint = (max(2.0 * sigma_xy_m, 0.1), min(max(2.0 * sigma_yaw, math.radians(5)),
+                                                       math.pi))
+
+    def relocalize(self) -> None:
+        """Forget the pose: search the whole map (`autochair localize --global`)."""
+        self.state, self._hint = LocState.INITIALIZING, None
 
     def _predict(self, odom: F64) -> None:
         if self._last_odom is None:
@@ -158,31 +186,58 @@ class Localizer:
         return pts[np.linspace(0, len(pts) - 1, self.p.max_points).astype(np.int64)]
 
     def _search(self, pts: F64) -> bool:
-        """Global (INITIALIZING) or windowed (LOST) search; True when the scan fits again."""
+        """Around a person's guess, global (INITIALIZING) or windowed (LOST) search; True when
+        the scan fits again."""
         self.searches += 1
-        if self.state is LocState.INITIALIZING:
-            f = self.field.frame
-            centre = np.array([f.origin_x_m + self.field.w * self.field.res / 2,
-                               f.origin_y_m + self.field.h * self.field.res / 2, 0.0])
-            half = max(self.field.w, self.field.h) * self.field.res / 2
-            cand, _ = search(self.field, pts, centre, half_xy_m=half, half_yaw=math.pi,
-                             step_xy_m=0.2, step_yaw=math.radians(5), free=self.free,
-                             max_points=40)
-        else:
-            grow = self._window / self.p.search_xy_m
-            cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=self._window,
-                                  half_yaw=min(self.p.search_yaw * grow, math.pi),
+        if self._hint is not None:
+            hxy, hyaw = self._hint
+            cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=hxy, half_yaw=hyaw,
                                   free=self.free)
-            self._window = min(self._window * 1.5, self.p.max_search_xy_m)
-        m = refine(self.field, pts, cand)
+            self._hint = None  # if nothing fits near the guess: the whole map, as with none
+            return self._fits(pts, refine(self.field, pts, cand))
+        if self.state is LocState.INITIALIZING:
+            return self._fits(pts, self._global_search(pts))
+        m = self._window_search(pts)
+        # A fit in the window may be an alias of a better one further out (a corridor: 0.86
+        # at 1.9 m off, 1.00 at 3 m, measured): a fit short of sure is checked against the
+        # whole map's best, taken only if clearly better (not a twin room's noise).
+        if self.p.found_quality <= m.inliers < self.p.sure_quality:
+            whole = self._global_search(pts)
+            m = whole if whole.inliers > m.inliers + self.p.alias_margin else m
+        return self._fits(pts, m)
+
+    def _global_search(self, pts: F64) -> Match:
+        f = self.field.frame
+        centre = np.array([f.origin_x_m + self.field.w * self.field.res / 2,
+                           f.origin_y_m + self.field.h * self.field.res / 2, 0.0])
+        half = max(self.field.w, self.field.h) * self.field.res / 2
+        cand, _ = search(self.field, pts, centre, half_xy_m=half, half_yaw=math.pi,
+                         step_xy_m=0.2, step_yaw=math.radians(5), free=self.free, max_points=40)
+        return refine(self.field, pts, cand)
+
+    def _window_search(self, pts: F64) -> Match:
+        """The best fit in the window round the last pose; the window grows for the next."""
+        grow = self._window / self.p.search_xy_m
+        cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=self._window,
+                              half_yaw=min(self.p.search_yaw * grow, math.pi), free=self.free)
+        self._window = min(self._window * 1.5, self.p.max_search_xy_m)
+        return refine(self.field, pts, cand)
+
+    def _fits(self, pts: F64, m: Match) -> bool:
+        """A search's result taken if it fits well enough."""
         if m.inliers < self.p.found_quality:
             return False
+        self._take(m)
+        return True
+
+    def _take(self, m: Match) -> None:
+        """A search's result, or a confirmed jump: the pose is the match's, not a blend with
+        a prediction known to be wrong."""
         self.pose, self.quality = m.pose, m.inliers
         self.cov = np.asarray(np.linalg.inv(m.information + np.eye(3) * 1e-6),
                               dtype=np.float64) + np.diag([1e-4, 1e-4, 1e-4])
         self.state, self._bad, self._window = LocState.TRACKING, 0, self.p.search_xy_m
-        self._anchor = None  # the odometry since the last reference did not carry the chair
-        return True
+        self._far, self._anchor = [], None  # the odometry since the reference did not carry it
 
     def update(self, odom: F64, pts: F64) -> Estimate:
         """One scan: `odom` the odometry pose at the scan's stamp, `pts` the scan's end points
@@ -206,16 +261,31 @@ class Localizer:
         innov[2] = math.atan2(math.sin(innov[2]), math.cos(innov[2]))
         chi2 = float(innov @ np.linalg.solve(self.cov + np.linalg.inv(
             info + np.eye(3) * 1e-6), innov))
-        if chi2 > self.p.gate:  # far from the prediction: only a good fit, seen repeatedly
-            self._far = self._far + 1 if m.inliers >= self.p.found_quality else 0
-            if self._far < self.p.jump_confirm:
+        far = chi2 > self.p.gate
+        self._far = [*self._far, far and m.inliers >= self.p.found_quality][-self.p.jump_window:]
+        if far:  # far from the prediction: only a good fit, seen repeatedly
+            if sum(self._far) < self.p.jump_confirm:
                 return self.estimate()
-        self._far = 0
+            self._take(self._converged(pts, m))
+            return self.estimate()
         if self.p.adapt_odometry:
             self._adapt(self._last_odom if self._last_odom is not None else odom, m.pose,
                         m.information)
         self._fuse(m.pose, info)
         return self.estimate()
+
+    def _converged(self, pts: F64, m: Match) -> Match:
+        """`m` refined again from its own pose until it stops moving (1 cm, 0.5°) or fits
+        worse."""
+        for _ in range(self.p.jump_refines):
+            n = refine(self.field, pts, m.pose, prior_m=self.p.refine_prior_m)
+            d = between(m.pose, n.pose)
+            if n.inliers < m.inliers - 0.02:
+                break
+            m = n
+            if math.hypot(d[0], d[1]) < 0.01 and abs(d[2]) < math.radians(0.5):
+                break
+        return m
 
     def _adapt(self, odom: F64, matched: F64, information: F64) -> None:
         """Scale the odometry noise by how far the odometry's motion between two reference

@@ -120,11 +120,11 @@ class LocalizationService:
                                                  "chair is; start with --map NAME to localize")
         with self.lock:
             if req.pose is None:
-                self.loc.state = LocState.INITIALIZING
+                self.loc.relocalize()
             else:
                 p = req.pose
-                self.loc.set_pose(np.array([p.x_m, p.y_m, p.yaw_rad]), req.sigma_xy_m,
-                                  req.sigma_yaw_rad)
+                self.loc.hint(np.array([p.x_m, p.y_m, p.yaw_rad]), req.sigma_xy_m,
+                              req.sigma_yaw_rad)
             state = self.loc.state.value
         self.node.event("info", f"localization: pose set to {req.pose} ({state})")
         return LocalizeReply(ok=True, state=state)
