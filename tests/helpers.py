@@ -23,16 +23,18 @@ from autochair.runtime.session import client_settings, open_session
 T = TypeVar("T")
 
 
-def wait_for(cond: Callable[[], T | None], timeout: float, what: str = "condition",
-             interval: float = 0.01) -> T:
-    """Poll `cond` until it returns something truthy; fail the test after `timeout` seconds."""
+def wait_for(cond: Callable[[], T | None], timeout: float,
+             what: str | Callable[[], str] = "condition", interval: float = 0.01) -> T:
+    """Poll `cond` until it returns something truthy; fail the test after `timeout` seconds.
+    `what` may be a function: what was seen instead, worked out only on a failure."""
     deadline = time.monotonic() + timeout
     while True:
         value = cond()
         if value:
             return value
         if time.monotonic() > deadline:
-            pytest.fail(f"timed out after {timeout} s waiting for {what}")
+            pytest.fail(f"timed out after {timeout} s waiting for "
+                        f"{what() if callable(what) else what}")
         time.sleep(interval)
 
 
