@@ -157,7 +157,7 @@ def test_a_persons_guess_is_checked_by_a_search_before_it_is_tracked() -> None:
     assert states[0] is LocState.INITIALIZING and scans <= 10
 
 
-def test_a_lost_search_takes_a_fit_only_if_a_wider_window_has_no_better_one() -> None:
+def test_a_lost_searchs_weak_fit_is_checked_against_the_whole_map() -> None:
     """Lost 3 m along the corridor from the chair: the search's window reaches a 0.86 fit
     1.9 m off (an alias) before the chair's own 1.00; the alias is not taken (seed 2; also
     seeds 3 and 5 took it before, 0-5 all recover now)."""
@@ -171,20 +171,6 @@ def test_a_lost_search_takes_a_fit_only_if_a_wider_window_has_no_better_one() ->
     alias.set_pose(np.array([3.0, 0.5, 0.9]), 0.1, 0.1)
     _, states = _scans_to_chair(alias, seed=2, limit=8)
     assert states[-1] is LocState.TRACKING and alias.pose[0] > 1.5
-
-
-def test_a_far_match_is_confirmed_by_most_recent_scans_not_only_a_run() -> None:
-    """Tracking 36 cm off (the chair was pushed while parked): far matches that fit well
-    come between near ones (the matcher's local minima); they confirm the jump all the
-    same, and the jump is refined to the end."""
-    old_rule = LocParams(jump_window=3, jump_refines=0)  # three in a row, one refine
-    slow = _parked_map_localizer()
-    slow.p = old_rule
-    slow.set_pose(WRONG_HINT.copy(), 0.3, 0.2)
-    fast = _parked_map_localizer()
-    fast.set_pose(WRONG_HINT.copy(), 0.3, 0.2)
-    n_slow, n_fast = _scans_to_chair(slow, seed=1)[0], _scans_to_chair(fast, seed=1)[0]
-    assert n_fast <= 6 and n_slow > 2 * n_fast  # positive control: the old rule is slow
 
 
 def test_global_localization_without_initial_pose() -> None:

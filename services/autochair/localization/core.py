@@ -8,8 +8,8 @@ odometry. Quality is the fraction of scan points that fall on the map.
 
 States (LocState): INITIALIZING (no pose yet: global search over the map's free space, or
 a person's guess being checked by a search around it), TRACKING, LOST (quality below
-`lost_quality` for `lost_after` scans, or a guess that nothing fits near: search around the
-last pose in a window that widens every scan until the scan fits again).
+`lost_quality` for `lost_after` scans: search around the last pose in a window that widens
+every scan until the scan fits again; a weak fit is checked against the whole map's best).
 
 `correction` is the map→odom transform (REP-105): map pose ∘ odom pose⁻¹.
 """
@@ -59,16 +59,12 @@ class LocParams:
     max_search_xy_m: float = 8.0
     max_points: int = 200  # scan points used in matching (evenly subsampled)
     gate: float = 25.0  # χ² (3 dof) beyond which a match is not fused, unless it fits well
-    # ... for `jump_confirm` of the last `jump_window` scans (the chair was carried, or a
-    # person's hint was wrong): one good-looking match far off is more often a slip of the
-    # matcher (measured: a single 13 cm jump at a turn in the hallway, fit 0.99) than a
-    # kidnap. Not "in a row": from a wrong pose the matcher's own local minima fall inside
-    # the gate now and then, and each such scan restarted the count (measured: a 36 cm wrong
-    # hint on a saved map left "tracking" 10-20 cm off for 10-25 scans, > 40 s parked).
+    # ... for `jump_confirm` scans in a row (the chair was carried): one good-looking match
+    # far off is more often a slip of the matcher (measured: a single 13 cm jump at a turn in
+    # the hallway, fit 0.99) than a kidnap. (3 of the last 5 instead, with the jump refined
+    # further, recovered a chair pushed 36 cm while parked in 8-16 scans instead of 11-26,
+    # but took more slips at turns: on-own-map heading max 2.4 -> 8.3 deg. Not taken.)
     jump_confirm: int = 3
-    jump_window: int = 5
-    jump_refines: int = 4  # a confirmed jump is refined again from its own result up to this
-    # often: from 20 cm off one refine goes only half-way along a corridor (measured)
     # The match's information counts every point as an independent measurement; its errors
     # are not (a submap's wall ends, grid quantisation), so it can be scaled down against
     # the odometry (mapping's tracker: along a corridor only a few points fix the position).
@@ -121,7 +117,7 @@ class Localizer:
         self._window = self.p.search_xy_m
         self.scans = 0
         self.searches = 0
-        self._far: list[bool] = []  # per recent scan: a good fit far from the prediction
+        self._far = 0  # good fits far from the prediction in a row
         self._hint: tuple[float, float] | None = None  # a guess's search window (m, rad)
         self.odom_scale = 1.0  # × the translation noise (adapt_odometry)
         self._anchor: tuple[F64, F64] | None = None  # (odometry, matched pose) of a reference
@@ -139,12 +135,12 @@ class Localizer:
     def hint(self, pose: F64, sigma_xy_m: float, sigma_yaw: float) -> None:
         """A person's guess (`autochair localize X Y YAW`): not tracked until a scan fits
         near it. The next scan is searched for over its 2σ window, as AMCL spreads its
-        particles over an initial pose's covariance; if nothing fits there, lost (searching
-        wider). Tracked from the guess itself, a 36 cm wrong hint stayed 'tracking' 10-20 cm
+        particles over an initial pose's covariance; if nothing fits there, the whole map is
+        searched. Tracked from the guess itself, a 36 cm wrong hint stayed 'tracking' 10-20 cm
         off for 10-25 scans on a saved map (the matcher's local minima along a corridor fit
         0.98), and a parked chair is matched once a second."""
         self.pose = np.array(pose, dtype=np.float64)
-        self.state, self._bad, self._far = LocState.INITIALIZING, 0, []
+        self.state, self._bad, self._far = LocState.INITIALIZING, 0, 0
         self._hint = (max(2.0 * sigma_xy_m, 0.1), min(max(2.0 * sigma_yaw, math.radians(5)),
                                                        math.pi))
 
@@ -194,9 +190,9 @@ class Localizer:
             cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=hxy, half_yaw=hyaw,
                                   free=self.free)
             self._hint = None  # if nothing fits near the guess: the whole map, as with none
-            return self._fits(pts, refine(self.field, pts, cand))
+            return self._fits(refine(self.field, pts, cand))
         if self.state is LocState.INITIALIZING:
-            return self._fits(pts, self._global_search(pts))
+            return self._fits(self._global_search(pts))
         m = self._window_search(pts)
         # A fit in the window may be an alias of a better one further out (a corridor: 0.86
         # at 1.9 m off, 1.00 at 3 m, measured): a fit short of sure is checked against the
@@ -204,7 +200,7 @@ class Localizer:
         if self.p.found_quality <= m.inliers < self.p.sure_quality:
             whole = self._global_search(pts)
             m = whole if whole.inliers > m.inliers + self.p.alias_margin else m
-        return self._fits(pts, m)
+        return self._fits(m)
 
     def _global_search(self, pts: F64) -> Match:
         f = self.field.frame
@@ -223,21 +219,17 @@ class Localizer:
         self._window = min(self._window * 1.5, self.p.max_search_xy_m)
         return refine(self.field, pts, cand)
 
-    def _fits(self, pts: F64, m: Match) -> bool:
-        """A search's result taken if it fits well enough."""
+    def _fits(self, m: Match) -> bool:
+        """A search's result, taken whole (there is no prediction to blend) if it fits well
+        enough."""
         if m.inliers < self.p.found_quality:
             return False
-        self._take(m)
-        return True
-
-    def _take(self, m: Match) -> None:
-        """A search's result, or a confirmed jump: the pose is the match's, not a blend with
-        a prediction known to be wrong."""
         self.pose, self.quality = m.pose, m.inliers
         self.cov = np.asarray(np.linalg.inv(m.information + np.eye(3) * 1e-6),
                               dtype=np.float64) + np.diag([1e-4, 1e-4, 1e-4])
         self.state, self._bad, self._window = LocState.TRACKING, 0, self.p.search_xy_m
-        self._far, self._anchor = [], None  # the odometry since the reference did not carry it
+        self._far, self._anchor = 0, None  # the odometry since the reference did not carry it
+        return True
 
     def update(self, odom: F64, pts: F64) -> Estimate:
         """One scan: `odom` the odometry pose at the scan's stamp, `pts` the scan's end points
@@ -261,31 +253,16 @@ class Localizer:
         innov[2] = math.atan2(math.sin(innov[2]), math.cos(innov[2]))
         chi2 = float(innov @ np.linalg.solve(self.cov + np.linalg.inv(
             info + np.eye(3) * 1e-6), innov))
-        far = chi2 > self.p.gate
-        self._far = [*self._far, far and m.inliers >= self.p.found_quality][-self.p.jump_window:]
-        if far:  # far from the prediction: only a good fit, seen repeatedly
-            if sum(self._far) < self.p.jump_confirm:
+        if chi2 > self.p.gate:  # far from the prediction: only a good fit, seen repeatedly
+            self._far = self._far + 1 if m.inliers >= self.p.found_quality else 0
+            if self._far < self.p.jump_confirm:
                 return self.estimate()
-            self._take(self._converged(pts, m))
-            return self.estimate()
+        self._far = 0
         if self.p.adapt_odometry:
             self._adapt(self._last_odom if self._last_odom is not None else odom, m.pose,
                         m.information)
         self._fuse(m.pose, info)
         return self.estimate()
-
-    def _converged(self, pts: F64, m: Match) -> Match:
-        """`m` refined again from its own pose until it stops moving (1 cm, 0.5°) or fits
-        worse."""
-        for _ in range(self.p.jump_refines):
-            n = refine(self.field, pts, m.pose, prior_m=self.p.refine_prior_m)
-            d = between(m.pose, n.pose)
-            if n.inliers < m.inliers - 0.02:
-                break
-            m = n
-            if math.hypot(d[0], d[1]) < 0.01 and abs(d[2]) < math.radians(0.5):
-                break
-        return m
 
     def _adapt(self, odom: F64, matched: F64, information: F64) -> None:
         """Scale the odometry noise by how far the odometry's motion between two reference
