@@ -116,3 +116,26 @@ def test_shared_sections_are_validated_by_constraints_naming_the_field(setting: 
     proc = run("-m", "autochair.gateway.node", "--set", setting, "--set", "port=loop://",
                "--connect", f"tcp/127.0.0.1:{free_port()}")
     one_line_error(proc, f"[{setting.split('.')[0]}]", needle)
+
+
+def test_localize_reports_the_outcome_or_what_it_saw_instead(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    import queue
+
+    from autochair.commands.localize import _outcome
+    from autochair_msgs import LocalizedPose, Pose2D
+
+    def pose(state: str, x: float) -> LocalizedPose:
+        return LocalizedPose(stamp_ns=1, x_m=x, y_m=0.0, yaw_rad=0.0, covariance=[0.0] * 9,
+                             quality=0.4, state=state, mode="localization")
+
+    seen: queue.Queue[LocalizedPose] = queue.Queue()
+    for m in (pose("initializing", 3.0), pose("lost", 3.0)):
+        seen.put(m)
+    assert _outcome(seen, 0.2, Pose2D(3.0, 0.0, 0.0)) == 1
+    assert "not tracking after 0.2 s (lost, quality 0.40" in capsys.readouterr().out
+    seen.put(pose("tracking", 0.5))  # positive control: tracking is reported, with the offset
+    assert _outcome(seen, 0.2, Pose2D(0.0, 0.0, 0.0)) == 0
+    assert "tracking at (0.50 m, 0.00 m, 0.0°), quality 0.40, 50 cm from" in capsys.readouterr().out
+    assert _outcome(queue.Queue(), 0.05, None) == 1
+    assert "no pose reported" in capsys.readouterr().out

@@ -4,6 +4,8 @@ find the chair with no initial pose, take a pose from `autochair localize`."""
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -16,7 +18,6 @@ from autochair_msgs import (
     LocalizeRequest,
     MapSaveReply,
     MapSaveRequest,
-    Pose2D,
     keys,
 )
 from tests.helpers import Recorder, session_when_up, spawned, stop_process, wait_for
@@ -73,12 +74,18 @@ def test_map_save_restart_and_localize(tmp_path: Path) -> None:
             n = len(poses.items)
             wait_for(lambda: _tracking_near(poses, 0.0, 0.0, n), 20, "second global fix")
             n = len(poses.items)
-            reply_l = request(session, keys.LOC_SET_POSE,
-                              LocalizeRequest(pose=Pose2D(0.3, -0.2, math.radians(5))),
-                              LocalizeReply)
-            # A guess is not tracked until a scan fits near it (hazards H33): searched for
-            # within 2σ (the CLI's 30 cm), found on the next scan.
-            assert reply_l.ok and reply_l.state == "initializing"
+            # The people's way: `autochair localize`, with a guess 36 cm and 5° off. A guess
+            # is not tracked until a scan fits near it (hazards H33): searched for within 2σ
+            # (the CLI's 30 cm), found on the next scan; the CLI waits for that and says so.
+            proc = subprocess.run(
+                [sys.executable, "-m", "autochair.cli", "localize", "0.3", "-0.2", "5",
+                 "--connect", hub, "--wait", "30"], capture_output=True, text=True,
+                timeout=60, stdin=subprocess.DEVNULL)
+            assert proc.returncode == 0, proc.stdout + proc.stderr
+            assert "localization: initializing (searching near the pose given)" in proc.stdout
+            assert "tracking at" in proc.stdout and "from the pose given" in proc.stdout
+            print(proc.stdout)
+
             def tracked() -> list[LocalizedPose]:
                 return [m for _, m in poses.items[n:] if m.state == "tracking"]
 

@@ -1,7 +1,8 @@
 """`autochair localize X Y YAW_DEG`: tell the localization service where the chair is on the
 map (metres, metres, degrees counter-clockwise, in `map`); `autochair localize --global`: let
-it search the whole map. Prints the state it reports: a pose given is a guess, checked
-against the next scan (searched for within 2σ of it) before it is tracked."""
+it search the whole map. A pose given is a guess, checked against the next scan (searched for
+within 2σ of it) before it is tracked. Waits for the outcome: the pose tracked and how far it
+is from the guess, or, after --wait seconds, what the service reports instead (exit 1)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,8 @@ def register(sub: Any) -> None:
                    help="no pose: search the whole map")
     p.add_argument("--sigma-cm", type=float, default=30.0, help="uncertainty of X, Y (cm)")
     p.add_argument("--sigma-deg", type=float, default=10.0, help="uncertainty of YAW (°)")
+    p.add_argument("--wait", type=float, default=10.0,
+                   help="seconds to wait for the outcome (default 10)")
     add_link_args(p)
     p.set_defaults(func=run)
 
@@ -42,12 +45,52 @@ def request_of(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autochair.commands.link import ask
-    from autochair_msgs import LocalizeReply, keys
+    import queue
+
+    from autochair.commands.link import tool_session
+    from autochair.runtime.client import request, subscribe
+    from autochair_msgs import LocalizedPose, LocalizeReply, keys
 
     req = request_of(args)
-    reply = ask(args, keys.LOC_SET_POSE, req, LocalizeReply)
-    what = ("the next scan is searched for near the pose given; tracked once it fits"
-            if req.pose is not None else "the whole map is searched")
-    print(f"localization: {reply.state} ({what}; `autochair status` shows it)", flush=True)
-    return 0
+    poses: queue.Queue[LocalizedPose] = queue.Queue()
+    session = tool_session(args)
+    try:
+        sub = subscribe(session, keys.LOC_POSE, poses.put)
+        try:
+            reply = request(session, keys.LOC_SET_POSE, req, LocalizeReply)
+            if not reply.ok:
+                raise CliError(reply.error)
+            print(f"localization: {reply.state} ("
+                  + ("searching near the pose given" if req.pose is not None
+                     else "searching the whole map") + ")", flush=True)
+            return _outcome(poses, args.wait, req.pose)
+        finally:
+            sub.undeclare()
+    finally:
+        session.close()
+
+
+def _outcome(poses: Any, wait_s: float, guess: Any) -> int:
+    """The first pose the localization reports tracking within `wait_s`: printed with its
+    distance from the guess; else what it reports instead (exit 1)."""
+    import queue
+    import time
+
+    deadline, last = time.monotonic() + wait_s, None
+    while (left := deadline - time.monotonic()) > 0:
+        try:
+            last = poses.get(timeout=left)
+        except queue.Empty:
+            break
+        if last.state == "tracking":
+            off = ("" if guess is None else
+                   f", {100 * math.hypot(last.x_m - guess.x_m, last.y_m - guess.y_m):.0f} cm "
+                   "from the pose given")
+            print(f"localization: tracking at ({last.x_m:.2f} m, {last.y_m:.2f} m, "
+                  f"{math.degrees(last.yaw_rad):.1f}°), quality {last.quality:.2f}{off}",
+                  flush=True)
+            return 0
+    print(f"localization: not tracking after {wait_s:g} s ("
+          + (f"{last.state}, quality {last.quality:.2f}" if last else "no pose reported")
+          + "; it goes on searching)", flush=True)
+    return 1
