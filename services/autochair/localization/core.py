@@ -65,6 +65,13 @@ class LocParams:
     # further, recovered a chair pushed 36 cm while parked in 8-16 scans instead of 11-26,
     # but took more slips at turns: on-own-map heading max 2.4 -> 8.3 deg. Not taken.)
     jump_confirm: int = 3
+    # A chair whose odometry stood still since the last scan (parked: matched once a second)
+    # is also searched for within this window, and a confirmed far match is then taken whole:
+    # pushed with its wheels free, the refine from the old pose stops in the corridor's local
+    # minima (fit 0.98, 10-20 cm off), and a jump took 12-21 scans; measured, see H33.
+    still_search_xy_m: float = 0.5
+    still_search_yaw: float = math.radians(15.0)
+    still_m: float = 0.005  # odometry travel (m, and rad) between scans below which it stood
     # The match's information counts every point as an independent measurement; its errors
     # are not (a submap's wall ends, grid quantisation), so it can be scaled down against
     # the odometry (mapping's tracker: along a corridor only a few points fix the position).
@@ -118,6 +125,7 @@ class Localizer:
         self.scans = 0
         self.searches = 0
         self._far = 0  # good fits far from the prediction in a row
+        self._still = False  # the odometry stood still since the last scan
         self._hint: tuple[float, float] | None = None  # a guess's search window (m, rad)
         self.odom_scale = 1.0  # × the translation noise (adapt_odometry)
         self._anchor: tuple[F64, F64] | None = None  # (odometry, matched pose) of a reference
@@ -158,6 +166,7 @@ class Localizer:
         f = np.array([[1.0, 0.0, -s * delta[0] - c * delta[1]],
                       [0.0, 1.0, c * delta[0] - s * delta[1]], [0.0, 0.0, 1.0]])
         dist, turn = math.hypot(delta[0], delta[1]), abs(delta[2])
+        self._still = dist < self.p.still_m and turn < self.p.still_m
         q_xy = (self.odom_scale * (self.p.base_sigma_m + self.p.trans_noise * dist)) ** 2
         self._since_var += q_xy
         self._since_m += dist
@@ -186,11 +195,9 @@ class Localizer:
         the scan fits again."""
         self.searches += 1
         if self._hint is not None:
-            hxy, hyaw = self._hint
-            cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=hxy, half_yaw=hyaw,
-                                  free=self.free)
+            m = self._near(pts, *self._hint)
             self._hint = None  # if nothing fits near the guess: the whole map, as with none
-            return self._fits(refine(self.field, pts, cand))
+            return self._fits(m)
         if self.state is LocState.INITIALIZING:
             return self._fits(self._global_search(pts))
         m = self._window_search(pts)
@@ -213,10 +220,14 @@ class Localizer:
 
     def _window_search(self, pts: F64) -> Match:
         """The best fit in the window round the last pose; the window grows for the next."""
-        grow = self._window / self.p.search_xy_m
-        cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=self._window,
-                              half_yaw=min(self.p.search_yaw * grow, math.pi), free=self.free)
+        m = self._near(pts, self._window, self.p.search_yaw * self._window / self.p.search_xy_m)
         self._window = min(self._window * 1.5, self.p.max_search_xy_m)
+        return m
+
+    def _near(self, pts: F64, half_xy_m: float, half_yaw: float) -> Match:
+        """The best fit within ±half_xy_m, ±half_yaw of the pose."""
+        cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=half_xy_m,
+                              half_yaw=min(half_yaw, math.pi), free=self.free)
         return refine(self.field, pts, cand)
 
     def _fits(self, m: Match) -> bool:
@@ -241,6 +252,9 @@ class Localizer:
             self._search(pts)
             return self.estimate()
         m = refine(self.field, pts, self.pose, prior_m=self.p.refine_prior_m)
+        if self._still:
+            near = self._near(pts, self.p.still_search_xy_m, self.p.still_search_yaw)
+            m = near if near.inliers > m.inliers else m
         self.quality = m.inliers
         if m.inliers < self.p.lost_quality:
             self._bad += 1
@@ -256,6 +270,9 @@ class Localizer:
         if chi2 > self.p.gate:  # far from the prediction: only a good fit, seen repeatedly
             self._far = self._far + 1 if m.inliers >= self.p.found_quality else 0
             if self._far < self.p.jump_confirm:
+                return self.estimate()
+            if self._still:  # no slip of a turn to fear: the searched pose, taken whole
+                self._fits(m)
                 return self.estimate()
         self._far = 0
         if self.p.adapt_odometry:
