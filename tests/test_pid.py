@@ -449,3 +449,28 @@ def test_a_limit_that_leaves_only_a_creep_of_turn_is_a_safety_stop() -> None:
     # stop; the stream drives on (the chair never stood still).
     held, after = run(0.3)
     assert held[0] == (0.0, 0.3) and all(after)
+
+
+def test_the_output_tells_the_feed_forward_from_the_feedback() -> None:
+    """PidOutput.feedforward (PidStatus): on a chair that is the model the effort is the
+    feed-forward alone; on one that does not move the feedback adds to it (positive
+    control); an axis without a model has none."""
+    def run(follows: bool, model: ChainModel | None) -> list[tuple[float, float]]:
+        core = core_(v_model=model, v_gains=(0.5, 0.7, 0.1))
+        twin = Feedforward(MODEL, core.prefilter_s)
+        y, rows = 0.0, []
+        for i in range(1, 3 * HALF_S):
+            t = i * DT
+            core.set_estop(False, t, ns(t))
+            core.set_desired(Command(0.3, 0.0, "autonomy", ns(t), 1), t, ns(t))
+            out = core.update(y, 0.0, DT, t, ns(t))
+            rows.append((out.v_effort, out.feedforward[0]))
+            if follows:
+                y = twin.reference(out.v_effort, DT)
+        return rows
+
+    same = run(True, MODEL)
+    assert max(abs(e - f) for e, f in same) < 1e-6 and max(f for _, f in same) > 0.1
+    stuck = run(False, MODEL)
+    assert max(e - f for e, f in stuck) > 0.05
+    assert all(f == 0.0 for _, f in run(False, None))

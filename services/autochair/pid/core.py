@@ -136,6 +136,9 @@ class PidOutput:
     desired: tuple[float, float] = (0.0, 0.0)  # within caps and limit ((0, 0) when stopped)
     saturated: bool = False  # an effort at the joystick window's edge
     probe: str = ""  # "" or "<kind> <axis> <state>" while a tuning probe runs
+    # Of each effort, the model's feed-forward (0 for an axis without a model): the rest is the
+    # feedback's correction.
+    feedforward: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -420,7 +423,7 @@ class VelocityPidCore:
         sat = any(c <= lo + 1e-9 or c >= hi - 1e-9 for c in (cv, cw))
         return PidOutput(cv, cw, effort_to_volts(cv, self.min_v, self.max_v),
                          effort_to_volts(cw, self.min_v, self.max_v), True, desired, sat,
-                         self._probe_text())
+                         self._probe_text(), (self._sent[0], self._sent[1]))
 
     @property
     def _window(self) -> tuple[float, float]:
