@@ -528,12 +528,13 @@ class Mpepc:
         dx, dy = goal[0] - x, goal[1] - y
         reach, fld, contact = self.field.footprint.reach_m, self.field, self.p.contact_m
 
-        def clearance(off: float) -> float:
+        def sweep(off: float) -> F64 | None:
+            """(3, n) poses the manoeuvre via yaw + off sweeps; None: its line misses."""
             psi = yaw + off
             c, s = math.cos(psi), math.sin(psi)
             along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
             if along <= 0.0 or lateral > self.p.final_line * self.law.tolerance_m:
-                return -math.inf
+                return None
             # The last turn starts while the straight still lands (its last capture radius,
             # control/core.py _align): checked from there on (and `final_overshoot_m` past).
             far = along + self.p.final_overshoot_m
@@ -543,20 +544,29 @@ class Mpepc:
             n1 = max(2, math.ceil(abs(off) * reach / 0.05) + 1)
             n2 = max(2, math.ceil(abs(e2) * reach / 0.05) + 1)
             turn2 = psi + np.linspace(0.0, e2, n2)
-            xs = np.concatenate([np.full(n1, x), x + k * far * c,
-                                 np.repeat(x + ls * c, n2)])
-            ys = np.concatenate([np.full(n1, y), y + k * far * s,
-                                 np.repeat(y + ls * s, n2)])
-            yaws = np.concatenate([yaw + np.linspace(0.0, off, n1), np.full(k.size, psi),
-                                   np.tile(turn2, ls.size)])
-            return float(fld.footprint_clearance(xs, ys, yaws).min())
+            return np.stack([
+                np.concatenate([np.full(n1, x), x + k * far * c, np.repeat(x + ls * c, n2)]),
+                np.concatenate([np.full(n1, y), y + k * far * s, np.repeat(y + ls * s, n2)]),
+                np.concatenate([yaw + np.linspace(0.0, off, n1), np.full(k.size, psi),
+                                np.tile(turn2, ls.size)])])
 
-        if straight and clearance(0.0) >= contact:
+        def clearance(offs: F64) -> F64:
+            """Least clearance of each manoeuvre (−inf: its line misses), in one batch."""
+            out = np.full(offs.size, -math.inf)
+            sweeps = [(i, sw) for i, o in enumerate(offs) if (sw := sweep(float(o))) is not None]
+            if sweeps:
+                poses = np.concatenate([sw for _, sw in sweeps], 1)
+                starts = np.cumsum([0] + [sw.shape[1] for _, sw in sweeps[:-1]])
+                d = fld.footprint_clearance(poses[0], poses[1], poses[2])
+                out[[i for i, _ in sweeps]] = np.minimum.reduceat(d, starts)
+            return out
+
+        if straight and clearance(np.zeros(1))[0] >= contact:
             return yaw
         if not turn:
             return None
         offs = np.radians(np.arange(-max_deg, max_deg + 0.5 * step_deg, step_deg))
-        clear = np.array([clearance(float(o)) for o in offs])
+        clear = clearance(offs)
         w = round(spare_deg / step_deg)
         robust = np.array([clear[max(0, i - w):i + w + 1].min() for i in range(offs.size)])
         robust[offs == 0.0] = -math.inf  # (no turn: see above)
