@@ -618,3 +618,33 @@ def test_a_non_finite_correction_stops_a_map_goal_like_a_lost_localization() -> 
     core.on_correction((0.0, 0.0, math.inf))
     run_unicycle(core, t, t + 4.0, pose, lambda t: core.on_loc_state("tracking", t))
     assert core.state == "aborted" and "not finite" in core.reason
+
+
+def test_a_chair_stopped_short_beside_the_goal_drives_its_straight_final() -> None:
+    """Stopped 7 cm short of the goal and 3.5 cm beside its line (beyond the capture radius,
+    within the tolerance), next to a post: the law's approach would swing the body round into
+    the post and is refused (H40), so the chair stood there (the navigation suite's tight
+    goals; measured). MPEPC hands over the straight final it has checked (Mpepc
+    .final_heading): the chair drives straight onto the goal's along-track point, no turn."""
+    def run(posts: np.ndarray) -> tuple[ControlCore, list[float], float]:
+        core = fresh_core(INSTANT)
+        core.on_field(_post_field(posts))  # type: ignore[arg-type]
+        core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+        pose, turned, t = [2.0, 0.0, 0.0], 0.0, 0.0
+        while t < 20.0 and core.active:
+            t = run_unicycle(core, t, t + 0.02, pose)
+            turned = max(turned, abs(pose[2]))
+        return core, pose, turned
+
+    goal = (2.07, 0.035, 0.0)
+    post = np.array([[2.0 + 0.78 * math.cos(0.87), 0.78 * math.sin(0.87), 0.04]])  # at 50°
+    core = fresh_core(INSTANT)
+    core.on_field(_post_field(post))  # type: ignore[arg-type]
+    here = OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    assert not core._room_to_approach(here, Pose2D(*goal), 0.078)  # the law's sweep: the post
+    free, _, _ = run(np.zeros((0, 3)))
+    assert free.state == "arrived"  # positive control: no post
+    core, pose, turned = run(post)
+    assert core.state == "arrived", core.reason
+    assert turned < math.radians(1) and math.hypot(pose[0] - 2.07, pose[1] - 0.035) <= 0.05

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from autochair.control.core import ControlConfig
 from autochair.nav import lattice
@@ -183,3 +184,53 @@ def test_in_the_tolerance_the_goals_clear_turn_is_handed_over_whatever_it_costs(
     far = msgspec.structs.replace(LAW, tolerance_m=0.01)
     plan = Mpepc(fld, far, MpepcParams()).plan(here, 0.0, 0.0, goal, ctg)
     assert not plan.is_goal
+
+
+def test_a_chair_stopped_short_of_a_tight_goal_gets_its_final_manoeuvre() -> None:
+    # Office A's far corner (nav_eval seed 7): the lattice's way in ends "drive 5–10 cm, turn
+    # in place" at one exact state; the chair stood 20 cm short, 29° off, and every plan lost
+    # to standing still ("blocked", then aborted; measured). MPEPC hands it the manoeuvre the
+    # core executes without the law: a turn onto a heading whose straight line passes the goal
+    # within the tolerance, the straight final, then the goal's turn — each sweep clear.
+    from autochair.nav.planner import PlanRequest, compute
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD)
+
+    def hallway() -> NavField:  # (one per MpepcParams: planner.py keeps one planner per field)
+        return NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+
+    fld, control = hallway(), hallway()
+    goal, here = (5.5, 3.5, math.pi), (5.65, 3.37, math.radians(151))
+
+    def plan(pose: tuple[float, float, float], params: MpepcParams) -> tuple[object, str]:
+        f = control if params.final_move_m == 0.0 else fld
+        res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, f, None, None, LAW), params)
+        assert res.plan is not None
+        return res.plan, res.blocked_by
+
+    # positive control: without the final manoeuvre the chair stands there, blocked
+    p, blocked = plan(here, MpepcParams(final_move_m=0.0))
+    assert blocked and not p.is_goal  # type: ignore[attr-defined]
+    p, blocked = plan(here, MpepcParams())
+    assert not blocked and p.final_turn and not p.is_goal  # type: ignore[attr-defined]
+    psi = p.target[2]  # type: ignore[attr-defined]
+    assert p.target[:2] == pytest.approx(here[:2])  # type: ignore[attr-defined]  # in place
+    c, s = math.cos(psi), math.sin(psi)
+    dx, dy = goal[0] - here[0], goal[1] - here[1]
+    assert dx * c + dy * s > 0 and abs(dy * c - dx * s) <= 0.8 * LAW.tolerance_m
+    # the sweeps the core will drive: the turn, the straight, the goal's turn at its end
+    along = dx * c + dy * s
+    k = np.linspace(0.0, 1.0, 11)
+    xs = np.concatenate([np.full(30, here[0]), here[0] + k * along * c, np.full(30, here[0]
+                                                                            + along * c)])
+    ys = np.concatenate([np.full(30, here[1]), here[1] + k * along * s, np.full(30, here[1]
+                                                                            + along * s)])
+    yaws = np.concatenate([np.linspace(here[2], psi, 30), np.full(11, psi),
+                           psi + np.linspace(0.0, math.remainder(goal[2] - psi, 2 * math.pi),
+                                             30)])
+    assert fld.footprint_clearance(xs, ys, yaws).min() >= MpepcParams().contact_m
+    # turned onto ψ (a degree off, as the core's turn may end), the goal is handed over
+    for off in (-1.0, 0.0, 1.0):
+        p, blocked = plan((here[0], here[1], psi + math.radians(off)), MpepcParams())
+        assert p.is_goal and not blocked, off  # type: ignore[attr-defined]

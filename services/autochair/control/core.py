@@ -38,6 +38,7 @@ PLANNING, DRIVING, BLOCKED = "planning", "driving", "blocked"
 NO_ROOM_TO_TURN = "no room to turn to the goal's heading here"
 TURN_CLEARANCE_M = 0.02  # an in-place turn keeps the body this clear of the map (NavField's margin)
 IN_PLACE_R_M = MpepcParams().in_place_r_m
+FINAL_MOVE_M, FINAL_LINE = MpepcParams().final_move_m, MpepcParams().final_line
 GOAL_SHIFT_M = 0.05  # a map goal moved this far in odom (the field's cell): new costs-to-go
 LINEUP_M, LINEUP_RAD = 0.2, 0.3  # a line-up pose before a door counts as reached within these
 ACTIVE_STATES = (PLANNING, DRIVING, BLOCKED)
@@ -720,15 +721,6 @@ class ControlCore:
             self._land_left = None
         if self.aligning:
             return self._align(goal, o, now)
-        if not self.straight and r <= IN_PLACE_R_M and not self.limiter.v.moving \
-                and not self._room_to_approach(o, goal, r):
-            # Near the goal the law spins at the ω floor about a point within r of the axle, a
-            # sweep no plan has checked (it swung a chair into a wall in the navigation suite):
-            # refused like an in-place turn without room (H40), the goal goes back to MPEPC.
-            self.final = self.aligning = False
-            self._last_blocked = (NO_ROOM_TO_TURN, now)
-            self._count("approaches_refused")
-            return 0.0, 0.0
         out = park_kuipers(o.x, o.y, o.yaw, goal.x_m, goal.y_m, goal.yaw_rad, self.gains,
                            self.vmax, omega_floor=cfg.omega_floor_radps)
         along = r * math.cos(out.delta_rad)
@@ -738,8 +730,25 @@ class ControlCore:
         lw = self.limiter.w
         swing = lw.value * abs(lw.value) / (2.0 * lw.amax)
         lateral_stop = abs(r * math.sin(out.delta_rad + swing))
-        if not self.straight and r <= cfg.straight_radius_m and along > 0.0 \
-                and max(lateral, lateral_stop) <= capture:
+        # (from rest near the goal, MPEPC's final manoeuvre lines the chair up within
+        # FINAL_LINE of the tolerance: Mpepc.final_heading)
+        line = FINAL_LINE * self.tol_m if r <= FINAL_MOVE_M and not self.limiter.v.moving \
+            and not lw.moving else capture
+        lined_up = r <= cfg.straight_radius_m and along > 0.0 \
+            and max(lateral, lateral_stop) <= line \
+            and (lateral <= capture or self._room_to_go(o, along))
+        if not self.straight and not lined_up and r <= IN_PLACE_R_M \
+                and not self.limiter.v.moving and not self._room_to_approach(o, goal, r):
+            # Near the goal the law spins at the ω floor about a point within r of the axle, a
+            # sweep no plan has checked (it swung a chair into a wall in the navigation suite):
+            # refused like an in-place turn without room (H40), the goal goes back to MPEPC.
+            # (Lined up, the straight final below does not steer: a translation the plan that
+            # handed the goal over has checked, then the in-place turn, checked in _align.)
+            self.final = self.aligning = False
+            self._last_blocked = (NO_ROOM_TO_TURN, now)
+            self._count("approaches_refused")
+            return 0.0, 0.0
+        if not self.straight and lined_up:
             self.straight = True
         elif self.straight and lateral > self.tol_m:
             self.straight = False  # pushed off the line: steer again
@@ -835,6 +844,17 @@ class ControlCore:
         steps = max(2, math.ceil(abs(e - lo) * self.footprint.reach_m / 0.05) + 1)
         clear = fld.footprint_clearance(o.x, o.y, o.yaw + np.linspace(lo, e, steps))
         return bool(clear.min() > TURN_CLEARANCE_M + grow_m)
+
+    def _room_to_go(self, o: OdomSample, along: float) -> bool:
+        """Whether the body driven straight on `along` keeps clear of the map as an in-place
+        turn must (checked again here for the straight final from beside the goal's line)."""
+        fld = self.field
+        if fld is None:
+            return True
+        k = np.linspace(0.0, max(along, 0.0), max(2, math.ceil(along / 0.02) + 1))
+        clear = fld.footprint_clearance(o.x + k * math.cos(o.yaw), o.y + k * math.sin(o.yaw),
+                                        np.full(k.size, o.yaw))
+        return bool(clear.min() > TURN_CLEARANCE_M)
 
     def _room_to_approach(self, o: OdomSample, goal: Pose2D, r: float) -> bool:
         """Whether the law's last `r` to the goal keeps clear: the body turned over every yaw

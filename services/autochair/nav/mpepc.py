@@ -142,6 +142,22 @@ class MpepcParams:
     lined_up_m: float = 0.3  # see Mpepc.lined_up
     progress_ahead_m: float = 0.0
     goal_slack: float = 0.5  # the goal is taken when it costs at most this much more
+    # Within this of the goal, a chair not translating that no plan hands the goal to is given
+    # the final manoeuvre directly (Mpepc.final_heading): the lattice's last "drive a few cm,
+    # turn in place" needs the chair on one exact 5 cm state, and the law creeps towards
+    # targets that close (v ≤ vmax·r/r_thresh); the chair stood 5–10 cm off two tight goals.
+    final_move_m: float = 0.3
+    # ... whose straight passes within this fraction of the position tolerance of the goal
+    # (the capture radius, half of it, left no heading with room at those goals; measured).
+    final_line: float = 0.8
+    # ... from this many tolerances out: nearer, the manoeuvre's turn, begun just outside the
+    # tolerance, was handed over mid-swing as the goal's own turn once the chair stood inside
+    # it, the core's straight final drove on while the body still swung, 3 cm past the goal,
+    # and its turn there touched office B's desk (nav_eval seed 7; measured).
+    final_from: float = 1.5
+    # The last turn is checked this far past the point the straight lands on too (a margin;
+    # 2 cm left no heading behind the cabinet).
+    final_overshoot_m: float = 0.01
     n_global: int = 128  # rounded to a power of 2 (Sobol)
     n_local: int = 64
     local_rounds: int = 3
@@ -164,6 +180,9 @@ class Plan:
     goal_clearance_m: float
     stop_cost: float  # the cost of braking to a stand-still (blocked: nothing beats it)
     evaluations: int
+    # The in-place turn of the final manoeuvre (Mpepc.final_heading): it makes no progress on
+    # the costs-to-go, but it is not blocked.
+    final_turn: bool = False
 
 
 def wrap(a: F64) -> F64:
@@ -494,6 +513,83 @@ class Mpepc:
                                                np.full(5, pose[2]))
         return bool(clear.min() >= self.p.contact_m)
 
+    def final_heading(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                      turn: bool, straight: bool, step_deg: float = 1.0, max_deg: float = 90.0,
+                      spare_deg: float = 2.0) -> float | None:
+        """The final manoeuvre the core executes exactly, without the law: an in-place turn
+        onto a heading ψ (if `turn`), the core's straight final along it onto the goal's
+        along-track point (ψ passes within `final_line` of the tolerance), then its in-place
+        turn onto the goal's yaw, each sweep keeping `contact_m` (as a predicted motion must;
+        the core rechecks the last turn, H40). Returns the chair's own yaw if that needs no
+        turn (and `straight`), else the ψ whose headings within `spare_deg` all do (the turn
+        ends a degree or two off; the clearance there changes by cm per degree), keeping the
+        most clearance; None if there is none."""
+        x, y, yaw = pose
+        dx, dy = goal[0] - x, goal[1] - y
+        reach, fld, contact = self.field.footprint.reach_m, self.field, self.p.contact_m
+
+        def sweep(off: float) -> F64 | None:
+            """(3, n) poses the manoeuvre via yaw + off sweeps; None: its line misses."""
+            psi = yaw + off
+            c, s = math.cos(psi), math.sin(psi)
+            along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
+            if along <= 0.0 or lateral > self.p.final_line * self.law.tolerance_m:
+                return None
+            # The last turn starts while the straight still lands (its last capture radius,
+            # control/core.py _align): checked from there on (and `final_overshoot_m` past).
+            far = along + self.p.final_overshoot_m
+            ls = np.linspace(max(along - self.law.capture_m, 0.0), far, 5)
+            k = np.linspace(0.0, 1.0, max(2, math.ceil(far / 0.02) + 1))
+            e2 = float(wrap(np.array(goal[2] - psi)))
+            n1 = max(2, math.ceil(abs(off) * reach / 0.05) + 1)
+            n2 = max(2, math.ceil(abs(e2) * reach / 0.05) + 1)
+            turn2 = psi + np.linspace(0.0, e2, n2)
+            return np.stack([
+                np.concatenate([np.full(n1, x), x + k * far * c, np.repeat(x + ls * c, n2)]),
+                np.concatenate([np.full(n1, y), y + k * far * s, np.repeat(y + ls * s, n2)]),
+                np.concatenate([yaw + np.linspace(0.0, off, n1), np.full(k.size, psi),
+                                np.tile(turn2, ls.size)])])
+
+        def clearance(offs: F64) -> F64:
+            """Least clearance of each manoeuvre (−inf: its line misses), in one batch."""
+            out = np.full(offs.size, -math.inf)
+            sweeps = [(i, sw) for i, o in enumerate(offs) if (sw := sweep(float(o))) is not None]
+            if sweeps:
+                poses = np.concatenate([sw for _, sw in sweeps], 1)
+                starts = np.cumsum([0] + [sw.shape[1] for _, sw in sweeps[:-1]])
+                d = fld.footprint_clearance(poses[0], poses[1], poses[2])
+                out[[i for i, _ in sweeps]] = np.minimum.reduceat(d, starts)
+            return out
+
+        if straight and clearance(np.zeros(1))[0] >= contact:
+            return yaw
+        if not turn:
+            return None
+        offs = np.radians(np.arange(-max_deg, max_deg + 0.5 * step_deg, step_deg))
+        clear = clearance(offs)
+        w = round(spare_deg / step_deg)
+        robust = np.array([clear[max(0, i - w):i + w + 1].min() for i in range(offs.size)])
+        robust[offs == 0.0] = -math.inf  # (no turn: see above)
+        i = int(np.argmax(robust))
+        return yaw + float(offs[i]) if robust[i] >= contact else None
+
+    def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
+                        goal: tuple[float, float, float]) -> bool:
+        """From rest within `final_move_m` the core drives its straight final wherever the
+        goal's line passes within `final_line` of the tolerance (control/core.py), not only
+        within the capture radius: a goal handed over there must have that manoeuvre clear."""
+        r = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+        if abs(v0) >= 0.01 or abs(w0) >= 0.01 or not self.law.tolerance_m < r \
+                <= self.p.final_move_m:
+            return True
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        dx, dy = goal[0] - pose[0], goal[1] - pose[1]
+        lateral = abs(dy * c - dx * s)
+        if dx * c + dy * s <= 0.0 or not self.law.capture_m < lateral \
+                <= self.p.final_line * self.law.tolerance_m:
+            return True
+        return self.final_heading(pose, goal, turn=False, straight=True) is not None
+
     def lined_up(self, pose: tuple[float, float, float], ctg: CostToGo,
                  hf: HeadingField | None) -> bool:
         """The goal may be handed to the core's own final approach (a straight final, then
@@ -677,10 +773,32 @@ class Mpepc:
             if float(info["clearance"][0]) >= self.p.contact_m and ends < 0.3 \
                     and (there or float(cost[0]) <= best_c + self.p.goal_slack) \
                     and self.lined_up(pose, ctg, heading) \
-                    and (not final or self.handover(pose, v0, goal)):
+                    and (not final or (self.handover(pose, v0, goal)
+                                       and self.wide_line_clear(pose, v0, w0, goal))):
                 best_z, best_c, best = z[0].copy(), float(cost[0]), {k: v[0]
                                                                      for k, v in info.items()}
                 is_goal = True
+        final_turn = False
+        r_goal = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+        if has_goal and final and not is_goal \
+                and self.p.final_from * self.law.tolerance_m < r_goal <= self.p.final_move_m:
+            # (a turn only from rest or on from a turn under way; the straight final not
+            # during a turn: its swing as it brakes would put the chair off the line)
+            psi = self.final_heading(pose, goal, turn=abs(v0) < 0.01, straight=abs(w0) < 0.01)
+            if psi is not None:  # lined up: the core's straight final, else turn onto ψ
+                # (checked for people and the stop as the law along the line: the straight)
+                c, s = math.cos(psi), math.sin(psi)
+                along = (goal[0] - pose[0]) * c + (goal[1] - pose[1]) * s
+                zz = np.array([[along, 0.0, 0.0, self.p.v_min_mps] if psi == pose[2] else
+                               [0.0, float(wrap(np.array(psi - pose[2]))), 0.0,
+                                self.p.v_min_mps]])
+                c3, inf3 = self._costs(pose, v0, w0, zz, ctg, people, goal, rates, final,
+                                       heading)
+                if float(inf3["hit"][0]) == 0.0:
+                    is_goal, final_turn = psi == pose[2], psi != pose[2]
+                    best_z, best_c, best = (z[0] if is_goal else zz[0]).copy(), float(c3[0]), {
+                        k: v[0] for k, v in inf3.items()}
+                    goal_clear = float(inf3["clearance"][0]) if is_goal else goal_clear
         tgt = self.targets(pose, best_z[None, :])[0]
         if best_z[0] < self.p.in_place_r_m:
             tgt = self.in_place_targets(pose, best_z[None, :])[0]
@@ -689,7 +807,7 @@ class Mpepc:
                     (float(tgt[0]), float(tgt[1]), float(tgt[2])), float(best_z[3]),
                     best_c, float(best["phi0"] - best["phi_end"]), float(best["survival"]),
                     float(best["clearance"]), path, is_goal, goal_clear,
-                    float(cost[int(has_goal)]), evals)
+                    float(cost[int(has_goal)]), evals, final_turn)
 
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],

@@ -175,7 +175,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         # Every motion is predicted to touch something: stand still (blocked) rather than
         # take the least bad contact.
         blocked = blocker(fld, ctg, req.pose, req.people)
-    elif not plan.is_goal and (plan.vmax_mps <= 0.0 or (
+    elif not plan.is_goal and not plan.final_turn and (plan.vmax_mps <= 0.0 or (
             plan.progress_m < blocked_progress_m and plan.cost > plan.stop_cost - blocked_gain)):
         # No progress, and nothing (a turn towards the path included) beats standing still; or
         # braking to rest is the best motion (the core brakes while blocked, as predicted).
