@@ -452,7 +452,9 @@ def test_a_limit_that_leaves_only_a_creep_of_turn_is_a_safety_stop() -> None:
 
 
 def test_the_output_tells_the_feed_forward_from_the_feedback() -> None:
-    """PidOutput.feedforward (PidStatus): on a chair that is the model the effort is the
+    """PidOutput.feedforward (a lockstep trace's; not on the wire: at 100 Hz its two fields
+    cost 10 MB an hour of driving, measured, and the recorded desired velocity and the
+    model give it again): on a chair that is the model the effort is the
     feed-forward alone; on one that does not move the feedback adds to it (positive
     control); an axis without a model has none."""
     def run(follows: bool, model: ChainModel | None) -> list[tuple[float, float]]:

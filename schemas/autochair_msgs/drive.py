@@ -95,10 +95,6 @@ class PidStatus(msgspec.Struct, kw_only=True, frozen=True):
     # Why the PID obeys no command now ("" while it does): e.g. "e-stop latched", "stopped
     # (owner change): waiting for a command begun after the stop".
     inhibit: str = ""
-    # Of each effort, the drive-chain model's feed-forward (0 without a model); the rest is
-    # the feedback's correction.
-    v_feedforward: float = 0.0
-    omega_feedforward: float = 0.0
 
 
 class GroundTruth(msgspec.Struct, kw_only=True, frozen=True):

@@ -224,10 +224,12 @@ class Localizer:
         self._window = min(self._window * 1.5, self.p.max_search_xy_m)
         return m
 
-    def _near(self, pts: F64, half_xy_m: float, half_yaw: float) -> Match:
+    def _near(self, pts: F64, half_xy_m: float, half_yaw: float, levels_step: int = 8
+              ) -> Match:
         """The best fit within ±half_xy_m, ±half_yaw of the pose."""
         cand, _ = search_wide(self.field, pts, self.pose, half_xy_m=half_xy_m,
-                              half_yaw=min(half_yaw, math.pi), free=self.free)
+                              half_yaw=min(half_yaw, math.pi), free=self.free,
+                              levels_step=levels_step)
         return refine(self.field, pts, cand)
 
     def _fits(self, m: Match) -> bool:
@@ -253,7 +255,8 @@ class Localizer:
             return self.estimate()
         m = refine(self.field, pts, self.pose, prior_m=self.p.refine_prior_m)
         if self._still:
-            near = self._near(pts, self.p.still_search_xy_m, self.p.still_search_yaw)
+            near = self._near(pts, self.p.still_search_xy_m, self.p.still_search_yaw,
+                              levels_step=4)  # (coarser: 1.6 ms, not 3.1; as found, 6 seeds)
             m = near if near.inliers > m.inliers else m
         self.quality = m.inliers
         if m.inliers < self.p.lost_quality:

@@ -121,8 +121,7 @@ class PidWiring:
             stamp_ns=stamp, v_desired_mps=out.desired[0], v_measured_mps=odom.v_mps,
             v_effort=out.v_effort, omega_desired_radps=out.desired[1],
             omega_measured_radps=odom.omega_radps, omega_effort=out.omega_effort,
-            active=out.active, saturated=out.saturated, inhibit=inhibit,
-            v_feedforward=out.feedforward[0], omega_feedforward=out.feedforward[1]))
+            active=out.active, saturated=out.saturated, inhibit=inhibit))
         self.node.health.count("updates")
         self.node.health.detail = f"owner {owner}: " + (
             f"tuning probe ({out.probe})" if out.probe else inhibit or "driving")
