@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 
@@ -281,6 +282,33 @@ def test_stale_odometry_aborts_and_brakes_within_limits() -> None:
     assert core.state == "aborted" and "stale odometry" in core.reason
     assert vs[-1] == 0.0
     check_axis(vs, [0.02] * (len(vs) - 1), 1.2, 1.0, 2.0)
+
+
+def test_the_plan_steps_by_the_schedule_and_freshness_by_the_clock() -> None:
+    """Through the processes the loop's thread wakes 0-15 ms late: stepped by the schedule
+    (`dt`, Node.due) the plan's acceleration is smooth; taken from the wake-up times it
+    chattered (positive control). Stale odometry is still judged on the real clock."""
+    rng = np.random.default_rng(3)
+
+    def accel(scheduled: bool) -> list[float]:
+        core = fresh_core()
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+        x, vs = 0.0, []
+        for k in range(60):
+            woke = 0.02 * k + float(rng.uniform(0.0, 0.015))
+            out = core.step(woke, 0.02 if scheduled and k else None) or (0.0, 0.0)
+            x += out[0] * 0.02
+            core.on_odom(OdomSample(x, 0, 0, out[0], 0, woke))
+            vs.append(out[0])
+        return [float(b - a) / 0.02 for a, b in itertools.pairwise(vs)]
+
+    smooth, chatter = accel(True), accel(False)
+    jerk = [abs(b - a) / 0.02 for a, b in itertools.pairwise(smooth)]
+    assert max(jerk) <= 2.0 + 1e-6  # the plan's own jerk limit, tick to tick
+    assert max(abs(b - a) / 0.02 for a, b in itertools.pairwise(chatter)) > 5.0
+    core, t = driving()
+    core.step(t + 0.5, 0.02)  # half a second late: the odometry is stale, whatever dt says
+    assert core.state == "aborted" and "stale odometry" in core.reason
 
 
 def test_cancel_brakes_then_publishes_a_burst_of_zeros_then_nothing() -> None:

@@ -3,6 +3,7 @@ the `autochair-watchdog` wrapper around small child processes."""
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import socket
@@ -496,3 +497,24 @@ def test_a_worker_handles_in_order_and_drops_the_oldest_when_behind() -> None:
     finally:
         node.stop_event.set()
         node.close()
+
+
+def test_a_loop_tick_knows_when_it_was_due() -> None:
+    """`Node.due[name]`: the running tick's schedule (drift-free, whole periods apart, never
+    after it ran), not its wake-up time, which jitters (positive control)."""
+    node = Node("duetest", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
+    seen: list[tuple[float, float]] = []  # (woke, due)
+    node.every(0.02, lambda: seen.append((time.monotonic(), node.due["plan"])), "plan")
+    t = run_node(node)
+    try:
+        wait_for(lambda: len(seen) >= 15, 5, "15 ticks")
+    finally:
+        node.stop_event.set()
+        t.join(10)
+    assert not t.is_alive()
+    due = [d for _, d in seen]
+    periods = [(b - a) / 0.02 for a, b in itertools.pairwise(due)]
+    assert all(p >= 1 - 1e-6 and abs(p - round(p)) < 1e-6 for p in periods)
+    assert all(d <= w for w, d in seen)
+    woke = [w for w, _ in seen]
+    assert any(abs((b - a) / 0.02 - 1) > 1e-6 for a, b in itertools.pairwise(woke))

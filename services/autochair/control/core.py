@@ -482,9 +482,13 @@ class ControlCore:
         return GoalReply(ok=True, goal_id=self.goal_id)
 
     # --- the loop ---------------------------------------------------------------------------
-    def step(self, now: float) -> tuple[float, float] | None:
-        """(v, ω) to publish now, or None when idle and at rest (leave the chair to others)."""
-        dt = 0.0 if self._last_t is None else min(max(now - self._last_t, 0.0), 0.1)
+    def step(self, now: float, dt: float | None = None) -> tuple[float, float] | None:
+        """(v, ω) to publish now, or None when idle and at rest (leave the chair to others).
+        `dt`: how far the plan advances, by default the time since the last step (the node
+        gives its loop's schedule: its thread's wake-up jitter is not time)."""
+        if dt is None:
+            dt = 0.0 if self._last_t is None else now - self._last_t
+        dt = min(max(dt, 0.0), 0.1)
         self._last_t = now
         v_des = w_des = 0.0
         self._move = None

@@ -115,6 +115,9 @@ class Node:
         self.stop_event = threading.Event()
         self.health = HealthState(name)
         self.liveness = Liveness(self.stale.watchdog_s)
+        # Per `every` loop: when its running tick was due (time.monotonic()), its schedule
+        # without the thread's wake-up latency.
+        self.due: dict[str, float] = {}
         self._hung = threading.Event()  # the SIGUSR2 test hook
         self._threads: list[threading.Thread] = []
         self._closers: list[Callable[[], Any]] = []
@@ -335,7 +338,9 @@ class Node:
     def every(self, period_s: float, fn: Callable[[], None], name: str) -> None:
         """Call `fn` every `period_s` on its own thread, drift-free on the monotonic clock.
 
-        Missed ticks are skipped (not bunched) and counted as `overruns:<name>`. Each completed
+        Missed ticks are skipped (not bunched) and counted as `overruns:<name>`; `due[name]` is
+        when the running tick was due (a loop that steps a plan steps it by that, not by when
+        its thread woke: the wake-up latency is jitter, not time). Each completed
         tick is reported to the watchdog: a loop stuck for max(stale.watchdog_s, 3 × period_s)
         gets the process restarted (see the class docstring). A tick that raises is counted and
         reported but not completed, so a loop that fails on every tick is restarted like a stuck
@@ -350,6 +355,7 @@ class Node:
                     self.stop_event.wait()  # the SIGUSR2 test hook: a deadlocked loop
                     break
                 done = False
+                self.due[name] = next_t
                 try:
                     fn()
                     done = True
