@@ -752,6 +752,7 @@ class Mpepc:
                                                                      for k, v in inf2.items()}
             scale *= 0.5
         is_goal, goal_clear = False, math.nan
+        r_goal = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
         if has_goal:
             # What the core's own final approach relies on (it drops the goal and stands when
             # this is < 2 cm): the way to the goal, and braking from the chair's present
@@ -768,8 +769,7 @@ class Mpepc:
             # chair stood 83° off office B's desk, "blocked"; measured). The core checks the
             # sweep again before it turns (H40).
             # (not where it is a hit: a person's reach, the stop after the plan period)
-            there = final and float(info["hit"][0]) == 0.0 and math.hypot(
-                goal[0] - pose[0], goal[1] - pose[1]) <= self.law.tolerance_m
+            there = final and float(info["hit"][0]) == 0.0 and r_goal <= self.law.tolerance_m
             if float(info["clearance"][0]) >= self.p.contact_m and ends < 0.3 \
                     and (there or float(cost[0]) <= best_c + self.p.goal_slack) \
                     and self.lined_up(pose, ctg, heading) \
@@ -779,7 +779,6 @@ class Mpepc:
                                                                      for k, v in info.items()}
                 is_goal = True
         final_turn = False
-        r_goal = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
         if has_goal and final and not is_goal \
                 and self.p.final_from * self.law.tolerance_m < r_goal <= self.p.final_move_m:
             # (a turn only from rest or on from a turn under way; the straight final not
