@@ -8,10 +8,15 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Any
+import queue
+import time
+from typing import TYPE_CHECKING, Any
 
 from autochair.cli import CliError
 from autochair.commands.link import add_link_args
+
+if TYPE_CHECKING:
+    from autochair_msgs import LocalizedPose, Pose2D
 
 
 def register(sub: Any) -> None:
@@ -45,11 +50,9 @@ def request_of(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    import queue
-
     from autochair.commands.link import tool_session
     from autochair.runtime.client import request, subscribe
-    from autochair_msgs import LocalizedPose, LocalizeReply, keys
+    from autochair_msgs import LocalizeReply, keys
 
     req = request_of(args)
     poses: queue.Queue[LocalizedPose] = queue.Queue()
@@ -70,12 +73,9 @@ def run(args: argparse.Namespace) -> int:
         session.close()
 
 
-def _outcome(poses: Any, wait_s: float, guess: Any) -> int:
+def _outcome(poses: queue.Queue[LocalizedPose], wait_s: float, guess: Pose2D | None) -> int:
     """The first pose the localization reports tracking within `wait_s`: printed with its
     distance from the guess; else what it reports instead (exit 1)."""
-    import queue
-    import time
-
     deadline, last = time.monotonic() + wait_s, None
     while (left := deadline - time.monotonic()) > 0:
         try:
