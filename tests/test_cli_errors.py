@@ -58,6 +58,23 @@ def test_up_keepout_needs_a_map_and_an_existing_mask(tmp_path: Path) -> None:
                    "no mask 'stairs'", "known: hall")
 
 
+def test_up_refuses_a_mask_not_drawn_over_the_map(tmp_path: Path) -> None:
+    """H42 before anything starts: the monitor would stop the chair for it; say why at once."""
+    from autochair.commands.up import _check_mask
+    from autochair.mapping.mapfile import save_map
+    from tests.test_safety_keepout import mask
+
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    save_map(mask([]), maps / "hall.yaml")
+    save_map(mask([(2.5, -2.0, 3.0, 3.0)], walls=False), maps / "bare.yaml")
+    save_map(mask([(2.5, -2.0, 3.0, 3.0)]), maps / "stairs.yaml")
+    one_line_error(run("-m", "autochair.cli", "up", "--sim", "--map", "hall", "--keepout", "bare",
+                       "--state-dir", str(tmp_path), "--hub", f"tcp/127.0.0.1:{free_port()}"),
+                   "--keepout bare does not fit --map hall", "0 of the map's 1600 wall cells")
+    _check_mask(maps / "stairs.yaml", maps / "hall.yaml")  # positive control: drawn over it
+
+
 def test_drive_out_of_range() -> None:
     one_line_error(run("-m", "autochair.cli", "drive", "5", "0"), "|v|")
 

@@ -192,7 +192,7 @@ def test_keepout_zones_stop_the_chair_where_the_laser_sees_nothing(
     stop while no localization is heard, and a stop with the chair's front over it."""
     from autochair.mapping.mapfile import save_map
     from tests.test_nav_frames_system import localization
-    from tests.test_safety_keepout import mask
+    from tests.test_safety_keepout import map_grid, mask
 
     hub, start = spawn
     path = save_map(mask([(2.5, -2.0, 3.0, 3.0)]), tmp_path / "keepout.yaml")
@@ -222,7 +222,8 @@ def test_keepout_zones_stop_the_chair_where_the_laser_sees_nothing(
                             "a stop while no localization is heard", interval=0.1)
         print(unplaced)
         assert (unplaced.v_max_fwd_mps, unplaced.omega_max_radps) == (0.0, 0.0)
-        with localization(session):  # map → odom (1, 0.5, 0): odom x −3 is map x −2
+        # map → odom (1, 0.5, 0): odom x −3 is map x −2; the map the mask is drawn over
+        with localization(session, grid=map_grid()):
             far = wait_for(reason(-3.0, "clear"), 10, "open with the band 4.5 m ahead",
                            interval=0.1)
             near = wait_for(reason(0.0, "free fwd"), 10, "limited 1.5 m before the band",
@@ -246,7 +247,7 @@ def test_keepout_zones_are_painted_into_the_live_grid_once_placed(
 
     from autochair.mapping.mapfile import save_map
     from tests.test_nav_frames_system import CORRECTION, localization
-    from tests.test_safety_keepout import mask
+    from tests.test_safety_keepout import map_grid, mask
 
     hub, start = spawn
     path = save_map(mask([(2.5, -1.0, 3.0, 1.0)]), tmp_path / "keepout.yaml")
@@ -261,7 +262,7 @@ def test_keepout_zones_are_painted_into_the_live_grid_once_placed(
 
         wait_for(lambda: zone_cells() is not None, 20, "a grid before localization")
         assert zone_cells() == 0  # not placed yet: the monitor stops meanwhile
-        with localization(session):
+        with localization(session, grid=map_grid()):
             wait_for(lambda: (zone_cells() or 0) >= 400, 10, "the zone painted (10 × 40 cells)")
             g = grids.latest()
             occ = np.frombuffer(g.data, np.uint8).reshape(g.height, g.width) == 100

@@ -21,6 +21,7 @@ from autochair_msgs import (
     GoalReply,
     GoalRequest,
     LocalizedPose,
+    OccupancyGrid,
     Pose2D,
     Quaternion,
     Vector3,
@@ -35,9 +36,12 @@ CORRECTION = (1.0, 0.5, 0.0)  # map → odom: odometry's origin sits at (1, 0.5)
 
 
 @contextmanager
-def localization(session: zenoh.Session, state: str = "tracking") -> Iterator[None]:
-    """A stand-in for the localization service: its correction and state at 10 Hz."""
+def localization(session: zenoh.Session, state: str = "tracking",
+                 grid: OccupancyGrid | None = None) -> Iterator[None]:
+    """A stand-in for the localization service: its correction and state at 10 Hz, and its
+    map (`grid`) if given (a keep-out mask is checked against it)."""
     tf, pose = Publisher(session, keys.TF), Publisher(session, keys.LOC_POSE)
+    maps = Publisher(session, keys.LOC_MAP)
     stop = threading.Event()
 
     def run() -> None:
@@ -49,6 +53,8 @@ def localization(session: zenoh.Session, state: str = "tracking") -> Iterator[No
             pose.put(LocalizedPose(stamp_ns=now, x_m=0.0, y_m=0.0, yaw_rad=0.0,
                                    covariance=[0.0] * 9, quality=1.0, state=state,
                                    mode="localization"))
+            if grid is not None:
+                maps.put(grid)
 
     t = threading.Thread(target=run, daemon=True)
     t.start()

@@ -18,18 +18,31 @@ from autochair_msgs import OccupancyGrid
 
 RES = 0.05
 CORRECTION = (1.0, 0.5, 0.0)  # map → odom: odometry's origin at (1, 0.5) on the map
+WALLS = [(-4.8, -4.8, -4.4, -4.4), (-4.8, 4.4, 4.8, 4.8)]  # the map's: a pillar and a wall
 
 
-def mask(zones: list[tuple[float, float, float, float]], size_m: float = 10.0) -> MapFile:
-    """A mask over [-size/2, size/2]² in map; each zone (x0, y0, x1, y1) occupied."""
+def mask(zones: list[tuple[float, float, float, float]], size_m: float = 10.0,
+         walls: bool = True) -> MapFile:
+    """A mask over [-size/2, size/2]² in map, as a person draws it: a copy of the map (its
+    walls) with each zone (x0, y0, x1, y1) painted occupied."""
     n = round(size_m / RES)
     occ = np.zeros((n, n), dtype=bool)
     origin = -size_m / 2
-    for x0, y0, x1, y1 in zones:
+    for x0, y0, x1, y1 in zones + (WALLS if walls else []):
         c0, c1 = round((x0 - origin) / RES), round((x1 - origin) / RES)
         r0, r1 = round((y0 - origin) / RES), round((y1 - origin) / RES)
         occ[r0:r1, c0:c1] = True
     return MapFile(occ, ~occ, RES, origin, origin)
+
+
+def map_grid(m: MapFile | None = None) -> OccupancyGrid:
+    """Localization's map as it publishes it (keys.LOC_MAP): by default the one the masks
+    are drawn over (the walls alone)."""
+    m = m or mask([])
+    h, w = m.occupied.shape
+    return OccupancyGrid(stamp_ns=0, frame_id="map", resolution_m=m.resolution_m, width=w,
+                         height=h, origin_x_m=m.origin_x_m, origin_y_m=m.origin_y_m,
+                         data=np.where(m.occupied, 100, 0).astype(np.uint8).tobytes())
 
 
 def open_scan() -> Scan:
@@ -47,10 +60,11 @@ def monitor(keepout: Keepout | None) -> Monitor:
 def localized(m: Monitor, now: float, state: str = "tracking") -> None:
     m.on_correction(CORRECTION)
     m.on_loc_state(state, "localization", now)
+    m.on_loc_map(map_grid())
 
 
 def test_zone_edges_are_the_cells_touching_the_outside() -> None:
-    m = mask([(0.0, 0.0, 0.2, 0.2)])  # 4 × 4 cells
+    m = mask([(0.0, 0.0, 0.2, 0.2)], walls=False)  # 4 × 4 cells
     edges = zone_edges(m)
     assert len(edges) == 12  # 16 cells less the 2 × 2 inside
     assert edges[:, 0].min() == pytest.approx(0.025) and edges[:, 0].max() == pytest.approx(0.175)
@@ -126,6 +140,7 @@ def test_zones_are_painted_into_the_live_grid_in_odom_where_localization_puts_th
     for correction in (CORRECTION, (1.0, 0.5, math.radians(30))):
         k.frame.on_correction(correction)
         k.on_loc("tracking", "localization", 0.0)
+        k.on_map(map_grid())
         pts, why = k.in_odom(0.0)
         assert pts is not None and not why
         cells = np.frombuffer(paint(grid, pts).data, np.uint8).reshape(200, 200) == 100
@@ -171,6 +186,7 @@ def test_zones_are_not_placed_on_a_map_of_slams_own() -> None:
     k = Keepout(mask([(2.5, -2.0, 3.0, 3.0)]))
     m = monitor(k)
     m.on_correction(CORRECTION)
+    m.on_loc_map(map_grid())
     m.on_loc_state("tracking", "mapping", now)
     m.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
     lim = m.on_scan(open_scan(), now).published
@@ -188,7 +204,7 @@ def test_a_mask_without_any_zone_is_refused_at_start(tmp_path: Path) -> None:
     from autochair.safety.keepout import load_keepout
 
     with pytest.raises(ConfigError, match=r"\[safety\] keepout_map: .*no keep-out zone"):
-        load_keepout("safety", str(save_map(mask([]), tmp_path / "empty.yaml")))
+        load_keepout("safety", str(save_map(mask([], walls=False), tmp_path / "empty.yaml")))
     k = load_keepout("safety", str(save_map(mask([(2.5, -1.0, 3.0, 1.0)]), tmp_path / "k.yaml")))
     assert k is not None and len(k.edges) > 0  # positive control
 
@@ -217,3 +233,51 @@ def test_a_chair_whose_footprint_is_over_a_zone_is_stopped() -> None:
     assert 0.0 < before.v_fwd < 1.0 and "free fwd" in before.reason
     m.on_odom(0.0, 0.0, now, (2.4 - 0.25 - CORRECTION[0], 0.0, math.pi))
     assert m.on_scan(open_scan(), now).published.v_fwd > 1.0
+
+
+def test_a_mask_not_drawn_over_localizations_map_is_a_stop() -> None:
+    """A mask drawn over another map (another floor, an older map of this one), moved, zones
+    alone on a blank canvas, or a copy with no zone painted black: tracking on the saved map
+    would place its zones beside the real stairs, or none, and read them as open."""
+    now = 100.0
+    band = (2.5, -2.0, 3.0, 3.0)
+    other = mask([band, WALLS[0], (-1.0, -3.0, 0.0, -2.5)], walls=False)  # the pillar only
+    moved = mask([band])
+    cases = {
+        "drawn over another map": (other, "it has 64 of the map's 1600 wall cells"),
+        "zones alone": (mask([band], walls=False), "it has 0 of the map's 1600 wall cells"),
+        "moved 10 cm": (MapFile(moved.occupied, moved.free, RES, -4.9, -5.0),
+                        "its grid is not the map's: 200×200 cells of 0.05 m from (-4.9"),
+        "no zone painted": (mask([]), "it has no zone beyond the map's walls"),
+    }
+    for name, (m_, why) in cases.items():
+        k = Keepout(m_)
+        m = monitor(k)
+        localized(m, now)
+        m.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
+        lim = m.on_scan(open_scan(), now).published
+        assert (lim.v_fwd, lim.v_rev, lim.omega) == (0.0, 0.0, 0.0), name
+        assert f"the mask does not fit localization's map: {why}" in lim.reason, name
+        assert k.in_odom(now)[0] is None, name  # nor painted for navigation
+    # Until localization's map is heard the mask cannot be checked: a stop too.
+    m = monitor(Keepout(mask([band])))
+    m.on_correction(CORRECTION)
+    m.on_loc_state("tracking", "localization", now)
+    m.on_odom(0.0, 0.0, now, (0.0, 0.0, 0.0))
+    assert "map not heard yet" in m.on_scan(open_scan(), now).published.reason
+    # Positive control: the same band drawn over the map's copy limits like a wall.
+    m.on_loc_map(map_grid())
+    lim = m.on_scan(open_scan(), now).published
+    assert 0.0 < lim.v_fwd < 1.0 and "free fwd" in lim.reason
+
+
+def test_a_mask_fits_the_map_as_localization_publishes_it(tmp_path: Path) -> None:
+    """The check against the grid localization really sends (its saved map through
+    `grid_msg`), from files as `autochair up --map --keepout` gives them."""
+    from autochair.localization.node import grid_msg
+
+    k = Keepout(load_map(save_map(mask([(2.5, -2.0, 3.0, 3.0)]), tmp_path / "stairs.yaml")))
+    k.on_map(grid_msg(load_map(save_map(mask([]), tmp_path / "hall.yaml")), 0, "map"))
+    assert k.mismatch == ""
+    k.on_map(grid_msg(load_map(save_map(mask([], 12.0), tmp_path / "big.yaml")), 0, "map"))
+    assert k.mismatch and "grid is not the map's" in k.mismatch  # positive control

@@ -137,6 +137,8 @@ def run(args: argparse.Namespace) -> int:
                            " save one with `autochair map save NAME`)")
         procs = [dataclasses.replace(p, args=(*p.args, "--set", settings[p.name]))
                  if p.name in settings else p for p in procs]
+    if args.keepout:
+        _check_mask(maps / f"{args.keepout}.yaml", maps / f"{args.map}.yaml")
     record = args.record or os.path.join(DEFAULT_RECORD_DIR, chair)
     values = processes.local_values(run_dir, hub, record_path=str(Path(record).resolve()),
                                     state_dir=str(state_dir),
@@ -178,3 +180,15 @@ def run(args: argparse.Namespace) -> int:
     return 0 if clean else 1
 
 
+def _check_mask(mask_path: Path, map_path: Path) -> None:
+    """Refuse at once a mask not drawn over the map (the safety monitor would stop the chair
+    for it anyway, H42; this says why before anything starts)."""
+    from autochair.mapping.mapfile import MapFileError, load_map
+    from autochair.safety.keepout import mask_mismatch
+
+    try:
+        why = mask_mismatch(load_map(mask_path), load_map(map_path))
+    except MapFileError as e:
+        raise CliError(str(e)) from None
+    if why:
+        raise CliError(f"--keepout {mask_path.stem} does not fit --map {map_path.stem}: {why}")

@@ -17,7 +17,7 @@ import numpy as np
 from autochair.geometry import Pose, compose, quaternion_yaw, sweep_poses
 from autochair.runtime.node import Node, service_main
 from autochair.safety.keepout import load_keepout, paint
-from autochair_msgs import FrameTransform, LaserScan, LocalizedPose, Odometry, keys
+from autochair_msgs import FrameTransform, LaserScan, LocalizedPose, OccupancyGrid, Odometry, keys
 
 from .core import GridSpec, MoveGate, OccupancyMapper, OdomBuffer, VoxelCloud, scan_points
 
@@ -121,6 +121,11 @@ class MappingService:
             with self.lock:
                 self.keepout.on_loc(msg.state, msg.mode, time.monotonic())
 
+    def on_loc_map(self, grid: OccupancyGrid) -> None:
+        if self.keepout is not None:
+            with self.lock:
+                self.keepout.on_map(grid)
+
     def publish(self) -> None:
         now = time.time_ns()
         grid = self.mapper.to_msg(now, self.cfg.frame_id)
@@ -145,6 +150,7 @@ def start(node: Node, cfg: MappingConfig) -> None:
     if svc.keepout is not None:
         node.subscribe(keys.TF, svc.on_correction)
         node.subscribe(keys.LOC_POSE, svc.on_loc)
+        node.subscribe(keys.LOC_MAP, svc.on_loc_map)
     # The ray updates run on a worker thread, not the Zenoh thread; 8 scans may wait.
     node.subscribe(keys.SCAN, node.worker("map", svc.integrate, 8, "scans_dropped_busy"))
     node.every(cfg.publish_period_s, svc.publish, "publish")

@@ -8,13 +8,15 @@ placed with localization's `map` → `odom` correction and the odometry pose; th
 stop distance and the imminent-collision e-stop then treat them like any obstacle.
 
 Unknown is unsafe: while the zones cannot be placed (no localization heard, silent, not
-tracking, localizing on a map of its own (SLAM), a non-finite correction or pose, or no fresh
-odometry pose) or the chair stands inside one, every limit is a stop.
+tracking, localizing on a map of its own (SLAM), a mask not drawn over localization's map, a
+non-finite correction or pose, or no fresh odometry pose) or the chair stands inside one, every
+limit is a stop.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import msgspec
 import numpy as np
@@ -28,6 +30,15 @@ from autochair_msgs import OccupancyGrid
 F64 = npt.NDArray[np.float64]
 
 
+def cells_to_map(m: MapFile, cx: npt.NDArray[np.floating[Any]],
+                 cy: npt.NDArray[np.floating[Any]]) -> F64:
+    """Map-frame points (N, 2) at grid coordinates (cx, cy) in cells (cell (r, c)'s centre is
+    (c + 0.5, r + 0.5))."""
+    lx, ly = cx * m.resolution_m, cy * m.resolution_m
+    c, s = math.cos(m.origin_yaw), math.sin(m.origin_yaw)
+    return np.column_stack((m.origin_x_m + c * lx - s * ly, m.origin_y_m + s * lx + c * ly))
+
+
 def zone_edges(mask: MapFile) -> F64:
     """Map-frame centres (N, 2) of the zone cells that touch a cell outside every zone (or the
     mask's border): the only ones a chair outside can reach first."""
@@ -35,10 +46,7 @@ def zone_edges(mask: MapFile) -> F64:
     padded = np.pad(zone, 1, constant_values=False)
     inner = (padded[:-2, 1:-1] & padded[2:, 1:-1] & padded[1:-1, :-2] & padded[1:-1, 2:])
     rows, cols = np.nonzero(zone & ~inner)
-    local = np.column_stack(((cols + 0.5) * mask.resolution_m, (rows + 0.5) * mask.resolution_m))
-    c, s = math.cos(mask.origin_yaw), math.sin(mask.origin_yaw)
-    return np.column_stack((mask.origin_x_m + c * local[:, 0] - s * local[:, 1],
-                            mask.origin_y_m + s * local[:, 0] + c * local[:, 1]))
+    return cells_to_map(mask, cols + 0.5, rows + 0.5)
 
 
 def zone_samples(mask: MapFile) -> F64:
@@ -46,10 +54,35 @@ def zone_samples(mask: MapFile) -> F64:
     grid of the same resolution at any rotation no cell of a zone is skipped."""
     rows, cols = np.nonzero(mask.occupied)
     qx, qy = np.array([0.25, 0.25, 0.75, 0.75]), np.array([0.25, 0.75, 0.25, 0.75])
-    lx = ((cols[:, None] + qx[None, :]) * mask.resolution_m).ravel()
-    ly = ((rows[:, None] + qy[None, :]) * mask.resolution_m).ravel()
-    c, s = math.cos(mask.origin_yaw), math.sin(mask.origin_yaw)
-    return np.column_stack((mask.origin_x_m + c * lx - s * ly, mask.origin_y_m + s * lx + c * ly))
+    return cells_to_map(mask, (cols[:, None] + qx[None, :]).ravel(),
+                        (rows[:, None] + qy[None, :]).ravel())
+
+
+MIN_WALLS = 0.9  # of the map's walls a mask drawn over it must have
+
+
+def mask_mismatch(mask: MapFile, m: MapFile) -> str:
+    """"" if `mask` was drawn over the map `m`, else why not (one line). The convention is a
+    copy of the map with the zones painted black: the same grid, the map's walls, and more.
+    A mask drawn over another map (another floor, an older map of this one), moved, or zones
+    alone on a blank canvas would put its zones beside the real stairs."""
+    geometry = (mask.occupied.shape, mask.resolution_m, mask.origin_x_m, mask.origin_y_m,
+                mask.origin_yaw)
+    if not np.allclose(np.hstack(geometry), np.hstack((m.occupied.shape, m.resolution_m,
+                                                       m.origin_x_m, m.origin_y_m,
+                                                       m.origin_yaw)), rtol=0, atol=1e-6):
+        return ("its grid is not the map's: {0[1]}×{0[0]} cells of {1:g} m from "
+                "({2:g}, {3:g}, {4:g}) against {5[1]}×{5[0]} cells of {6:g} m from ({7:g}, "
+                "{8:g}, {9:g})".format(*geometry, m.occupied.shape, m.resolution_m, m.origin_x_m,
+                                       m.origin_y_m, m.origin_yaw))
+    walls = int(m.occupied.sum())
+    kept = int((mask.occupied & m.occupied).sum())
+    if walls == 0 or kept < MIN_WALLS * walls:
+        return (f"it has {kept} of the map's {walls} wall cells, want ≥ {MIN_WALLS:.0%} (drawn "
+                "over another map?)")
+    if not (mask.occupied & ~m.occupied).any():
+        return "it has no zone beyond the map's walls (zones are black cells)"
+    return ""
 
 
 class Keepout:
@@ -62,7 +95,19 @@ class Keepout:
         self.edges = zone_edges(mask)
         self.frame = MapFrame(stale_s)  # localization's correction and state (H33's rule)
         self.mode = ""  # localization's; only "localization" is on a fixed map, the mask's
+        # Why the mask does not fit localization's map ("" if it does; None: no map heard yet).
+        self.mismatch: str | None = None
         self._samples: F64 | None = None
+
+    def on_map(self, grid: OccupancyGrid) -> None:
+        """Localization's map (keys.LOC_MAP), against which the mask is checked."""
+        cells = np.frombuffer(grid.data, np.uint8)
+        if cells.size != grid.width * grid.height:
+            self.mismatch = f"localization's map is malformed ({cells.size} cells)"
+            return
+        occ = cells.reshape(grid.height, grid.width) == 100  # (the message has no yaw)
+        self.mismatch = mask_mismatch(self.mask, MapFile(occ, ~occ, grid.resolution_m,
+                                                         grid.origin_x_m, grid.origin_y_m))
 
     def on_loc(self, state: str, mode: str, now: float) -> None:
         """Localization's state and mode (keys.LOC_POSE)."""
@@ -79,7 +124,10 @@ class Keepout:
         if self.mode != "localization":
             return (f"localization mode is {self.mode!r}, not 'localization' on the saved map "
                     "the zones are drawn on")
-        return ""
+        if self.mismatch is None:
+            return "localization's map not heard yet (the mask is checked against it)"
+        return (f"the mask does not fit localization's map: {self.mismatch}" if self.mismatch
+                else "")
 
     def in_odom(self, now: float) -> tuple[F64 | None, str]:
         """Every zone's sample points in `odom`, or (None, why they cannot be placed)."""

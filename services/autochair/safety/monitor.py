@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 
 from autochair.geometry import Pose
+from autochair_msgs import OccupancyGrid
 
 from .core import DIRECTIONS, EStopAction, Fault, Limit, MonitorState, SafetyCore, Scan, stop_limit
 from .keepout import Keepout
@@ -63,6 +64,11 @@ class Monitor:
     def on_loc_state(self, state: str, mode: str, now: float) -> None:
         if self.keepout is not None:
             self.keepout.on_loc(state, mode, now)
+
+    def on_loc_map(self, grid: OccupancyGrid) -> None:
+        """Localization's map: the keep-out mask must have been drawn over it."""
+        if self.keepout is not None:
+            self.keepout.on_map(grid)
 
     def on_mount(self, error: str) -> tuple[Limit | None, bool]:
         """A tf_static check: a stop to publish at once when it disagrees, and whether

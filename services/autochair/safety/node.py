@@ -30,6 +30,7 @@ from autochair_msgs import (
     FrameTransform,
     LaserScan,
     LocalizedPose,
+    OccupancyGrid,
     Odometry,
     SafetyLimit,
     keys,
@@ -79,6 +80,7 @@ def start(node: Node, cfg: SafetyConfig) -> None:
                       len(monitor.keepout.edges))
         node.subscribe(keys.TF, wiring.on_correction)
         node.subscribe(keys.LOC_POSE, wiring.on_loc)
+        node.subscribe(keys.LOC_MAP, wiring.on_loc_map)
     node.every(0.1, wiring.tick, "watchdog")
 
 
@@ -121,6 +123,10 @@ class _Wiring:
     def on_loc(self, msg: LocalizedPose) -> None:
         with self.lock:
             self.monitor.on_loc_state(msg.state, msg.mode, time.monotonic())
+
+    def on_loc_map(self, grid: OccupancyGrid) -> None:
+        with self.lock:
+            self.monitor.on_loc_map(grid)
 
     def on_tf(self, tf: FrameTransform) -> None:
         if tf.child_frame_id != self.cfg.frame_id:
