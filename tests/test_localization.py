@@ -234,7 +234,7 @@ def test_map_file_round_trip(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     occ = rng.random((37, 53)) < 0.1
     free = ~occ & (rng.random(occ.shape) < 0.7)
-    m = MapFile(occ, free, 0.05, -3.25, 1.5, 0.0)
+    m = MapFile(occ, free, 0.05, -3.25, 1.5)
     path = save_map(m, map_path(tmp_path, "floor-2"))
     back = load_map(path)
     assert np.array_equal(back.occupied, occ) and np.array_equal(back.free, free)
@@ -269,6 +269,15 @@ def test_map_file_errors_name_the_problem(tmp_path: Path) -> None:
         load_map(tmp_path / "m.yaml")
     with pytest.raises(MapFileError, match="cannot read"):
         load_map(tmp_path / "none.yaml")
+    # A rotated map: localization and navigation take the grid's axes as the map's, the
+    # keep-out zones would have been rotated: refused rather than half-honoured.
+    (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0.3]\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    with pytest.raises(MapFileError, match=r"origin yaw 0\.3 rad: rotated maps are not supported"):
+        load_map(tmp_path / "m.yaml")
+    (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    assert load_map(tmp_path / "m.yaml").occupied.shape == (1, 1)  # positive control
 
 
 def test_chair_params_defaults_keep_drift_off() -> None:

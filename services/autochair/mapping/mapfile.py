@@ -34,9 +34,8 @@ class MapFile:
     occupied: BoolGrid
     free: BoolGrid
     resolution_m: float
-    origin_x_m: float  # map position of cell (0, 0)'s corner
+    origin_x_m: float  # map position of cell (0, 0)'s corner; the grid's axes are the map's
     origin_y_m: float
-    origin_yaw: float = 0.0
 
 
 def map_path(directory: str | Path, name: str) -> Path:
@@ -58,7 +57,7 @@ def save_map(m: MapFile, yaml_path: str | Path) -> Path:
     write_atomic(pgm, f"P5\n# autochair map\n{w} {h}\n255\n".encode() + pix[::-1].tobytes())
     write_atomic(yaml_path, (
         f"image: {pgm.name}\nmode: trinary\nresolution: {m.resolution_m:.6f}\n"
-        f"origin: [{m.origin_x_m:.6f}, {m.origin_y_m:.6f}, {m.origin_yaw:.6f}]\n"
+        f"origin: [{m.origin_x_m:.6f}, {m.origin_y_m:.6f}, 0.000000]\n"
         "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n").encode())  # as map_saver
     return yaml_path
 
@@ -115,7 +114,13 @@ def load_map(yaml_path: str | Path) -> MapFile:
         raise MapFileError(f"{yaml_path}: {e}") from None
     if len(origin) != 3 or not res > 0 or not all(math.isfinite(v) for v in origin):
         raise MapFileError(f"{yaml_path}: bad origin or resolution")
+    # Localization, navigation and the keep-out zones all take the grid's axes as the map's
+    # (Nav2's map_server ignores the yaw too): a rotated map would be used unrotated by some
+    # and rotated by others, so it is refused rather than half-honoured.
+    if origin[2] != 0.0:
+        raise MapFileError(f"{yaml_path}: origin yaw {origin[2]:g} rad: rotated maps are not "
+                           "supported (the map frame is the grid's axes; set it to 0)")
     p = (pix if negate else 255 - pix.astype(np.int32)) / 255.0
     p = p[::-1]
     return MapFile(np.ascontiguousarray(p > occ_t), np.ascontiguousarray(p < free_t), res,
-                   origin[0], origin[1], origin[2])
+                   origin[0], origin[1])

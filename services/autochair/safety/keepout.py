@@ -34,9 +34,8 @@ def cells_to_map(m: MapFile, cx: npt.NDArray[np.floating[Any]],
                  cy: npt.NDArray[np.floating[Any]]) -> F64:
     """Map-frame points (N, 2) at grid coordinates (cx, cy) in cells (cell (r, c)'s centre is
     (c + 0.5, r + 0.5))."""
-    lx, ly = cx * m.resolution_m, cy * m.resolution_m
-    c, s = math.cos(m.origin_yaw), math.sin(m.origin_yaw)
-    return np.column_stack((m.origin_x_m + c * lx - s * ly, m.origin_y_m + s * lx + c * ly))
+    return np.column_stack((m.origin_x_m + cx * m.resolution_m,
+                            m.origin_y_m + cy * m.resolution_m))
 
 
 def zone_edges(mask: MapFile) -> F64:
@@ -66,15 +65,14 @@ def mask_mismatch(mask: MapFile, m: MapFile) -> str:
     copy of the map with the zones painted black: the same grid, the map's walls, and more.
     A mask drawn over another map (another floor, an older map of this one), moved, or zones
     alone on a blank canvas would put its zones beside the real stairs."""
-    geometry = (mask.occupied.shape, mask.resolution_m, mask.origin_x_m, mask.origin_y_m,
-                mask.origin_yaw)
-    if not np.allclose(np.hstack(geometry), np.hstack((m.occupied.shape, m.resolution_m,
-                                                       m.origin_x_m, m.origin_y_m,
-                                                       m.origin_yaw)), rtol=0, atol=1e-6):
-        return ("its grid is not the map's: {0[1]}×{0[0]} cells of {1:g} m from "
-                "({2:g}, {3:g}, {4:g}) against {5[1]}×{5[0]} cells of {6:g} m from ({7:g}, "
-                "{8:g}, {9:g})".format(*geometry, m.occupied.shape, m.resolution_m, m.origin_x_m,
-                                       m.origin_y_m, m.origin_yaw))
+    def grid(g: MapFile) -> str:
+        return (f"{g.occupied.shape[1]}×{g.occupied.shape[0]} cells of {g.resolution_m:g} m from "
+                f"({g.origin_x_m:g}, {g.origin_y_m:g})")
+
+    if mask.occupied.shape != m.occupied.shape or not np.allclose(
+            (mask.resolution_m, mask.origin_x_m, mask.origin_y_m),
+            (m.resolution_m, m.origin_x_m, m.origin_y_m), rtol=0, atol=1e-6):
+        return f"its grid is not the map's: {grid(mask)} against {grid(m)}"
     walls = int(m.occupied.sum())
     kept = int((mask.occupied & m.occupied).sum())
     if walls == 0 or kept < MIN_WALLS * walls:
@@ -105,7 +103,7 @@ class Keepout:
         if cells.size != grid.width * grid.height:
             self.mismatch = f"localization's map is malformed ({cells.size} cells)"
             return
-        occ = cells.reshape(grid.height, grid.width) == 100  # (the message has no yaw)
+        occ = cells.reshape(grid.height, grid.width) == 100
         self.mismatch = mask_mismatch(self.mask, MapFile(occ, ~occ, grid.resolution_m,
                                                          grid.origin_x_m, grid.origin_y_m))
 
@@ -145,10 +143,8 @@ class Keepout:
     def inside(self, x: float, y: float) -> bool:
         """Whether the map point (x, y) lies in a zone cell."""
         m = self.mask
-        c, s = math.cos(m.origin_yaw), math.sin(m.origin_yaw)
-        dx, dy = x - m.origin_x_m, y - m.origin_y_m
-        col = math.floor((c * dx + s * dy) / m.resolution_m)
-        row = math.floor((-s * dx + c * dy) / m.resolution_m)
+        col = math.floor((x - m.origin_x_m) / m.resolution_m)
+        row = math.floor((y - m.origin_y_m) / m.resolution_m)
         h, w = m.occupied.shape
         return 0 <= row < h and 0 <= col < w and bool(m.occupied[row, col])
 
