@@ -200,16 +200,28 @@ def braking_speed(d: F64, a: float, j: float) -> F64:
 def scurve(value: F64, rate: F64, target: F64, vmax: float, amax: float, jmax: float,
            dt: float) -> tuple[F64, F64]:
     """control/limits.py SCurveAxis.step, batched: (value, rate) after one step of dt."""
-    target = np.clip(target, -vmax, vmax)
+    # (np.minimum/np.maximum, not np.clip: the same values, without clip's per-call overhead
+    # in the planner's innermost loop)
+    mn, mx = np.minimum, np.maximum
+    target = mn(mx(target, -vmax), vmax)
     e = target - value
     jd = jmax * dt
     land = e / dt
     snap = (np.abs(land) <= jd) & (np.abs(land - rate) <= jd)
     m = np.floor(-0.5 + np.sqrt(0.25 + 2.0 * np.abs(e) / (jd * dt)) + 1e-9)
-    want = np.sign(e) * np.minimum(amax, m * jd)
-    r = np.clip(rate + np.clip(want - rate, -jd, jd), -amax, amax)
-    v = np.clip(value + r * dt, -vmax, vmax)
+    want = np.sign(e) * mn(amax, m * jd)
+    r = mn(mx(rate + mn(mx(want - rate, -jd), jd), -amax), amax)
+    v = mn(mx(value + r * dt, -vmax), vmax)
     return np.where(snap, target, v), np.where(snap, land, r)
+
+
+def move(x: F64, y: F64, yaw: F64, v_old: F64, w_old: F64, st: F64, dt: float
+         ) -> tuple[F64, F64, F64]:
+    """The pose after a step of dt from the limiter's (v, ω) before it to st's after it, by
+    the step's mean v and ω."""
+    v, w = 0.5 * (v_old + st[0]), 0.5 * (w_old + st[2])
+    mid = yaw + 0.5 * w * dt
+    return x + v * np.cos(mid) * dt, y + v * np.sin(mid) * dt, wrap(yaw + w * dt)
 
 
 class Mpepc:
@@ -271,7 +283,7 @@ class Mpepc:
         if v_jerk:
             st[0], st[1] = scurve(st[0], st[1], vd, g.vmax_mps, g.a_mps2, g.jerk_mps3, dt)
         else:  # acceleration-limited only (see MpepcParams.v_jerk)
-            dv = np.clip(vd - st[0], -g.a_mps2 * dt, g.a_mps2 * dt)
+            dv = np.minimum(np.maximum(vd - st[0], -g.a_mps2 * dt), g.a_mps2 * dt)
             st[0], st[1] = st[0] + dv, dv / dt
         wt = np.where(big, wd * st[0] / np.where(big, vd, 1.0), wd)
         st[2], st[3] = scurve(st[2], st[3], wt, g.omega_max_radps, g.omega_acc_radps2,
@@ -341,7 +353,7 @@ class Mpepc:
                  ) -> tuple[F64, F64, F64]:
         """The 50 Hz loop over dt: the law (or the in-place turn) towards the targets, then the
         limiter; `turning` and `arrived` are updated in place."""
-        g, n = self.law, x.size
+        g = self.law
         tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
         dx, dy = tx - x, ty - y
         r = np.hypot(dx, dy)
@@ -371,9 +383,9 @@ class Mpepc:
             vd = np.where(final, np.minimum.reduce([vd, stop, g.approach_rate_1ps * r]), vd)
         wd = kappa * vd
         e = wrap(tyaw - yaw)
-        wa = np.sign(e) * np.minimum.reduce([np.full(n, g.omega_max_radps),
-                                             np.sqrt(2 * g.align_brake_radps2 * np.abs(e)),
-                                             g.align_gain_1ps * np.abs(e)])
+        ae = np.abs(e)
+        wa = np.sign(e) * np.minimum(np.minimum(g.omega_max_radps, np.sqrt(
+            2 * g.align_brake_radps2 * ae)), g.align_gain_1ps * ae)
         vd, wd = np.where(captured, 0.0, vd), np.where(captured, wa, wd)
         # vmax 0 (only the stop seed; the search keeps vmax ≥ v_min): the law's v and ω are 0,
         # i.e. the limiter brakes (v, ω) to rest, as the core does when a plan is blocked.
@@ -386,9 +398,7 @@ class Mpepc:
         """One step of dt: the limiter towards (vd, ωd), the pose by the step's mean v, ω."""
         v_old, w_old = st[0].copy(), st[2].copy()
         self.limiter(st, vd, wd, dt, v_jerk)
-        v, w = 0.5 * (v_old + st[0]), 0.5 * (w_old + st[2])
-        mid = yaw + 0.5 * w * dt
-        return x + v * np.cos(mid) * dt, y + v * np.sin(mid) * dt, wrap(yaw + w * dt)
+        return move(x, y, yaw, v_old, w_old, st, dt)
 
     def braking(self, x: F64, y: F64, yaw: F64, st: F64) -> F64:
         """(3, N, B) poses while the limiter brakes to rest (v, ω desired 0, as the core does
@@ -401,7 +411,13 @@ class Mpepc:
         kept = []
         zero = np.zeros(x.size)
         for k in range(steps):
-            x, y, yaw = self.advance(x, y, yaw, st, zero, zero, h)
+            # advance(…, zero, zero, h), less the limiter's curvature work, which leaves a
+            # desired (0, 0) as it is: the same numbers, the planner's longest loop.
+            v_old, w_old = st[0].copy(), st[2].copy()
+            st[0], st[1] = scurve(st[0], st[1], zero, g.vmax_mps, g.a_mps2, g.jerk_mps3, h)
+            st[2], st[3] = scurve(st[2], st[3], zero, g.omega_max_radps, g.omega_acc_radps2,
+                                  g.omega_jerk_radps3, h)
+            x, y, yaw = move(x, y, yaw, v_old, w_old, st, h)
             done = not st.any()  # every candidate at rest: the rest is where it stands
             if (k + 1) % every == 0 or k == steps - 1 or done:
                 kept.append(np.stack([x, y, yaw]))
