@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import msgspec
 import numpy as np
 
 from autochair.nav.field import GridMap
@@ -91,3 +92,10 @@ def test_what_the_live_map_has_not_observed_is_the_maps() -> None:
     assert len(people(box, StaticMap.from_grid(grid(20)))) == 1  # seen free: a person
     assert people(box, StaticMap.from_grid(grid(255))) == []  # never observed
     assert people(box, StaticMap.from_grid(grid(55))) == []  # leaning occupied (grazed)
+    # A grid republished with the same cells (a parked chair's) reuses the map made of them;
+    # one changed cell is taken in (positive control), as is a change of the grid's place.
+    free = StaticMap.from_grid(grid(20))
+    assert StaticMap.from_grid(grid(21), reuse=free) is free  # both seen free
+    assert StaticMap.from_grid(grid(255), reuse=free) is not free
+    moved = msgspec.structs.replace(grid(20), origin_x_m=0.05)
+    assert StaticMap.from_grid(moved, reuse=free).origin_x_m == 0.05

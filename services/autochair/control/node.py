@@ -185,11 +185,13 @@ class ControlNode:
     def map_tick(self) -> None:
         """Rebuild the navigation field when the grid's obstacles changed."""
         msg = self.grid
-        if msg is None:
+        if msg is None or msg is self.people_grid:  # (ticks twice per grid published)
             return
-        if msg is not self.people_grid:  # every new grid: what the tracker leaves to the map
-            self.people_grid = msg
-            static = StaticMap.from_grid(msg)
+        self.people_grid = msg  # every new grid: what the tracker leaves to the map
+        with self.people_lock:
+            old = self.people.tracker.static
+        static = StaticMap.from_grid(msg, reuse=old)
+        if static is not old:
             with self.people_lock:
                 self.people.tracker.static = static
         gm = GridMap.from_msg(msg)

@@ -60,6 +60,10 @@ class TrackerParams:
     radius_m: float = 0.25  # reported radius, at least
 
 
+def _key(static: npt.NDArray[np.bool_], *geometry: float) -> bytes:
+    return static.tobytes() + repr((static.shape, *geometry)).encode()
+
+
 @dataclass
 class StaticMap:
     """Which cells lie within `near_m` of a cell that is the map's: occupied, or never
@@ -71,21 +75,28 @@ class StaticMap:
     resolution_m: float
     origin_x_m: float
     origin_y_m: float
+    key: bytes = b""  # what it was made of (from_grid: the same again is not redone)
 
     @classmethod
     def of(cls, static: npt.NDArray[np.bool_], resolution_m: float, origin_x_m: float,
            origin_y_m: float, near_m: float = 0.2) -> StaticMap:
         size = 2 * math.ceil(near_m / resolution_m - 1e-9) + 1
         near = ndimage.maximum_filter(static.view(np.uint8), size=size).astype(np.bool_)
-        return cls(near, resolution_m, origin_x_m, origin_y_m)
+        return cls(near, resolution_m, origin_x_m, origin_y_m,
+                   _key(static, resolution_m, origin_x_m, origin_y_m, near_m))
 
     @classmethod
-    def from_grid(cls, msg: OccupancyGrid, near_m: float = 0.2) -> StaticMap:
+    def from_grid(cls, msg: OccupancyGrid, near_m: float = 0.2,
+                  reuse: StaticMap | None = None) -> StaticMap:
         """From the live map: a cell is the map's unless it has been seen free (p <
-        `STATIC_PCT`, not 255)."""
+        `STATIC_PCT`, not 255). `reuse` is returned if it was made of the same cells (a parked
+        chair's map, republished every second, settles: its filter is not redone)."""
         data = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.width)
-        return cls.of(data >= STATIC_PCT, msg.resolution_m, msg.origin_x_m, msg.origin_y_m,
-                      near_m)
+        static = data >= STATIC_PCT
+        if reuse is not None and reuse.key == _key(static, msg.resolution_m, msg.origin_x_m,
+                                                   msg.origin_y_m, near_m):
+            return reuse
+        return cls.of(static, msg.resolution_m, msg.origin_x_m, msg.origin_y_m, near_m)
 
     def is_near(self, pts: F64) -> npt.NDArray[np.bool_]:
         """Per (N, 2) point: whether it lies near what is the map's (off the grid: yes)."""
