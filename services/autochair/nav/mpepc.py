@@ -158,6 +158,17 @@ class MpepcParams:
     # The last turn is checked this far past the point the straight lands on too (a margin;
     # 2 cm left no heading behind the cabinet).
     final_overshoot_m: float = 0.01
+    # A chair stopped, blocked, where the lattice still has a way (a tight goal's multi-stage
+    # way in: "turn to 113°, drive 0.1 m, turn to 45°, drive 0.14 m, turn to 0°"; the law
+    # creeps towards targets that close and MPEPC's predictions of it end a cm or two off
+    # the lattice's one exact state) is given the way's next stage directly (Mpepc.stage):
+    # an in-place turn onto a heading within `stage_turn_deg`, or a straight move of at most
+    # `stage_straight_m` along its own heading, that the core executes without the law.
+    stages: bool = True
+    stage_turn_deg: float = 90.0
+    stage_straight_m: float = 0.5
+    stage_gain_m: float = 0.05  # a stage must lower the lattice's costs-to-go by this
+    stage_final_tries: int = 12  # landings tried for the final manoeuvre (~5 ms each)
     n_global: int = 128  # rounded to a power of 2 (Sobol)
     n_local: int = 64
     local_rounds: int = 3
@@ -183,6 +194,9 @@ class Plan:
     # The in-place turn of the final manoeuvre (Mpepc.final_heading): it makes no progress on
     # the costs-to-go, but it is not blocked.
     final_turn: bool = False
+    # > 0: drive straight this far along the chair's heading onto `target` and stop (a stage
+    # of a manoeuvre: Mpepc.stage); the core moves there without steering (its straight final).
+    straight_m: float = 0.0
 
 
 def wrap(a: F64) -> F64:
@@ -572,6 +586,130 @@ class Mpepc:
         robust[offs == 0.0] = -math.inf  # (no turn: see above)
         i = int(np.argmax(robust))
         return yaw + float(offs[i]) if robust[i] >= contact else None
+
+    def stage(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+              hf: HeadingField, step_deg: float = 5.0, step_m: float = 0.02,
+              spare_deg: float = 2.0, spare_m: float = 0.01) -> tuple[float, float] | None:
+        """The next stage of a manoeuvre from a chair at rest, executed without the law:
+        (ψ, d) for "turn in place onto ψ (if ψ is not its yaw), then drive d straight along
+        ψ". A pair counts only if the turn onto ψ ± `spare_deg` sweeps clear by `contact_m`
+        (a turn ends a degree or two off), and the straight along those headings to d +
+        `spare_m` + `final_overshoot_m` does too. Of those, in this order:
+        - the least costly (the turn at the lattice's `turn_m_per_rad`, the straight its
+          length) of the first `stage_final_tries` that land where the final manoeuvre
+          (final_heading) has a way to the goal: the manoeuvre's last stage;
+        - else the pair landing where the lattice's costs-to-go plus the pair's own cost are
+          least, among those where at every landing within `spare_deg` and `spare_m` the
+          lattice has a way on, at `stage_gain_m` less than from the chair (progress, never
+          a cycle).
+        None if no pair does (or the chair's own state has no way). Only the pair's first
+        part is driven (the caller: the turn, or with ψ = yaw the straight); the next plan
+        looks again from where it ended."""
+        p, fld = self.p, self.field
+        x, y, yaw = pose
+        c0, ok0 = hf.at(np.array(x), np.array(y), np.array(yaw))
+        if not bool(ok0):
+            return None
+        offs = np.radians(np.arange(-p.stage_turn_deg, p.stage_turn_deg + 0.5 * step_deg,
+                                    step_deg))
+        ds = np.arange(0.0, p.stage_straight_m + 0.5 * step_m, step_m)
+        spare = math.radians(spare_deg)
+        # headings (O, 3): ψ and ψ ± spare (the chair's own yaw exactly: it needs no turn)
+        psi = yaw + offs[:, None] + np.where(offs == 0.0, 0.0, spare)[:, None] \
+            * np.array([-1.0, 0.0, 1.0])
+        # the straights, every cm along each heading: clear up to each distance (prefix min)
+        far = p.stage_straight_m + spare_m + p.final_overshoot_m
+        k = np.arange(0.0, far + 0.005, 0.01)
+        cs, sn = np.cos(psi)[..., None], np.sin(psi)[..., None]
+        line = fld.footprint_clearance(x + k * cs, y + k * sn,
+                                       np.broadcast_to(psi[..., None], cs.shape[:2] + k.shape))
+        reach_clear = np.minimum.accumulate(line, axis=-1).min(1)  # (O, K)
+        need = np.minimum(np.round((ds + spare_m + p.final_overshoot_m) / 0.01).astype(int),
+                          k.size - 1)
+        straight_ok = reach_clear[:, need] >= p.contact_m  # (O, D)
+        # the turns onto ψ ± spare, in one batch
+        reach = fld.footprint.reach_m
+        n = np.maximum(2, np.ceil((np.abs(offs) + spare) * reach / 0.05).astype(int) + 1)
+        ends = offs + np.sign(offs) * spare
+        yaws = np.concatenate([yaw + np.linspace(0.0, e, m) for e, m in zip(ends, n,
+                                                                               strict=True)])
+        d = fld.footprint_clearance(np.full(yaws.size, x), np.full(yaws.size, y), yaws)
+        turn_ok = np.minimum.reduceat(d, np.concatenate([[0], np.cumsum(n)[:-1]])) \
+            >= p.contact_m
+        turn_ok[offs == 0.0] = True
+        move = hf.params.turn_m_per_rad * np.abs(offs)[:, None] + ds[None, :]  # (O, D)
+        clear = straight_ok & turn_ok[:, None]
+        clear[:, 0] = False  # (a turn alone onto the final manoeuvre's ψ: final_heading's)
+        lx0 = x + np.cos(yaw + offs)[:, None] * ds[None, :]
+        ly0 = y + np.sin(yaw + offs)[:, None] * ds[None, :]
+        r = np.hypot(goal[0] - lx0, goal[1] - ly0)
+        band = clear & (r > p.final_from * self.law.tolerance_m) & (r <= p.final_move_m)
+        order = np.argsort(np.where(band, move, math.inf), axis=None)
+        for flat in order[:min(p.stage_final_tries, int(band.sum()))]:
+            i, j = np.unravel_index(int(flat), band.shape)
+            land = (float(lx0[i, j]), float(ly0[i, j]), yaw + float(offs[i]))
+            if self.final_heading(land, goal, turn=True, straight=True, step_deg=2.0) \
+                    is not None:
+                return yaw + float(offs[i]), float(ds[j])
+        # the landings within the spares: the lattice's costs-to-go there (the worst)
+        dd = np.maximum(ds[:, None] + np.array([-spare_m, 0.0, spare_m]), 0.0)  # (D, 3)
+        lx = x + np.cos(psi)[:, :, None, None] * dd  # (O, 3, D, 3)
+        ly = y + np.sin(psi)[:, :, None, None] * dd
+        cost, ok = hf.at(lx, ly, np.broadcast_to(psi[:, :, None, None], lx.shape))
+        worst = np.where(ok, cost, math.inf).max(axis=(1, 3))  # (O, D)
+        total = worst + move
+        good = straight_ok & turn_ok[:, None] & (worst <= float(c0) - p.stage_gain_m)
+        good[offs == 0.0, 0] = False  # (no turn and no straight: no stage)
+        if not good.any():
+            return None
+        i, j = np.unravel_index(int(np.argmin(np.where(good, total, math.inf))), good.shape)
+        return yaw + float(offs[i]), float(ds[j])
+
+    def stage_plan(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                   ctg: CostToGo, hf: HeadingField | None, people: list[Person],
+                   rates: tuple[float, float] = (0.0, 0.0),
+                   straight_to: tuple[float, float] | None = None,
+                   v0: float = 0.0) -> Plan | None:
+        """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
+        with `straight_to` (the landing of a straight stage under way), the rest of that
+        straight if it still lies ahead on the chair's line and sweeps clear. Either is
+        also evaluated as MPEPC's candidates are (`_costs`: people, the stop after the
+        plan period) and dropped if that predicts a hit. None: no stage."""
+        x, y, yaw = pose
+        c, s = math.cos(yaw), math.sin(yaw)
+        if straight_to is not None:
+            dx, dy = straight_to[0] - x, straight_to[1] - y
+            along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
+            if along <= 0.005 or lateral > 0.02:
+                return None
+            k = np.arange(0.0, along + self.p.final_overshoot_m + 0.005, 0.01)
+            if float(self.field.footprint_clearance(x + k * c, y + k * s, np.full(k.size, yaw))
+                     .min()) < self.p.contact_m:
+                return None
+            psi, dist = yaw, along
+        else:
+            if not self.p.stages or hf is None or not self.lattice_active(hf, pose, float(ctg.at(
+                    self.field.map, np.array(pose[:2])))):
+                return None
+            got = self.stage(pose, goal, hf)
+            if got is None:
+                return None
+            psi, dist = got
+        vmin = self.p.v_min_mps
+        turn = psi != yaw
+        # (the straight predicted as the law along the line; shorter than in_place_r_m it is
+        # predicted standing: its sweep is checked above, people from where it stands)
+        zz = np.array([[0.0, float(wrap(np.array(psi - yaw))), 0.0, vmin] if turn
+                       else [dist, 0.0, 0.0, vmin], [0.0, 0.0, 0.0, 0.0]])
+        cost, info = self._costs(pose, v0, 0.0, zz, ctg, people, goal, rates, True, hf)
+        if float(info["hit"][0]) != 0.0:
+            return None
+        tgt = (x, y, psi) if turn else (x + dist * c, y + dist * s, yaw)
+        path = np.stack([info["x"][0], info["y"][0], info["yaw"][0]], -1)
+        return Plan((float(zz[0, 0]), float(zz[0, 1]), 0.0, vmin), tgt, vmin, float(cost[0]),
+                    float(info["phi0"][0] - info["phi_end"][0]), float(info["survival"][0]),
+                    float(info["clearance"][0]), path, False, math.nan, float(cost[1]),
+                    len(zz), final_turn=turn, straight_m=0.0 if turn else dist)
 
     def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
                         goal: tuple[float, float, float]) -> bool:
