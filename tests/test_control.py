@@ -16,6 +16,7 @@ from autochair.control.law import Gains, braking_speed, egocentric, park_kuipers
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
 from autochair.geometry import compose, inverse
 from autochair.geometry import wrap_angle as wrap
+from autochair.nav.field import Footprint
 from autochair.nav.planner import compute
 from autochair_msgs import GoalRequest, Pose2D
 
@@ -676,3 +677,63 @@ def test_a_chair_stopped_short_beside_the_goal_drives_its_straight_final() -> No
     core, pose, turned = run(post)
     assert core.state == "arrived", core.reason
     assert turned < math.radians(1) and math.hypot(pose[0] - 2.07, pose[1] - 0.035) <= 0.05
+
+
+def _straight_stage(wall_x: float | None, straight_m: float) -> tuple[ControlCore, list[float],
+                                                                        float]:
+    """The core at rest at (2, 0, 0) in a room (with a wall across the way at `wall_x`) given
+    MPEPC's plan "drive 0.12 m straight and stop" (Mpepc.stage_plan; `straight_m` 0: the same
+    target as a law target), re-sent every plan period for 3 s as the planner continues it;
+    the pose reached and the largest |ω| sent."""
+    from autochair.nav.field import GridMap, NavField
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    walls = [[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
+             [-1.0, 3.0, -1.0, -3.0]]
+    if wall_x is not None:
+        walls.append([wall_x, -0.8, wall_x, 0.8])
+    core = fresh_core(INSTANT)
+    core.inline_planning = False
+    core.on_field(NavField(GridMap.from_shapes(np.array(walls), np.zeros((0, 3))), Footprint()))
+    core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(4.0, 1.5, 0.0)]), 0.0).ok
+    plan = Plan((0.12, 0.0, 0.0, 0.15), (2.12, 0.0, 0.0), 0.15, 0.0, 0.0, 1.0, 1.0,
+                np.zeros((1, 3)), False, math.nan, 0.0, 1, straight_m=straight_m)
+    pose, t, spin = [2.0, 0.0, 0.0], 0.0, 0.0
+    while t < 3.0 and core.active:
+        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
+        for _ in range(25):
+            out = core.step(t) or (0.0, 0.0)
+            spin = max(spin, abs(out[1]))
+            pose[2] = wrap(pose[2] + out[1] * 0.02)
+            pose[0] += out[0] * math.cos(pose[2]) * 0.02
+            pose[1] += out[0] * math.sin(pose[2]) * 0.02
+            core.on_odom(OdomSample(pose[0], pose[1], pose[2], out[0], out[1], t))
+            t += 0.02
+    return core, pose, spin
+
+
+def test_a_straight_stage_is_driven_onto_its_point_without_steering() -> None:
+    """A stage of a tight goal's way in (Mpepc.stage_plan): the core drives the straight
+    move itself, time-optimally and without steering (its straight final's move), and stops
+    on the point. As a law target that close the chair crept (v ≤ vmax·r/r_thresh) and the
+    plans around it predicted it ending a cm or two off (the navigation suite's tight goals,
+    aborted; measured)."""
+    _, pose, _ = _straight_stage(None, 0.0)  # positive control: the law creeps
+    assert pose[0] < 2.12 - 0.03
+    core, pose, spin = _straight_stage(None, 0.12)
+    assert pose[0] == pytest.approx(2.12, abs=0.005) and abs(pose[1]) < 1e-9 and spin == 0.0
+    assert core.limiter.at_rest
+
+
+def test_a_straight_stage_into_an_obstacle_is_refused_by_the_core() -> None:
+    """The core rechecks a straight stage's translation (as its straight final's from beside
+    the goal's line): a wall 8 cm ahead of the front (the stage would end 4 cm inside it)
+    and the chair does not move."""
+    front = 2.0 + Footprint().front_m
+    core, pose, _ = _straight_stage(front + 0.08, 0.12)
+    assert pose == [2.0, 0.0, 0.0] and core.counters.get("straights_refused", 0) > 0
+    # positive control: the same wall 20 cm further on leaves room for it
+    core, pose, _ = _straight_stage(front + 0.28, 0.12)
+    assert pose[0] == pytest.approx(2.12, abs=0.005)

@@ -209,8 +209,9 @@ def test_a_chair_stopped_short_of_a_tight_goal_gets_its_final_manoeuvre() -> Non
         assert res.plan is not None
         return res.plan, res.blocked_by
 
-    # positive control: without the final manoeuvre the chair stands there, blocked
-    p, blocked = plan(here, MpepcParams(final_move_m=0.0))
+    # positive control: without the final manoeuvre (nor the stages of one) the chair stands
+    # there, blocked
+    p, blocked = plan(here, MpepcParams(final_move_m=0.0, stages=False))
     assert blocked and not p.is_goal  # type: ignore[attr-defined]
     p, blocked = plan(here, MpepcParams())
     assert not blocked and p.final_turn and not p.is_goal  # type: ignore[attr-defined]
@@ -234,3 +235,53 @@ def test_a_chair_stopped_short_of_a_tight_goal_gets_its_final_manoeuvre() -> Non
     for off in (-1.0, 0.0, 1.0):
         p, blocked = plan((here[0], here[1], psi + math.radians(off)), MpepcParams())
         assert p.is_goal and not blocked, off  # type: ignore[attr-defined]
+
+
+def test_a_chair_stopped_blocked_near_a_tight_goal_gets_the_next_stage_of_its_way_in() -> None:
+    # Behind the cluttered room's cabinet (nav_eval seed 1): the chair stood at rest 20 cm
+    # from the goal, 91° off, blocked; no single final manoeuvre (turn, straight, turn) keeps
+    # 5 cm there, and the lattice's way in is two-stage ("drive ~0.1 m, turn to 45°, drive,
+    # turn to 0°"), which the law's creep towards targets that close never drove (aborted,
+    # measured). MPEPC hands the core that stage: a straight move it drives without steering,
+    # every sweep clear, from whose end the final manoeuvre has a way.
+    from autochair.nav.planner import PlanRequest, compute
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD.parent / "cluttered.world")
+
+    def room() -> NavField:  # (one per MpepcParams: planner.py keeps one planner per field)
+        return NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+
+    fld, control = room(), room()
+    goal, here = (5.9, 2.0, 0.0), (5.86, 1.80, math.radians(91))
+
+    def plan(params: MpepcParams) -> tuple[object, str]:
+        f = fld if params.stages else control
+        res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, f, None, None, LAW), params)
+        assert res.plan is not None
+        return res.plan, res.blocked_by
+
+    mp = Mpepc(fld, LAW, MpepcParams())
+    assert mp.final_heading(here, goal, turn=True, straight=True) is None  # no single one
+    # positive control: without stages the chair stands there, blocked
+    p, blocked = plan(MpepcParams(stages=False))
+    assert blocked and not p.is_goal  # type: ignore[attr-defined]
+    p, blocked = plan(MpepcParams())
+    assert not blocked and not p.is_goal and not p.final_turn  # type: ignore[attr-defined]
+    d = p.straight_m  # type: ignore[attr-defined]
+    assert 0.0 < d <= MpepcParams().stage_straight_m
+    c, s = math.cos(here[2]), math.sin(here[2])
+    tx, ty, tyaw = p.target  # type: ignore[attr-defined]
+    assert (tx, ty, tyaw) == pytest.approx((here[0] + d * c, here[1] + d * s, here[2]))
+    k = np.linspace(0.0, d + 0.02, 12)  # the straight, 2 cm past its landing: clear
+    assert fld.footprint_clearance(here[0] + k * c, here[1] + k * s, np.full(12, here[2])
+                                   ).min() >= MpepcParams().contact_m
+    # where it lands, the final manoeuvre has a way to the goal
+    assert mp.final_heading((tx, ty, tyaw), goal, turn=True, straight=True) is not None
+    # under way (rolling, not turning), the next plan continues the same straight
+    mid = (here[0] + 0.5 * d * c, here[1] + 0.5 * d * s, here[2])
+    res = compute(PlanRequest(1, 0, mid, 0.1, 0.0, goal, fld, None, (tx, ty, tyaw, 0.15), LAW,
+                              straight=True), MpepcParams())
+    assert res.plan is not None and not res.blocked_by
+    assert res.plan.straight_m == pytest.approx(0.5 * d, abs=1e-6)
+    assert res.plan.target[:2] == pytest.approx((tx, ty))

@@ -562,7 +562,8 @@ class ControlCore:
                            self.limiter.w.value, (wp.x_m, wp.y_m, wp.yaw_rad), fld, ctg, prev,
                            self.cfg.law(self.tol_m * self.cfg.capture_fraction), people,
                            (self.limiter.v.rate, self.limiter.w.rate),
-                           self.index == len(self.waypoints) - 1)
+                           self.index == len(self.waypoints) - 1,
+                           self.plan is not None and self.plan.straight_m > 0.0)
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""
@@ -782,6 +783,15 @@ class ControlCore:
         if self._plan_stale(now):
             return 0.0, 0.0
         tx, ty, tyaw = p.target
+        if p.straight_m > 0.0:
+            # A straight stage of a manoeuvre (Mpepc.stage_plan): onto the target's along-track
+            # point without steering, as the straight final; its translation rechecked here.
+            along = (tx - o.x) * math.cos(o.yaw) + (ty - o.y) * math.sin(o.yaw)
+            if not self._room_to_go(o, along):
+                self._count("straights_refused")
+                return 0.0, 0.0
+            self._move = (max(along, 0.0), None)
+            return 0.0, 0.0
         turn = p.z[0] < IN_PLACE_R_M and abs(wrap(tyaw - o.yaw)) >= 2 * ALIGNED_RAD
         if turn or math.hypot(tx - o.x, ty - o.y) < self.tol_m * self.cfg.capture_fraction:
             self._move = (None, wrap(tyaw - o.yaw))  # time-optimal in-place turn

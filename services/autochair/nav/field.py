@@ -62,10 +62,16 @@ class Footprint:
 
 def place(points: F64, x: F64 | float, y: F64 | float, yaw: F64 | float) -> F64:
     """Chair-frame (P, 2) points at poses (...): world (..., P, 2)."""
+    return np.stack(place_xy(points, x, y, yaw), axis=-1)
+
+
+def place_xy(points: F64, x: F64 | float, y: F64 | float, yaw: F64 | float
+             ) -> tuple[F64, F64]:
+    """`place` as separate world x and y arrays (..., P) (the planner's hot path: no stacking)."""
     x, y, yaw = np.asarray(x)[..., None], np.asarray(y)[..., None], np.asarray(yaw)[..., None]
     c, s = np.cos(yaw), np.sin(yaw)
     px, py = points[:, 0], points[:, 1]
-    return np.stack([x + c * px - s * py, y + s * px + c * py], axis=-1)
+    return x + c * px - s * py, y + s * px + c * py
 
 
 @dataclass(frozen=True)
@@ -139,9 +145,14 @@ class GridMap:
 
 def bilinear(grid: F64, gm: GridMap, pts: F64, outside: float) -> F64:
     """Sample a cell-centred (H, W) grid at world points (..., 2)."""
+    return bilinear_xy(grid, gm, pts[..., 0], pts[..., 1], outside)
+
+
+def bilinear_xy(grid: F64, gm: GridMap, x: F64, y: F64, outside: float) -> F64:
+    """`bilinear` at world points given as separate x and y arrays (...)."""
     h, w = grid.shape
-    fx = (pts[..., 0] - gm.origin_x_m) / gm.resolution_m - 0.5
-    fy = (pts[..., 1] - gm.origin_y_m) / gm.resolution_m - 0.5
+    fx = (x - gm.origin_x_m) / gm.resolution_m - 0.5
+    fy = (y - gm.origin_y_m) / gm.resolution_m - 0.5
     # Points all well inside (the planner's usual case) need neither the clamp nor `outside`.
     inner = fx.size > 0 and fx.min() >= 0 and fy.min() >= 0 \
         and fx.max() <= w - 1.0001 and fy.max() <= h - 1.0001
@@ -206,6 +217,10 @@ class NavField:
         """Clearance (m) at world points (..., 2); 0 outside the map."""
         return bilinear(self.clearance, self.map, pts, 0.0)
 
+    def clearance_xy(self, x: F64, y: F64) -> F64:
+        """`clearance_at` for points given as separate x and y arrays (...)."""
+        return bilinear_xy(self.clearance, self.map, x, y, 0.0)
+
     def nearest_obstacle(self, x: float, y: float) -> tuple[float, float] | None:
         """Centre of the obstacle cell nearest to (x, y); None without obstacles or outside."""
         c = self.cell(x, y)
@@ -218,7 +233,7 @@ class NavField:
 
     def footprint_clearance(self, x: F64 | float, y: F64 | float, yaw: F64 | float) -> F64:
         """Least clearance of the footprint outline at poses (...)."""
-        return self.clearance_at(place(self.outline, x, y, yaw)).min(axis=-1)  # type: ignore[no-any-return]
+        return self.clearance_xy(*place_xy(self.outline, x, y, yaw)).min(axis=-1)  # type: ignore[no-any-return]
 
     def cell(self, x: float, y: float) -> tuple[int, int] | None:
         gm = self.map

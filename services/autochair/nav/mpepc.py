@@ -38,7 +38,7 @@ from scipy.stats import qmc
 from autochair.control.law import Gains
 from autochair.control.limits import ComfortLimiter
 
-from .field import CostToGo, NavField, place
+from .field import CostToGo, NavField, place_xy
 from .lattice import HeadingField
 
 F64 = npt.NDArray[np.float64]
@@ -158,6 +158,17 @@ class MpepcParams:
     # The last turn is checked this far past the point the straight lands on too (a margin;
     # 2 cm left no heading behind the cabinet).
     final_overshoot_m: float = 0.01
+    # A chair stopped, blocked, where the lattice still has a way (a tight goal's multi-stage
+    # way in: "turn to 113°, drive 0.1 m, turn to 45°, drive 0.14 m, turn to 0°"; the law
+    # creeps towards targets that close and MPEPC's predictions of it end a cm or two off
+    # the lattice's one exact state) is given the way's next stage directly (Mpepc.stage):
+    # an in-place turn onto a heading within `stage_turn_deg`, or a straight move of at most
+    # `stage_straight_m` along its own heading, that the core executes without the law.
+    stages: bool = True
+    stage_turn_deg: float = 90.0
+    stage_straight_m: float = 0.5
+    stage_gain_m: float = 0.05  # a stage must lower the lattice's costs-to-go by this
+    stage_final_tries: int = 12  # landings tried for the final manoeuvre (~5 ms each)
     n_global: int = 128  # rounded to a power of 2 (Sobol)
     n_local: int = 64
     local_rounds: int = 3
@@ -183,10 +194,19 @@ class Plan:
     # The in-place turn of the final manoeuvre (Mpepc.final_heading): it makes no progress on
     # the costs-to-go, but it is not blocked.
     final_turn: bool = False
+    # > 0: drive straight this far along the chair's heading onto `target` and stop (a stage
+    # of a manoeuvre: Mpepc.stage); the core moves there without steering (its straight final).
+    straight_m: float = 0.0
 
 
 def wrap(a: F64) -> F64:
     return np.remainder(a + np.pi, 2 * np.pi) - np.pi
+
+
+def clip(a: F64, lo: F64 | float, hi: F64 | float) -> F64:
+    """np.clip's values, without its per-call overhead (~7 µs: the prediction calls it ~10⁵
+    times a goal; profiled)."""
+    return np.minimum(np.maximum(a, lo), hi)
 
 
 def braking_speed(d: F64, a: float, j: float) -> F64:
@@ -200,18 +220,15 @@ def braking_speed(d: F64, a: float, j: float) -> F64:
 def scurve(value: F64, rate: F64, target: F64, vmax: float, amax: float, jmax: float,
            dt: float) -> tuple[F64, F64]:
     """control/limits.py SCurveAxis.step, batched: (value, rate) after one step of dt."""
-    # (np.minimum/np.maximum, not np.clip: the same values, without clip's per-call overhead
-    # in the planner's innermost loop)
-    mn, mx = np.minimum, np.maximum
-    target = mn(mx(target, -vmax), vmax)
+    target = clip(target, -vmax, vmax)
     e = target - value
     jd = jmax * dt
     land = e / dt
     snap = (np.abs(land) <= jd) & (np.abs(land - rate) <= jd)
     m = np.floor(-0.5 + np.sqrt(0.25 + 2.0 * np.abs(e) / (jd * dt)) + 1e-9)
-    want = np.sign(e) * mn(amax, m * jd)
-    r = mn(mx(rate + mn(mx(want - rate, -jd), jd), -amax), amax)
-    v = mn(mx(value + r * dt, -vmax), vmax)
+    want = np.sign(e) * np.minimum(amax, m * jd)
+    r = clip(rate + clip(want - rate, -jd, jd), -amax, amax)
+    v = clip(value + r * dt, -vmax, vmax)
     return np.where(snap, target, v), np.where(snap, land, r)
 
 
@@ -283,7 +300,7 @@ class Mpepc:
         if v_jerk:
             st[0], st[1] = scurve(st[0], st[1], vd, g.vmax_mps, g.a_mps2, g.jerk_mps3, dt)
         else:  # acceleration-limited only (see MpepcParams.v_jerk)
-            dv = np.minimum(np.maximum(vd - st[0], -g.a_mps2 * dt), g.a_mps2 * dt)
+            dv = clip(vd - st[0], -g.a_mps2 * dt, g.a_mps2 * dt)
             st[0], st[1] = st[0] + dv, dv / dt
         wt = np.where(big, wd * st[0] / np.where(big, vd, 1.0), wd)
         st[2], st[3] = scurve(st[2], st[3], wt, g.omega_max_radps, g.omega_acc_radps2,
@@ -432,8 +449,8 @@ class Mpepc:
                  hf: HeadingField | None = None) -> tuple[F64, dict[str, F64]]:
         p, dt, fld = self.p, self.p.dt_s, self.field
         xs, ys, yaws, vs, ws, brake = self.simulate(pose, v0, w0, z, a0, q0, goal, last)
-        pts = place(fld.outline, xs, ys, yaws)  # (N, T, P, 2)
-        d_static = fld.clearance_at(pts).min(axis=-1)
+        px, py = place_xy(fld.outline, xs, ys, yaws)  # (N, T, P) each
+        d_static = fld.clearance_xy(px, py).min(axis=-1)
         pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
         # Already closer than `contact_m` (a noisy live map, a chair nudged to a wall): only
         # getting closer still counts as a hit, so the chair can move away instead of freezing.
@@ -443,13 +460,13 @@ class Mpepc:
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
         # Both that motion and its stop as the core's limiter really drives them (committed).
-        d_brake = fld.clearance_at(place(fld.outline, brake[0], brake[1], brake[2])).min(-1)
+        d_brake = fld.clearance_xy(*place_xy(fld.outline, brake[0], brake[1], brake[2])).min(-1)
         hit[:, -1] |= d_brake.min(1) < min(p.brake_clear_m, d0 - 0.005)
         d_all = d_static
         t = (np.arange(self.steps) + 1) * dt
         for person in people:
             cx, cy = person.x_m + person.vx_mps * t, person.y_m + person.vy_mps * t
-            dp = (np.hypot(pts[..., 0] - cx[:, None], pts[..., 1] - cy[:, None]).min(-1)
+            dp = (np.hypot(px - cx[:, None], py - cy[:, None]).min(-1)
                   - person.radius_m)
             hit |= dp < 0.0
             d_all = np.minimum(d_all, dp)
@@ -459,7 +476,7 @@ class Mpepc:
             # limits) is off limits too, so it does not race past where they might step.
             reach = person.radius_m + math.hypot(person.vx_mps, person.vy_mps) * np.minimum(
                 t, p.react_s)
-            ds = (np.hypot(pts[..., 0] - person.x_m, pts[..., 1] - person.y_m).min(-1)
+            ds = (np.hypot(px - person.x_m, py - person.y_m).min(-1)
                   - reach[None, :])
             hit |= ds < 0.0
             pc = 1 - (1 - pc) * (1 - p.stay_weight * np.exp(
@@ -588,6 +605,130 @@ class Mpepc:
         robust[offs == 0.0] = -math.inf  # (no turn: see above)
         i = int(np.argmax(robust))
         return yaw + float(offs[i]) if robust[i] >= contact else None
+
+    def stage(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+              hf: HeadingField, step_deg: float = 5.0, step_m: float = 0.02,
+              spare_deg: float = 2.0, spare_m: float = 0.01) -> tuple[float, float] | None:
+        """The next stage of a manoeuvre from a chair at rest, executed without the law:
+        (ψ, d) for "turn in place onto ψ (if ψ is not its yaw), then drive d straight along
+        ψ". A pair counts only if the turn onto ψ ± `spare_deg` sweeps clear by `contact_m`
+        (a turn ends a degree or two off), and the straight along those headings to d +
+        `spare_m` + `final_overshoot_m` does too. Of those, in this order:
+        - the least costly (the turn at the lattice's `turn_m_per_rad`, the straight its
+          length) of the first `stage_final_tries` that land where the final manoeuvre
+          (final_heading) has a way to the goal: the manoeuvre's last stage;
+        - else the pair landing where the lattice's costs-to-go plus the pair's own cost are
+          least, among those where at every landing within `spare_deg` and `spare_m` the
+          lattice has a way on, at `stage_gain_m` less than from the chair (progress, never
+          a cycle).
+        None if no pair does (or the chair's own state has no way). Only the pair's first
+        part is driven (the caller: the turn, or with ψ = yaw the straight); the next plan
+        looks again from where it ended."""
+        p, fld = self.p, self.field
+        x, y, yaw = pose
+        c0, ok0 = hf.at(np.array(x), np.array(y), np.array(yaw))
+        if not bool(ok0):
+            return None
+        offs = np.radians(np.arange(-p.stage_turn_deg, p.stage_turn_deg + 0.5 * step_deg,
+                                    step_deg))
+        ds = np.arange(0.0, p.stage_straight_m + 0.5 * step_m, step_m)
+        spare = math.radians(spare_deg)
+        # headings (O, 3): ψ and ψ ± spare (the chair's own yaw exactly: it needs no turn)
+        psi = yaw + offs[:, None] + np.where(offs == 0.0, 0.0, spare)[:, None] \
+            * np.array([-1.0, 0.0, 1.0])
+        # the straights, every cm along each heading: clear up to each distance (prefix min)
+        far = p.stage_straight_m + spare_m + p.final_overshoot_m
+        k = np.arange(0.0, far + 0.005, 0.01)
+        cs, sn = np.cos(psi)[..., None], np.sin(psi)[..., None]
+        line = fld.footprint_clearance(x + k * cs, y + k * sn,
+                                       np.broadcast_to(psi[..., None], cs.shape[:2] + k.shape))
+        reach_clear = np.minimum.accumulate(line, axis=-1).min(1)  # (O, K)
+        need = np.minimum(np.round((ds + spare_m + p.final_overshoot_m) / 0.01).astype(int),
+                          k.size - 1)
+        straight_ok = reach_clear[:, need] >= p.contact_m  # (O, D)
+        # the turns onto ψ ± spare, in one batch
+        reach = fld.footprint.reach_m
+        n = np.maximum(2, np.ceil((np.abs(offs) + spare) * reach / 0.05).astype(int) + 1)
+        ends = offs + np.sign(offs) * spare
+        yaws = np.concatenate([yaw + np.linspace(0.0, e, m) for e, m in zip(ends, n,
+                                                                               strict=True)])
+        d = fld.footprint_clearance(np.full(yaws.size, x), np.full(yaws.size, y), yaws)
+        turn_ok = np.minimum.reduceat(d, np.concatenate([[0], np.cumsum(n)[:-1]])) \
+            >= p.contact_m
+        turn_ok[offs == 0.0] = True
+        move = hf.params.turn_m_per_rad * np.abs(offs)[:, None] + ds[None, :]  # (O, D)
+        clear = straight_ok & turn_ok[:, None]
+        clear[:, 0] = False  # (a turn alone onto the final manoeuvre's ψ: final_heading's)
+        lx0 = x + np.cos(yaw + offs)[:, None] * ds[None, :]
+        ly0 = y + np.sin(yaw + offs)[:, None] * ds[None, :]
+        r = np.hypot(goal[0] - lx0, goal[1] - ly0)
+        band = clear & (r > p.final_from * self.law.tolerance_m) & (r <= p.final_move_m)
+        order = np.argsort(np.where(band, move, math.inf), axis=None)
+        for flat in order[:min(p.stage_final_tries, int(band.sum()))]:
+            i, j = np.unravel_index(int(flat), band.shape)
+            land = (float(lx0[i, j]), float(ly0[i, j]), yaw + float(offs[i]))
+            if self.final_heading(land, goal, turn=True, straight=True, step_deg=2.0) \
+                    is not None:
+                return yaw + float(offs[i]), float(ds[j])
+        # the landings within the spares: the lattice's costs-to-go there (the worst)
+        dd = np.maximum(ds[:, None] + np.array([-spare_m, 0.0, spare_m]), 0.0)  # (D, 3)
+        lx = x + np.cos(psi)[:, :, None, None] * dd  # (O, 3, D, 3)
+        ly = y + np.sin(psi)[:, :, None, None] * dd
+        cost, ok = hf.at(lx, ly, np.broadcast_to(psi[:, :, None, None], lx.shape))
+        worst = np.where(ok, cost, math.inf).max(axis=(1, 3))  # (O, D)
+        total = worst + move
+        good = straight_ok & turn_ok[:, None] & (worst <= float(c0) - p.stage_gain_m)
+        good[offs == 0.0, 0] = False  # (no turn and no straight: no stage)
+        if not good.any():
+            return None
+        i, j = np.unravel_index(int(np.argmin(np.where(good, total, math.inf))), good.shape)
+        return yaw + float(offs[i]), float(ds[j])
+
+    def stage_plan(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                   ctg: CostToGo, hf: HeadingField | None, people: list[Person],
+                   rates: tuple[float, float] = (0.0, 0.0),
+                   straight_to: tuple[float, float] | None = None,
+                   v0: float = 0.0) -> Plan | None:
+        """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
+        with `straight_to` (the landing of a straight stage under way), the rest of that
+        straight if it still lies ahead on the chair's line and sweeps clear. Either is
+        also evaluated as MPEPC's candidates are (`_costs`: people, the stop after the
+        plan period) and dropped if that predicts a hit. None: no stage."""
+        x, y, yaw = pose
+        c, s = math.cos(yaw), math.sin(yaw)
+        if straight_to is not None:
+            dx, dy = straight_to[0] - x, straight_to[1] - y
+            along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
+            if along <= 0.005 or lateral > 0.02:
+                return None
+            k = np.arange(0.0, along + self.p.final_overshoot_m + 0.005, 0.01)
+            if float(self.field.footprint_clearance(x + k * c, y + k * s, np.full(k.size, yaw))
+                     .min()) < self.p.contact_m:
+                return None
+            psi, dist = yaw, along
+        else:
+            if not self.p.stages or hf is None or not self.lattice_active(hf, pose, float(ctg.at(
+                    self.field.map, np.array(pose[:2])))):
+                return None
+            got = self.stage(pose, goal, hf)
+            if got is None:
+                return None
+            psi, dist = got
+        vmin = self.p.v_min_mps
+        turn = psi != yaw
+        # (the straight predicted as the law along the line; shorter than in_place_r_m it is
+        # predicted standing: its sweep is checked above, people from where it stands)
+        zz = np.array([[0.0, float(wrap(np.array(psi - yaw))), 0.0, vmin] if turn
+                       else [dist, 0.0, 0.0, vmin], [0.0, 0.0, 0.0, 0.0]])
+        cost, info = self._costs(pose, v0, 0.0, zz, ctg, people, goal, rates, True, hf)
+        if float(info["hit"][0]) != 0.0:
+            return None
+        tgt = (x, y, psi) if turn else (x + dist * c, y + dist * s, yaw)
+        path = np.stack([info["x"][0], info["y"][0], info["yaw"][0]], -1)
+        return Plan((float(zz[0, 0]), float(zz[0, 1]), 0.0, vmin), tgt, vmin, float(cost[0]),
+                    float(info["phi0"][0] - info["phi_end"][0]), float(info["survival"][0]),
+                    float(info["clearance"][0]), path, False, math.nan, float(cost[1]),
+                    len(zz), final_turn=turn, straight_m=0.0 if turn else dist)
 
     def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
                         goal: tuple[float, float, float]) -> bool:

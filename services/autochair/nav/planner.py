@@ -34,6 +34,7 @@ class PlanRequest:
     people: list[Person] = dc_field(default_factory=list)
     rates: tuple[float, float] = (0.0, 0.0)  # the limiter's dv/dt, dω/dt (its S-curve state)
     final: bool = True  # `goal` is the last waypoint (approached on the braking curve)
+    straight: bool = False  # the core drives a straight stage onto `previous` (Mpepc.stage_plan)
 
 
 @dataclass(frozen=True)
@@ -167,9 +168,15 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
     use = mp.heading_lattice and req.final and bool(fld.map.occupied.any()) and math.hypot(
         req.goal[0] - req.pose[0], req.goal[1] - req.pose[1]) >= mp.in_place_r_m
     hf = lattice_for(fld, req.goal, ctg, req.pose) if use else None
-    plan = planner_for(fld, req.law, params).plan(req.pose, req.v, req.omega, req.goal, ctg,
-                                              req.people, req.previous, req.rates,
-                                              req.final, hf)
+    mpc = planner_for(fld, req.law, params)
+    if req.straight and req.previous is not None and abs(req.omega) < 0.01:
+        # A straight stage under way (Mpepc.stage_plan): its rest, rechecked.
+        on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
+                            straight_to=req.previous[:2], v0=req.v)
+        if on is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, on)
+    plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
+                    req.rates, req.final, hf)
     blocked = ""
     if plan.min_clearance_m < (params or MpepcParams()).contact_m:
         # Every motion is predicted to touch something: stand still (blocked) rather than
@@ -180,4 +187,9 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         # No progress, and nothing (a turn towards the path included) beats standing still; or
         # braking to rest is the best motion (the core brakes while blocked, as predicted).
         blocked = blocker(fld, ctg, req.pose, req.people)
+    if blocked and hf is not None and abs(req.v) < 0.01 and abs(req.omega) < 0.01:
+        # At rest and blocked where the lattice has a way: its next stage, driven exactly.
+        staged = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates)
+        if staged is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, staged)
     return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked)
