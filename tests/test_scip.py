@@ -172,4 +172,4 @@ def test_random_bytes_around_a_scan(noise: bytes, cut: int) -> None:
             scan = scip.parse_scan(block, b"MD0044", 3)
         except EXPECTED:
             continue
-        assert scan.values.size == 40 or scan.values.size > 0
+        assert scan.values.size == 40  # (a block cut short by a spliced LF: a FormatError)

@@ -323,6 +323,18 @@ class Scan:
     values: npt.NDArray[np.int64]  # raw values (mm; < DMIN are error codes)
 
 
+def _counted(echo: bytes, values: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """`values` if there are as many as the echo's start, end and cluster ask for: a block cut
+    short (a lost or spliced LF ends it early) is a FormatError, not a shorter scan."""
+    p = echo[2:12]
+    if not p.isdigit():
+        raise EchoError(f"scan echo without start/end/cluster digits {echo[:15]!r}")
+    want = (int(p[4:8]) - int(p[:4])) // (int(p[8:10]) or 1) + 1
+    if values.size != want:
+        raise FormatError(f"scan has {values.size} values, its echo asks for {want}")
+    return values
+
+
 def parse_scan(block: bytes, prefix: bytes, nchars: int) -> Scan:
     """One MD/MS scan block: echo starting with `prefix`, status 99, timestamp, data."""
     # Fast path for a clean block; anything unusual (garbage, other status) takes the general one.
@@ -334,7 +346,8 @@ def parse_scan(block: bytes, prefix: bytes, nchars: int) -> Scan:
         ts = check_line(block[s + 1:t], "timestamp")
         values = decode_values(strip_data_lines(memoryview(block)[t + 1:]), nchars)
         rem = block[13:15]
-        return Scan(block[:e], int(rem) if rem.isdigit() else 0, decode_value(ts), values)
+        return Scan(block[:e], int(rem) if rem.isdigit() else 0, decode_value(ts),
+                    _counted(block[:e], values))
     reply = parse_reply(block, (prefix,))
     if reply.status != "99":
         raise StatusError(reply.echo[:2].decode("ascii", "replace"), reply.status)
@@ -349,7 +362,8 @@ def parse_scan(block: bytes, prefix: bytes, nchars: int) -> Scan:
     data = b"\n".join(reply.lines[1:])
     values = decode_values(strip_data_lines(data), nchars)
     rem = reply.echo[13:15]  # MD/MS echo: the remaining-scan count replaces the count field
-    return Scan(reply.echo, int(rem) if rem.isdigit() else 0, decode_value(ts), values)
+    return Scan(reply.echo, int(rem) if rem.isdigit() else 0, decode_value(ts),
+                _counted(reply.echo, values))
 
 
 def encode_scan(req: ScanRequest, remaining: int, timestamp_ms: int,
