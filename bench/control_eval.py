@@ -8,8 +8,8 @@ commands: v and ω are smoothed with a centred moving average (0.1 s), then a, j
 central differences over ±0.05 s (odometry velocities are quantised: 1 count ≈ 31 µm, so raw
 one-tick differences would report noise, not motion). The same peaks at the chair itself, from the
 simulator's ground truth (true v and ω, exact each tick; smoothed 50 ms for the jerk), are the
-goal's measure ("truth_*"); the planned (limiter) peaks are reported too ("cmd_*": the plan, sent
-with its acceleration and jerk, whose model inverse the PID feeds forward: control.core.Planned).
+goal's measure ("truth_*"); the planned (limiter) peaks are reported too ("cmd_*": the plan, not
+what is sent, which leads the plan past the PID's prefilter: ControlConfig.lead).
 
 Time is compared with four references: the trapezoid bound (straight line or in-place turn,
 acceleration-limited), the jerk-limited S-curve bound, a turn–drive–turn reference, and the least
@@ -206,7 +206,7 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
             reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t)
             assert reply.ok, reply.error
         out = core.step(t) if k % ctrl_every == 0 else None
-        if out is not None:  # the plan
+        if out is not None:  # the plan (what is sent leads it past the PID's prefilter)
             cmds.append((core.limiter.v.value, core.limiter.w.value))
         sent.append(out)
         rig.act(t, st.v, st.omega, sent.popleft() if len(sent) > cmd_delay_ticks else None)

@@ -21,7 +21,9 @@ from autochair.nav.planner import compute
 from autochair_msgs import GoalRequest, Pose2D
 
 DT = 0.005
-CFG = ControlConfig()
+# The plants here follow the command itself (at once or through a lag): no PID prefilter for
+# the command to lead (ControlConfig.lead, which the real drive chain has).
+NO_LEAD = ControlConfig(lead=False)
 
 
 # --- law --------------------------------------------------------------------------------------
@@ -67,7 +69,7 @@ def drive(start: tuple[float, float, float], goal: tuple[float, float, float],
     x, y, yaw = start
     v = w = 0.0
     # The pose prediction horizon is matched to the plant's lag, as it should be on a chair.
-    core = ControlCore(ControlConfig(predict_s=lag_s, predict_omega_s=lag_s))
+    core = ControlCore(ControlConfig(predict_s=lag_s, predict_omega_s=lag_s, lead=False))
     core.on_odom(OdomSample(x, y, yaw, 0, 0, 0.0))
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
     t, arrived_t, k = 0.0, -1.0, 0
@@ -153,7 +155,7 @@ def test_short_manoeuvres_in_open_space_arrive_and_are_never_blocked(
 
 def test_straight_goal_does_not_overshoot() -> None:
     for d in (0.3, 1.0, 2.0, 5.0):
-        core = ControlCore(CFG)
+        core = ControlCore(NO_LEAD)
         x = v = 0.0
         core.on_odom(OdomSample(0, 0, 0, 0, 0, 0.0))
         assert core.set_goal(GoalRequest(waypoints=[Pose2D(d, 0, 0)]), 0.0).ok
@@ -236,7 +238,7 @@ def test_limiter_keeps_curvature_while_v_ramps() -> None:
 
 # --- goal manager -----------------------------------------------------------------------------
 def fresh_core(cfg: ControlConfig | None = None) -> ControlCore:
-    core = ControlCore(cfg or CFG)
+    core = ControlCore(cfg or NO_LEAD)
     core.on_odom(OdomSample(0, 0, 0, 0, 0, 0.0))
     return core
 
@@ -411,7 +413,7 @@ def test_a_new_goal_after_a_stop_starts_from_the_measured_velocity() -> None:
 
 
 def test_a_chair_that_does_not_follow_aborts_the_goal() -> None:
-    core = fresh_core(ControlConfig(follow_timeout_s=2.0))
+    core = fresh_core(ControlConfig(follow_timeout_s=2.0, lead=False))
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
     t = 0.0
     while core.active and t < 10:
@@ -423,7 +425,7 @@ def test_a_chair_that_does_not_follow_aborts_the_goal() -> None:
 
 
 def test_a_goal_without_progress_aborts() -> None:
-    core = fresh_core(ControlConfig(no_progress_s=3.0))
+    core = fresh_core(ControlConfig(no_progress_s=3.0, lead=False))
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
     t = 0.0
     while core.active and t < 20:
@@ -435,7 +437,7 @@ def test_a_goal_without_progress_aborts() -> None:
 
 
 def test_goals_beyond_the_maximum_distance_are_refused() -> None:
-    core = fresh_core(ControlConfig(max_goal_distance_m=10.0))
+    core = fresh_core(ControlConfig(max_goal_distance_m=10.0, lead=False))
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(9, 0, 0)]), 0.0).ok
     reply = core.set_goal(GoalRequest(waypoints=[Pose2D(1, 0, 0), Pose2D(10, 5, 0)]), 0.0)
     assert not reply.ok and "waypoint 1 is 11.2 m away" in reply.error
@@ -472,7 +474,7 @@ def test_turns_are_planned_within_the_monitors_turn_rate_bound() -> None:
 
 
 # --- goals in map (nav/frames.py), the stale-plan stop --------------------------------------
-INSTANT = ControlConfig(predict_s=0.02, predict_omega_s=0.02)  # follows at once
+INSTANT = ControlConfig(predict_s=0.02, predict_omega_s=0.02, lead=False)  # follows at once
 
 
 def run_unicycle(core: ControlCore, t: float, until: float, pose: list[float],
@@ -524,7 +526,7 @@ def driving_to_a_map_goal(blocked_abort_s: float) -> tuple[ControlCore, list[flo
     """A core driving to (6, 0) in `map` under a tracking localization for 2 s (asserted: the
     positive control of the tests that then take the localization away)."""
     core = fresh_core(ControlConfig(blocked_abort_s=blocked_abort_s, predict_s=0.02,
-                                    predict_omega_s=0.02))
+                                    predict_omega_s=0.02, lead=False))
     core.on_correction((0.0, 0.0, 0.0))
     core.on_loc_state("tracking", 0.0)
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(6, 0, 0)], frame_id="map"), 0.0).ok

@@ -7,17 +7,14 @@ import dataclasses
 import itertools
 import math
 
-import msgspec
 import pytest
 from bench.control_eval import scurve_time
 from bench.min_time import Limits, min_time
 
-from autochair.control.core import ChainAxis, ControlConfig, ControlCore, OdomSample, Planned
+from autochair.control.core import ChainAxis, ControlConfig, ControlCore, LeadAxis, OdomSample
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
 from autochair.geometry import wrap_angle as wrap
-from autochair.pid.core import PidConfig, make_core
-from autochair.tune.lockstep import DT as LDT
-from autochair.tune.lockstep import Rig
+from autochair.pid.core import PidConfig
 from autochair_msgs import GoalRequest, Pose2D
 
 DT = 0.02  # the control core's period (50 Hz)
@@ -112,78 +109,47 @@ def test_chain_prediction_is_the_motion_still_to_come() -> None:
     assert abs(window - (total - so_far)) > math.radians(1.0)  # positive control
 
 
-def test_the_prediction_moves_old_odometry_on_to_now() -> None:
-    """Odometry measured 20 ms before it arrived (its own stamp: through the processes
-    ODOM_SLOW against the loop's own timer), or that arrived 20 ms ago, predicts the same pose
-    as odometry measured now, plus the command's pickup delay; taken as current it fell short
-    by v·age (positive control)."""
-    core = ControlCore(ControlConfig())
-    v, w = 0.8, 0.3
-    for _ in range(100):  # the chain in steady motion
-        core._chain[0].push(DT, v)
-        core._chain[1].push(DT, w)
-    age = 0.02
-    fresh = core._predicted(OdomSample(v * age, 0.0, w * age, v, w, 1.0), 1.0)
-    for old in (core._predicted(OdomSample(0.0, 0.0, 0.0, v, w, 1.0, age), 1.0),
-                core._predicted(OdomSample(0.0, 0.0, 0.0, v, w, 1.0 - age), 1.0)):
-        assert math.hypot(old.x - fresh.x, old.y - fresh.y) < 1e-3
-        assert abs(wrap(old.yaw - fresh.yaw)) < 1e-4
-    blind = core._predicted(OdomSample(0.0, 0.0, 0.0, v, w, 1.0), 1.0)
-    assert math.hypot(blind.x - fresh.x, blind.y - fresh.y) > 0.9 * v * age
-    core.pickup_delay_s = 0.005
-    later = core._predicted(OdomSample(0.0, 0.0, 0.0, v, w, 1.0, age), 1.0)
-    moved = math.hypot(later.x - fresh.x, later.y - fresh.y)
-    assert moved == pytest.approx(v * 0.005, rel=0.02)
-
-
-def test_the_odometrys_own_age_is_not_counted_as_staleness() -> None:
-    """Freshness is judged by arrival on the control's clock: odometry that arrived 0.25 s
-    ago is fresh (timeout 0.3 s) though its stamp says it was 0.1 s old on arrival, so a goal
-    is accepted and driven; arrived 0.35 s ago it is refused (positive control)."""
-    def core_with(received: float) -> ControlCore:
-        core = ControlCore(ControlConfig(), odom_timeout_s=0.3)
-        core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, received, 0.1))
-        return core
-
-    core = core_with(9.75)
-    assert core.set_goal(GoalRequest(waypoints=[Pose2D(1.0, 0.0, 0.0)]), 10.0).ok
-    core.step(10.0, 0.02)
-    assert core.active
-    reply = core_with(9.65).set_goal(GoalRequest(waypoints=[Pose2D(1.0, 0.0, 0.0)]), 10.0)
-    assert not reply.ok and "no fresh odometry" in reply.error
-
-
-def test_predictor_defaults_match_the_chair_under_a_planned_stream() -> None:
-    """The chair (the simulated one, through odometry and the PID's inverse of its model)
-    trails a planned ramp by the predictor's mean lag (ControlConfig.predict_s), and by far
-    less than through the prefilter (positive control: a stream without its plan)."""
+def test_lead_passes_the_plan_through_the_prefilter() -> None:
+    """The PID's prefilter (two lags) fed the led command returns the planned velocity itself;
+    fed the plan, it trails it by 2τ (positive control). `ahead` (motion sent ahead of the
+    plan) returns to 0 once the plan is at rest."""
     cfg = ControlConfig()
-    pcfg = msgspec.structs.replace(PidConfig(), require_safety_limit=False, require_estop=False)
-
-    def lag(planned: bool) -> float:
-        rig, ax = Rig(make_core(pcfg)), SCurveAxis(1.2, cfg.limits.a_max_mps2,
-                                                   cfg.limits.jerk_max_mps3)
-        lags = []
-        for k in range(round(1.6 / LDT)):
-            if k % 2 == 0:  # the control service's 50 Hz
-                r0 = ax.rate
-                v = ax.step(1.2, 2 * LDT)
-                out = Planned(v, 0.0, (ax.rate, 0.0), ((ax.rate - r0) / (2 * LDT), 0.0))
-            st = rig.sense()
-            rig.act(k * LDT, st.v, st.omega, out if planned else (out[0], out[1]))
-            if ax.rate == ax.amax and rig.chair.v > 0.05:  # the constant-acceleration part
-                lags.append((ax.value - rig.chair.v) / ax.rate)
-        assert len(lags) > 20
-        return sum(lags[-10:]) / 10
-
-    assert lag(True) == pytest.approx(cfg.predict_s, abs=0.05)
-    assert lag(False) > cfg.predict_s + 0.25
+    tau, h = cfg.predict_lag_s, 1.0 / cfg.rate_hz
+    w = ComfortLimiter(cfg.limits).w
+    plan: list[float] = []
+    left = math.radians(90)  # a rest-to-rest turn at the planned limits
+    while not plan or w.moving:
+        plan.append(w.move(left, h))
+        left -= plan[-1] * h
+    plan += [0.0] * 50
+    lead = LeadAxis(tau)
+    led, plain = ChainAxis(2 * tau, tau), ChainAxis(2 * tau, tau)
+    err_led = err_plain = 0.0
+    for r in plan:
+        led.push(h, lead.step(r, h, w.amax, w.jmax))
+        plain.push(h, r)
+        err_led, err_plain = max(err_led, abs(led.x2 - r)), max(err_plain, abs(plain.x2 - r))
+    assert abs(led.x2) < 1e-3 and abs(lead.ahead) < 1e-3
+    assert err_led < 0.05  # rad/s (the plan moves by up to ω̇·h = 0.055 a step)
+    assert err_plain > 0.3  # positive control: without the lead it trails by 2τ
 
 
-def test_in_place_turn_on_a_lagging_chair_lands_without_reversal() -> None:
+def test_predictor_defaults_are_the_identified_drive_chain() -> None:
+    cfg, pid = ControlConfig(), PidConfig()
+    assert pid.v_model is not None and pid.omega_model is not None
+    assert cfg.predict_lag_s == pid.prefilter_s
+    assert cfg.predict_s == pytest.approx(pid.v_model[4] + 2 * pid.prefilter_s, abs=0.005)
+    assert cfg.predict_omega_s == pytest.approx(pid.omega_model[4] + 2 * pid.prefilter_s,
+                                                abs=0.005)
+
+
+@pytest.mark.parametrize("lead", [False, True])
+def test_in_place_turn_on_a_lagging_chair_lands_without_reversal(lead: bool) -> None:
     """A chair that follows each command through the predictor's own chain (delay + two lags):
-    the turn arrives in about the optimum plus the chain's lag, ω one-signed, within 3°."""
-    cfg = ControlConfig()
+    the turn arrives in about the optimum plus the chain's lag, ω one-signed, within 3°. With
+    the lead (the command leads the two lags) only the dead time is added to the optimum, and
+    what swings back is below what counts as at rest (the lead's discrete residue)."""
+    cfg = ControlConfig(lead=lead)
     core = ControlCore(cfg)
     axes = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
             ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
@@ -206,9 +172,10 @@ def test_in_place_turn_on_a_lagging_chair_lands_without_reversal() -> None:
                        cfg.omega_jerk_max_radps3)
     assert core.state == "arrived", core.reason
     assert abs(wrap(goal - yaw)) <= math.radians(3) and math.hypot(x, y) < 0.01
-    assert max(ws) <= 1e-6  # one-signed
+    assert max(ws) <= (cfg.rest_mps if lead else 1e-6)  # one-signed
     assert min(ws) < -0.5  # (positive control: it did turn)
-    assert t <= best + cfg.predict_omega_s + 1.0, t
+    dead = cfg.predict_omega_s - 2 * cfg.predict_lag_s
+    assert t <= best + (dead + 0.2 if lead else cfg.predict_omega_s + 1.0), t
 
 
 # --- the minimum-time reference (bench/min_time.py) ----------------------------------------

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable
 from typing import Any
@@ -375,75 +374,6 @@ def test_the_prefilter_is_governed_by_the_effort_window() -> None:
     small, plain = Feedforward(MODEL, 0.15), Feedforward(MODEL, 0.15)
     assert [small.effort(0.05, DT, -0.9, 0.9) for _ in range(HALF_S)] == \
         [plain.effort(0.05, DT) for _ in range(HALF_S)]  # inside the window: the same
-
-
-def planned_ramp(n: int, jerk: float = 2.0, a_max: float = 1.0
-                 ) -> list[tuple[float, float, float]]:
-    """(v, a, j) of a jerk-limited ramp from rest, one per PID sample."""
-    v = a = 0.0
-    out = []
-    for _ in range(n):
-        j = jerk if a < a_max else 0.0
-        a = min(a + j * DT, a_max)
-        v += a * DT
-        out.append((v, a, j))
-    return out
-
-
-def follow(planned: bool, plan: list[tuple[float, float, float]]
-           ) -> tuple[list[float], list[float]]:
-    """The model itself as the chair (the feedback sees no error): its velocity under a
-    core fed the plan with (planned) or without its derivatives; and the volts sent."""
-    core = core_(v_model=MODEL, v_gains=(0.5, 0.7, 0.1))
-    twin = Feedforward(MODEL, core.prefilter_s)
-    y, ys, volts = 0.0, [], []
-    for i, (v, a, j) in enumerate(plan, 1):
-        t = i * DT
-        core.set_estop(False, t, ns(t))
-        extra = {"accel": (a, 0.0), "jerk": (j, 0.0)} if planned else {}
-        core.set_desired(Command(v, 0.0, "autonomy", ns(t), 1, **extra), t, ns(t))
-        out = core.update(y, 0.0, DT, t, ns(t))
-        y = twin.reference(out.v_effort, DT)
-        ys.append(y)
-        volts.append(out.longitudinal_v)
-    return ys, volts
-
-
-def test_a_planned_stream_is_followed_delayed_by_the_dead_time_only() -> None:
-    """A planned stream (its acceleration and jerk sent along) skips the prefilter: on a chair
-    that is the model, the velocity is the plan delayed by the dead time; the same stream
-    without its plan trails it by the prefilter's two lags more (positive control). Its first
-    frame from rest stays within 0.1 V of neutral (the no-lunge bound)."""
-    plan = planned_ramp(3 * HALF_S)
-    d = round(MODEL.delay_s / DT)
-    ys, volts = follow(True, plan)
-    late = range(d + HALF_S, len(plan))
-    assert max(abs(ys[i] - plan[i - d][0]) for i in late) < 0.015
-    ys_pre, _ = follow(False, plan)
-    assert min(plan[i - d][0] - ys_pre[i] for i in late) > 0.1  # (2τ·a = 0.3 m/s at length)
-    assert abs(volts[0] - 2.5) < 0.1
-    # (the feed-forward eases in at its slew limit; the feedback has nothing to add here)
-    assert max(abs(b - a) for a, b in itertools.pairwise(volts[:HALF_S])) <= 1.5 * 5 * DT + 1e-9
-
-
-def test_a_planned_axis_the_limit_clamps_is_prefiltered() -> None:
-    """Where the caps or the safety limit change the plan's velocity, its derivatives are no
-    longer the command's: that axis falls back to the prefilter (a step from the clamp)."""
-    core = core_(v_model=MODEL, caps=Caps(v_fwd_mps=0.3))
-    core.set_desired(Command(0.5, 0.0, "autonomy", 0, 1, (1.0, 0.0), (2.0, 0.0)), 0.0, 0)
-    core.update(0.0, 0.0, DT, DT, ns(DT))
-    ff = core._ff[0]
-    assert ff is not None and not ff._planned
-    core.set_desired(Command(0.2, 0.0, "autonomy", ns(DT), 1, (1.0, 0.0), (2.0, 0.0)), DT,
-                     ns(DT))
-    core.update(0.0, 0.0, DT, 2 * DT, ns(2 * DT))
-    assert ff._planned  # positive control: within the caps it is the plan
-
-
-def test_non_finite_plan_derivatives_are_rejected() -> None:
-    core = core_()
-    bad = Command(0.2, 0.0, "autonomy", 0, 1, (math.nan, 0.0), (0.0, 0.0))
-    assert core.set_desired(bad, 0.0, 0) is Verdict.REJECTED
 
 
 def test_the_sample_that_starts_a_drive_advances_one_period() -> None:

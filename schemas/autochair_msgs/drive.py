@@ -58,12 +58,6 @@ class VelocityCommand(msgspec.Struct, kw_only=True, frozen=True):
     # deadman pressed, a `drive` started), Unix ns. No unexpected start-up (ISO 14118): after
     # any stop the chair did not ask for, the velocity PID obeys only streams begun after it.
     stream_start_ns: int = 0
-    # A planned stream (the control service's jerk-limited plan): the plan's acceleration and
-    # jerk at this command, (v, ω): m/s², rad/s²; m/s³, rad/s³. The velocity PID then feeds
-    # forward the drive chain's inverse of the plan itself. None (people: teleop, `drive`):
-    # the PID smooths the stream by its prefilter.
-    accel: tuple[float, float] | None = None
-    jerk: tuple[float, float] | None = None
 
 
 class Odometry(msgspec.Struct, kw_only=True, frozen=True):

@@ -57,33 +57,35 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     omega_max_radps: float = 0.9
     omega_acc_max_radps2: float = 2.8
     omega_jerk_max_radps3: float = 7.7
-    # (The limiter plans at `plan_fraction_*` of them, below; they are measured at the chair,
-    # bench/control_eval.py and bench/control_stack.py.)
+    # (The limiter plans at the full limits above: the velocity PID's feed-forward from the
+    # identified drive chain makes the chair follow the command delayed, not overshot, so the
+    # chair itself stays within them; measured at the chair, bench/control_eval.py and
+    # bench/control_stack.py.)
     # beyond the paper
-    # The pose is predicted from the drive chain as the velocity PID makes it: the commands are
-    # a planned stream (their acceleration and jerk sent along), so the PID feeds forward the
-    # identified chain's inverse of them (no prefilter), and the chair follows each axis's
-    # command delayed and through what the SOPDT model leaves of its lags: a mean lag of
-    # `predict_s` (v) / `predict_omega_s` (ω), of it two lags of `predict_lag_s`, the rest dead
-    # time. The simulated chair's own lags sum to 1.07 / 0.79 s of which the inverse takes off
-    # τ1 + τ2 = 0.716 / 0.482 s: 0.35 / 0.31 s left; fitted on control_eval (0.33–0.37 tried:
-    # 1.435–1.52× the least time). 0 = off. A mere window of recent commands (the old
-    # predictor) errs by ω̇·variance/2 of the lag, 3–4° in a turn at the ω̇ limit (measured).
-    predict_s: float = 0.34
-    predict_omega_s: float = 0.30
-    predict_lag_s: float = 0.03
-    # The chair reproduces the plan through the PID's inverse of the SOPDT model, and what the
-    # model does not explain (the chair's third lag; the feedback's correction of it; through
-    # the processes the commands' timing) shows at the chair. So the limiter plans a, v's jerk
-    # and ω̇ at these fractions of the comfort limits, which stay as they are and are what the
-    # chair is measured against. Measured at the chair (session 9): a at 0.97 reached 0.987
-    # in lockstep but 0.99-1.01 through the processes under load (the e-stop hazard test once
-    # 1.006), at 0.95 1.007 (control_stack, load 3); at 0.9: 0.92 in lockstep, 0.918 through
-    # the processes. Jerk 0.9 reached 2.07 through the processes; 0.88 made test_control's
-    # lagging unicycle reverse ω once near a goal beside it. ω̇ at 0.95 touched 2.787.
-    plan_fraction_a: float = 0.9
-    plan_fraction_jerk: float = 0.85
-    plan_fraction_omega_acc: float = 0.9
+    # The pose is predicted from the identified drive chain ([pid]): the chair follows each
+    # axis's command through the PID's prefilter (two lags of `predict_lag_s`) delayed by the
+    # dead time θ, so its mean lag is θ + 2·prefilter_s: v 0.372 + 0.30, ω 0.318 + 0.30
+    # ([pid] v_model, omega_model, prefilter_s). 0 = off. A mere window of recent commands (the
+    # old predictor) errs by ω̇·variance/2 of the lag, 3–4° in a turn at the ω̇ limit (measured).
+    predict_s: float = 0.67
+    predict_omega_s: float = 0.62
+    predict_lag_s: float = 0.15
+    # Lead the PID's prefilter (LeadAxis): the chair follows the plan delayed by the dead time
+    # only; after every goal it rests ~0.5 s sooner (plan end → arrived, median 0.96 → 0.46 s;
+    # control_eval 1.60 → 1.505× the least time). Only for a drive chain with that prefilter
+    # ([pid] model, prefilter_s). Off: the feed-forward's first frame from rest is 0.19 V off
+    # neutral (the no-lunge check after an e-stop release allows 0.1 V) and through the
+    # processes the chair's jerk touched 2.04 m/s³ (commands' timing, amplified).
+    lead: bool = False
+    # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
+    # (the chair's third lag, the feedback; through the processes the commands' timing too)
+    # shows at the chair: at the full limits it measured a 1.004 m/s², jerk 2.13 m/s³
+    # (control_eval; through the processes jerk 2.07 at 0.925). So the limiter plans the
+    # accelerations (a, ω̇) and v's jerk at these fractions of the comfort limits, which stay
+    # as they are and are what the chair is measured against (lockstep peaks then 0.98, 1.90,
+    # 2.76).
+    plan_fraction_a: float = 0.98
+    plan_fraction_jerk: float = 0.9
     omega_floor_radps: float = 0.5  # min |ω| on tight curves (law.py); 0 = the paper's v(κ)
     # v ≤ rate·r near the goal: the paper's slowdown (vmax/r_thresh = 1/s) gives a heading loop
     # faster than the comfort-limited turn rate can follow (it oscillated); ≥ 1 = the paper's.
@@ -132,7 +134,7 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise ValueError(f"{name} must be >= 0")
         for name in ("capture_fraction", "align_brake_fraction", "brake_fraction",
-                     "plan_fraction_a", "plan_fraction_jerk", "plan_fraction_omega_acc"):
+                     "plan_fraction_a", "plan_fraction_jerk"):
             if not 0 < getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in (0, 1]")
         if not (math.isfinite(self.straight_radius_m) and self.straight_radius_m >= 0):
@@ -158,12 +160,11 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
 
     @property
     def limits(self) -> ComfortLimits:
-        """What the limiter plans with: a, v's jerk and ω̇ at their `plan_fraction_*` of the
-        comfort limits."""
-        return ComfortLimits(self.vmax_mps, self.plan_fraction_a * self.a_max_mps2,
-                             self.plan_fraction_jerk * self.jerk_max_mps3,
-                             self.omega_max_radps,
-                             self.plan_fraction_omega_acc * self.omega_acc_max_radps2,
+        """What the limiter plans with: the comfort limits; with the lead, the accelerations
+        (a, ω̇) at `plan_fraction_a` and v's jerk at `plan_fraction_jerk` of them."""
+        fa, fj = (self.plan_fraction_a, self.plan_fraction_jerk) if self.lead else (1.0, 1.0)
+        return ComfortLimits(self.vmax_mps, fa * self.a_max_mps2, fj * self.jerk_max_mps3,
+                             self.omega_max_radps, fa * self.omega_acc_max_radps2,
                              self.omega_jerk_max_radps3)
 
 
@@ -174,11 +175,7 @@ class OdomSample:
     yaw: float
     v: float
     omega: float
-    t: float  # receive time, monotonic s: what freshness (the stale-odometry stop) judges
-    # How old it already was when received, by its own stamp (through the processes 0–20 ms):
-    # the pose predictor moves it on by that; freshness does not count it (a loaded host's
-    # late samples would otherwise refuse goals as "no fresh odometry").
-    age_s: float = 0.0
+    t: float  # receive time, monotonic s
 
 
 @dataclass(frozen=True)
@@ -264,18 +261,40 @@ class ChainAxis:
         return out
 
 
-class Planned(tuple[float, float]):
-    """(v, ω) to send, with the plan's acceleration and jerk per axis at this command: the
-    velocity PID feeds forward the drive chain's inverse of the plan itself (no prefilter)."""
+JERK_LAG_S = 0.04
 
-    accel: tuple[float, float]
-    jerk: tuple[float, float]
 
-    def __new__(cls, v: float, omega: float, accel: tuple[float, float] = (0.0, 0.0),
-                jerk: tuple[float, float] = (0.0, 0.0)) -> Planned:
-        self = super().__new__(cls, (v, omega))
-        self.accel, self.jerk = accel, jerk
-        return self
+class LeadAxis:
+    """One axis's command led past the velocity PID's prefilter (two lags of `prefilter_s`):
+    c = r + 2τ·ṙ + τ²·r̈ of the planned velocity r, so that the prefilter hands the PID's
+    feed-forward r itself and the chair follows the plan delayed by the dead time only, not
+    smoothed by another 2τ (which left ~0.5 s of tail after every goal). `ahead` is the motion
+    sent ahead of the plan so far, ∫(c − r) dt: the pose predictor counts it as motion still
+    to be planned (it returns to 0 as r comes to rest)."""
+
+    def __init__(self, prefilter_s: float) -> None:
+        self.tau = prefilter_s
+        self._r = self._d1 = self._d2 = 0.0
+        self.ahead = 0.0
+
+    def reset(self, value: float) -> None:
+        self._r, self._d1, self._d2, self.ahead = value, 0.0, 0.0, 0.0
+
+    def step(self, r: float, dt: float, amax: float, jmax: float) -> float:
+        if self.tau <= 0.0 or dt <= 0.0:
+            return r
+        # (within the limits the plan keeps: a replanned landing can step r by more, and the
+        # lead would amplify that step by 2τ/dt and τ²/dt² into a jolt of the command)
+        d1 = min(max((r - self._r) / dt, -amax), amax)
+        d2 = min(max((d1 - self._d1) / dt, -jmax), jmax)
+        self._r, self._d1 = r, d1
+        # The jerk term over a short lag: where the plan's jerk flips, τ²·Δj steps the command
+        # by 4× a normal step, and the PID holds each command for one tick more or less as
+        # they arrive through the processes (measured: the chair's jerk then rose to 2.1).
+        self._d2 += (d2 - self._d2) * (1.0 - math.exp(-dt / JERK_LAG_S))
+        c = r + 2.0 * self.tau * d1 + self.tau * self.tau * self._d2
+        self.ahead += (c - r) * dt
+        return c
 
 
 class ControlCore:
@@ -319,11 +338,6 @@ class ControlCore:
         self.frames = MapFrame()
         self.map_waypoints: list[Pose2D] | None = None
         self.inline_planning = True  # plan inside step(); the node plans in a thread instead
-        # How much later than sent a command starts to act, beyond the predictor's chain (as
-        # in lockstep, where the PID takes it up on the same drive tick): through the
-        # processes the PID takes it up at its next odometry sample (the node sets half a
-        # drive period, the mean wait).
-        self.pickup_delay_s = 0.0
         self._plan_t = -math.inf
         self._plan_got_t = -math.inf  # when the current plan arrived
         self._blocked_since: float | None = None
@@ -338,7 +352,8 @@ class ControlCore:
         self._history: deque[tuple[float, float, float]] = deque()  # (dt, v, ω) sent
         self._chain = (ChainAxis(self.cfg.predict_s, self.cfg.predict_lag_s),
                        ChainAxis(self.cfg.predict_omega_s, self.cfg.predict_lag_s))
-        self._rates = (0.0, 0.0)  # the limiter's (v, ω) rates last sent (for the jerk)
+        lead_s = self.cfg.predict_lag_s if self.cfg.lead else 0.0
+        self._lead = (LeadAxis(lead_s), LeadAxis(lead_s))
         # Set by this step's decision for a point-to-point move (limits.py `move`): the
         # distance (m) and yaw (rad) left, each None to brake that axis; None: track (v, ω).
         self._move: tuple[float | None, float | None] | None = None
@@ -411,7 +426,8 @@ class ControlCore:
             self.limiter.reset(o.v, o.omega)
             self._chain[0].reset(o.v)
             self._chain[1].reset(o.omega)
-            self._rates = (0.0, 0.0)
+            self._lead[0].reset(self.limiter.v.value)
+            self._lead[1].reset(self.limiter.w.value)
         self.goal_id += 1
         self.map_waypoints = map_waypoints
         self.waypoints = [Pose2D(p.x_m, p.y_m, wrap(p.yaw_rad)) for p in req.waypoints]
@@ -466,11 +482,10 @@ class ControlCore:
         return GoalReply(ok=True, goal_id=self.goal_id)
 
     # --- the loop ---------------------------------------------------------------------------
-    def step(self, now: float, dt: float | None = None) -> Planned | None:
-        """(v, ω) to publish now with the plan's acceleration and jerk, or None when idle and
-        at rest (leave the chair to others). `dt`: how far the plan advances, by default the
-        time since the last step (the node gives its loop's schedule: its thread's wake-up
-        jitter is not time)."""
+    def step(self, now: float, dt: float | None = None) -> tuple[float, float] | None:
+        """(v, ω) to publish now, or None when idle and at rest (leave the chair to others).
+        `dt`: how far the plan advances, by default the time since the last step (the node
+        gives its loop's schedule: its thread's wake-up jitter is not time)."""
         if dt is None:
             dt = 0.0 if self._last_t is None else now - self._last_t
         dt = min(max(dt, 0.0), 0.1)
@@ -489,7 +504,7 @@ class ControlCore:
                     if req is not None:
                         self.on_plan(compute(req), now)
                 if self.active and self._in_odom(now):
-                    v_des, w_des = self._desired(self._predicted(self.odom, now), now)
+                    v_des, w_des = self._desired(self._predicted(self.odom), now)
                     self._watch_progress(self.odom, now)
         if not self.active and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
@@ -500,7 +515,7 @@ class ControlCore:
                 self._land_left -= v * dt
         else:
             v, w = self.limiter.step(v_des, w_des, dt)
-        out = self._planned(v, w, dt)
+        v, w = self._lead_out(v, w, dt)
         self._history.append((dt, v, w))
         if dt > 0.0:
             self._chain[0].push(dt, v)
@@ -510,21 +525,19 @@ class ControlCore:
             self._history.popleft()
         if not self.active and not self.limiter.at_rest:
             self._ended_t = now  # the zero burst starts once braked to rest
-        return out
+        return v, w
 
-    def _planned(self, v: float, w: float, dt: float) -> Planned:
-        """(v, ω) with the limiter's rates and their change over the step (the plan's jerk,
-        within the jerk limits: a reset of the limiter is a jump, not a plan)."""
-        lv, lw, lim = self.limiter.v, self.limiter.w, self.limiter.lim
-
-        def jerk(rate: float, before: float, jmax: float) -> float:
-            return 0.0 if dt <= 0.0 else min(max((rate - before) / dt, -jmax), jmax)
-
-        rates = (lv.rate, lw.rate)
-        jerks = (jerk(lv.rate, self._rates[0], lim.jerk_max_mps3),
-                 jerk(lw.rate, self._rates[1], lim.omega_jerk_max_radps3))
-        self._rates = rates
-        return Planned(v, w, rates, jerks)
+    def _lead_out(self, v: float, w: float, dt: float) -> tuple[float, float]:
+        """What is sent for the planned (v, ω): led past the PID's prefilter (LeadAxis),
+        within the goal's speed and the turn-rate bound, and v never against its sign: the PID
+        would clamp a reverse command to the safety monitor's 0 and stop the chair. What a clamp
+        changes is real motion, which the predictor sees (it is fed what is sent)."""
+        lim = self.limiter.lim
+        cv = self._lead[0].step(v, dt, lim.a_max_mps2, lim.jerk_max_mps3)
+        cw = self._lead[1].step(w, dt, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3)
+        vm = min(lim.v_max_mps, self.vmax)
+        cv = min(max(cv, 0.0), vm) if v >= 0.0 else max(min(cv, 0.0), -vm)
+        return cv, min(max(cw, -lim.omega_max_radps), lim.omega_max_radps)
 
     # --- planning (MPEPC) -------------------------------------------------------------------
     def plan_request(self, now: float) -> PlanRequest | None:
@@ -535,7 +548,7 @@ class ControlCore:
         if self.map_waypoints is not None and self.frames.why_not(now):
             return None  # where the goal is in odom is unknown: nothing to plan to
         self._plan_t = now
-        p = self._predicted(o, now)
+        p = self._predicted(o)
         wp = self.waypoints[self.index]
         fld = self._field_for(o, self.waypoints) if self.field is None else self.field
         ctg = self.ctg if self._ctg_key == (id(fld), self.index) else None
@@ -654,35 +667,34 @@ class ControlCore:
         self._end(state, reason, now)
         if self.odom is not None:
             self.limiter.reset(self.odom.v, self.odom.omega)
-            self._rates = (0.0, 0.0)
+            self._lead[0].reset(self.limiter.v.value)
+            self._lead[1].reset(self.limiter.w.value)
         self._count("stopped_" + state)
 
-    def _predicted(self, o: OdomSample, now: float) -> OdomSample:
-        """The pose once the commands already sent have acted: the drive chain (dead time,
-        what is left of the chair's lags; ChainAxis) still holds motion the odometry has not
-        seen, and a feedback law acting on the lagging pose overshoots, above all near the goal
-        where κ ~ 1/r and at the end of a turn at the limits. The odometry is moved on to
-        `now` first, by the chain's velocity: through the processes it is 0–20 ms old (its
-        50 Hz against the loop's own timer), and taken as current it put the goal up to
-        v·20 ms further each step, in jumps as samples were missed or seen twice (measured:
-        a 1 m goal planned 3.5 cm long)."""
+    def _predicted(self, o: OdomSample) -> OdomSample:
+        """The pose once the commands already sent have acted: the drive chain (PID prefilter,
+        dead time; ChainAxis) still holds motion the odometry has not seen, and a feedback law
+        acting on the lagging pose overshoots, above all near the goal where κ ~ 1/r and at
+        the end of a turn at the limits. Less what the lead has sent ahead of the plan (its
+        `ahead`): the plan continues from its own integral, where the chair ends once the
+        led command has played out."""
         cv, cw = self._chain
         h = 1.0 / self.cfg.rate_hz
         horizon = max(cv.delay, cw.delay) + 8 * max(cv.lag, cw.lag)  # lags decay to < 0.4 %
         n = math.ceil(horizon / h) if horizon > 0 else 0
+        x, y, yaw = o.x, o.y, o.yaw
         if n == 0:
             return o
-        # (at most a few samples: an older one is the stale-odometry stop's to judge)
-        age = min(max(now - o.t, 0.0) + o.age_s + self.pickup_delay_s, 5 * h)
-        yaw = o.yaw + 0.5 * cw.x2 * age
-        x, y = o.x + cv.x2 * math.cos(yaw) * age, o.y + cv.x2 * math.sin(yaw) * age
-        yaw += 0.5 * cw.x2 * age
         for v, w in zip(cv.future(h, n), cw.future(h, n), strict=True):
             yaw_mid = yaw + 0.5 * w * h
             x += v * math.cos(yaw_mid) * h
             y += v * math.sin(yaw_mid) * h
             yaw += w * h
-        return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t, o.age_s)
+        dv, dw = self._lead[0].ahead, self._lead[1].ahead
+        yaw -= dw
+        x -= dv * math.cos(yaw)
+        y -= dv * math.sin(yaw)
+        return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
 
     def _desired(self, o: OdomSample, now: float) -> tuple[float, float]:
         cfg = self.cfg

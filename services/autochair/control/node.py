@@ -55,7 +55,6 @@ class ControlNode:
             raise ConfigError(f"[control] {e}") from None
         self.core.inline_planning = False  # planned on its own thread (plan_tick)
         self._due: float | None = None  # the last tick's schedule (Node.due)
-        self.core.pickup_delay_s = 0.5 / keys.DRIVE_RATE_HZ
         self.node, self.cfg = node, cfg
         self.lock = threading.Lock()
         self.cmd_pub = node.publisher(keys.CMD_VEL)
@@ -75,11 +74,7 @@ class ControlNode:
 
     # --- inputs -----------------------------------------------------------------------------
     def on_odom(self, o: Odometry) -> None:
-        # Freshness is judged by arrival, as before; its age by its own stamp (when measured)
-        # only moves the predicted pose on (ControlCore._predicted).
-        age = min(max((time.time_ns() - o.stamp_ns) / 1e9, 0.0), 0.1)
-        sample = OdomSample(o.x_m, o.y_m, o.yaw_rad, o.v_mps, o.omega_radps, time.monotonic(),
-                            age)
+        sample = OdomSample(o.x_m, o.y_m, o.yaw_rad, o.v_mps, o.omega_radps, time.monotonic())
         with self.lock:
             self.core.on_odom(sample)
         with self.people_lock:
@@ -147,8 +142,7 @@ class ControlNode:
         if out is not None:
             self.cmd_pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=out[0],
                                              omega_radps=out[1], source="control",
-                                             stream_start_ns=self.stream_start_ns,
-                                             accel=out.accel, jerk=out.jerk))
+                                             stream_start_ns=self.stream_start_ns))
             self.node.health.count("commands")
 
     def plan_tick(self) -> None:

@@ -7,9 +7,7 @@ With an identified model of the drive chain per axis (`autochair tune`) each loo
 two-degree-of-freedom: the desired velocity passes a short prefilter, its model inverse is the
 feed-forward effort, and the PID acts on the model's own response (the prefiltered desired,
 delayed by the dead time): the feed-forward drives, the feedback only trims model error, so a
-smooth desired velocity is followed without the feedback's lag and overshoot. A planned stream
-(the control service's, jerk-limited, sent with its acceleration and jerk) skips the prefilter:
-the inverse of the plan itself, so the chair follows it delayed by the dead time only.
+smooth desired velocity is followed without the feedback's lag and overshoot.
 """
 
 from __future__ import annotations
@@ -83,12 +81,6 @@ class Feedforward:
     prefilter_s: float = 0.1
     _x1: float = 0.0  # prefilter states
     _x2: float = 0.0
-    # A planned stream (effort_planned): what the reference still deviates from the plan, as
-    # the prefilter's two lags decaying with no input (continuous across a switch of mode).
-    _planned: bool = False
-    _d1: float = 0.0
-    _d2: float = 0.0
-    _u: float = 0.0  # the last feed-forward effort
     _m1: float = 0.0  # model lag states (m2 = the model's output)
     _m2: float = 0.0
     _t: float = 0.0
@@ -99,8 +91,6 @@ class Feedforward:
         """Start from the measured velocity: the model is taken to be at rest there."""
         self._x1 = self._x2 = self._m1 = self._m2 = self._due = y
         self._queue.clear()
-        self._planned, self._d1, self._d2 = False, 0.0, 0.0
-        self._u = self.model.effort_for(y)
 
     def effort(self, r: float, dt: float, lo: float = -math.inf, hi: float = math.inf) -> float:
         """Feed-forward effort in [lo, hi] for desired r over the next dt."""
@@ -116,40 +106,13 @@ class Feedforward:
             d2 = ((ri - x1) / tf - d1) / tf  # r̈
             return x2 + (m.tau1_s + m.tau2_s) * d1 + m.tau1_s * m.tau2_s * d2
 
-        self._planned = False
         u = m.effort_for(wanted(r))
         if not lo <= u <= hi:  # govern: the input that puts the inverse on the window's edge
             w0 = wanted(0.0)
             r = (m.output_for(min(max(u, lo), hi)) - w0) / (wanted(1.0) - w0)
         self._x1 = x1o + (r - x1o) * a
         self._x2 = x2o + (self._x1 - x2o) * a
-        self._u = min(max(m.effort_for(wanted(r)), lo), hi)
-        return self._u
-
-    def effort_planned(self, r: float, acc: float, jerk: float, dt: float, slew: float,
-                       lo: float = -math.inf, hi: float = math.inf) -> float:
-        """Feed-forward effort in [lo, hi] for a planned velocity r with its acceleration and
-        jerk: the model's inverse of the plan itself (r + (τ1+τ2)ṙ + τ1τ2r̈), no prefilter.
-        Coming from the prefilter, its lag behind r decays as the prefilter's own two lags
-        would, so the reference stays smooth. The effort moves at most `slew` per second: the
-        jerk term steps the effort where the plan's jerk steps (the chain's lags make that the
-        plan's jerk at the chair), but a stream's first frame from rest must not jump the stick
-        (no lunge: ≤ 0.1 V), nor may a bad sender's derivatives."""
-        m, tf = self.model, max(self.prefilter_s, 1e-3)
-        if not self._planned:
-            self._planned = True
-            self._d2, self._d1 = self._x2 - r, self._x1 - r - tf * acc
-        else:  # two equal lags with no input, exact over dt
-            e = math.exp(-dt / tf)
-            self._d1, self._d2 = self._d1 * e, (self._d2 + self._d1 * dt / tf) * e
-        ref = r + self._d2
-        ref1 = acc + (self._d1 - self._d2) / tf
-        ref2 = jerk + (self._d2 - 2.0 * self._d1) / (tf * tf)
-        self._x2, self._x1 = ref, ref + tf * ref1  # where the prefilter would continue from
-        u = m.effort_for(ref + (m.tau1_s + m.tau2_s) * ref1 + m.tau1_s * m.tau2_s * ref2)
-        u = min(max(u, self._u - slew * dt), self._u + slew * dt)
-        self._u = min(max(u, lo), hi)
-        return self._u
+        return min(max(m.effort_for(wanted(r)), lo), hi)
 
     def reference(self, u: float, dt: float) -> float:
         """Advance the model by dt with effort u applied; its output is the reference."""
@@ -187,10 +150,6 @@ class Command:
     source: str  # "autonomy" (keys.CMD_VEL) or "teleop" (keys.TELEOP)
     stamp_ns: int  # Unix ns, the sender's clock
     stream_start_ns: int  # when the deliberate act that began the stream happened (Unix ns)
-    # A planned stream's (v, ω) acceleration and jerk (VelocityCommand.accel, .jerk); None
-    # for streams from people, which the prefilter smooths.
-    accel: tuple[float, float] | None = None
-    jerk: tuple[float, float] | None = None
 
 
 class Verdict(enum.Enum):
@@ -251,9 +210,6 @@ class VelocityPidCore:
     v_model: ChainModel | None = None
     omega_model: ChainModel | None = None
     prefilter_s: float = 0.1
-    # A planned stream's feed-forward effort moves at most this much per second (effort: 1 is
-    # 1.5 V): its first frame from rest stays within 0.1 V of neutral at 100 Hz.
-    planned_slew_per_s: float = 5.0
     d_filter_n: float = 10.0
     # The encoders' period: a parked chair's samples come every 50 ms (the gateway idles the
     # chain), so the sample that starts a drive carries the parked interval as its dt, while
@@ -270,7 +226,6 @@ class VelocityPidCore:
     stop_reason: str = field(init=False)
     _desired: tuple[float, float] = (0.0, 0.0)
     _desired_t: float = -math.inf  # -inf: obeying nothing
-    _plan: tuple[tuple[float, float], tuple[float, float]] | None = None  # (accel, jerk)
     _active: bool = False
     # fwd, rev (> 0), |ω|, rev for autonomy (> 0) bounds
     _limit: tuple[float, float, float, float] | None = None
@@ -294,9 +249,7 @@ class VelocityPidCore:
     # --- inputs -----------------------------------------------------------------------------
     def set_desired(self, cmd: Command, now_s: float, now_ns: int) -> Verdict:
         """Take a desired velocity; only an OK command moves the chair."""
-        plan = None if cmd.accel is None or cmd.jerk is None else (cmd.accel, cmd.jerk)
-        if not (math.isfinite(cmd.v) and math.isfinite(cmd.omega)) or (
-                plan is not None and not all(math.isfinite(x) for x in (*plan[0], *plan[1]))):
+        if not (math.isfinite(cmd.v) and math.isfinite(cmd.omega)):
             return Verdict.REJECTED
         if cmd.source != self.owner:
             return Verdict.NOT_OWNER
@@ -314,7 +267,6 @@ class VelocityPidCore:
         took_over = self.obeying and cmd.stream_start_ns > self._stream_ns
         self._stream_ns = cmd.stream_start_ns
         self._desired, self._desired_t = (cmd.v, cmd.omega), now_s
-        self._plan = plan
         return Verdict.TOOK_OVER if took_over else Verdict.OK
 
     def stop(self, reason: str, now_ns: int) -> bool:
@@ -456,11 +408,7 @@ class VelocityPidCore:
             dt = min(dt, self.period_s)
         meas = (v_meas, omega_meas)
         self._held = desired
-        # An axis the caps or the safety limit changed is no longer the plan: prefiltered.
-        plan = self._plan
-        planned = [None if plan is None or desired[i] != self._desired[i] else
-                   (plan[0][i], plan[1][i]) for i in (0, 1)]
-        efforts = [self._axis(i, desired[i], meas[i], dt, planned[i]) for i in (0, 1)]
+        efforts = [self._axis(i, desired[i], meas[i], dt) for i in (0, 1)]
         if self.probe is not None and self.probe.state is ProbeState.RUNNING \
                 and not self._probe_step(efforts, meas, now_s, now_ns):
             return PidOutput(0.0, 0.0, NEUTRAL_V, NEUTRAL_V, False, (0.0, 0.0),
@@ -502,17 +450,14 @@ class VelocityPidCore:
             self._resume(i, meas[i], self.probe.bias)
         return True
 
-    def _axis(self, i: int, r: float, y: float, dt: float,
-              plan: tuple[float, float] | None = None) -> float:
-        """One loop: feed-forward (if modelled; of the plan itself for a planned stream) plus
-        the PID on the model's response to what was sent; the PID's window is what the
-        feed-forward leaves (anti-windup on the total)."""
+    def _axis(self, i: int, r: float, y: float, dt: float) -> float:
+        """One loop: feed-forward (if modelled) plus the PID on the model's response to what
+        was sent; the PID's window is what the feed-forward leaves (anti-windup on the total)."""
         pid, ff = (self.v_pid, self.omega_pid)[i], self._ff[i]
         lo, hi = self._window
         if ff is None:
             return pid.update(r, y, dt)
-        u_ff = ff.effort(r, dt, lo, hi) if plan is None else \
-            ff.effort_planned(r, *plan, dt, self.planned_slew_per_s, lo, hi)
+        u_ff = ff.effort(r, dt, lo, hi)
         pid.out_min, pid.out_max = lo - u_ff, hi - u_ff
         # The reference is the model's response to the feed-forward alone (advanced by the
         # previous one, which is what acted over the last dt): the feedback's correction must
@@ -585,8 +530,6 @@ class PidConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     v_model: Model | None = (1.839, 0.049, 0.358, 0.358, 0.372)
     omega_model: Model | None = (1.888, 0.049, 0.241, 0.241, 0.318)
     prefilter_s: Annotated[float, msgspec.Meta(gt=0, le=2)] = 0.15
-    # A planned stream's feed-forward (no prefilter) moves the effort at most this fast.
-    planned_slew_per_s: Annotated[float, msgspec.Meta(gt=0, le=20)] = 5.0
     min_v: float = 1.1
     max_v: float = 3.9
     d_filter_n: float = 10.0
@@ -621,8 +564,7 @@ def make_core(cfg: PidConfig, *, stale_s: float = 0.3, skew_s: float = 0.1,
         estop_stale_s=estop_stale_s, odom_gap_s=odom_gap_s,
         caps=Caps(cfg.v_max_fwd_mps, cfg.v_max_rev_mps, cfg.omega_max_radps),
         start_ns=start_ns, v_model=v_model, omega_model=omega_model,
-        prefilter_s=cfg.prefilter_s, planned_slew_per_s=cfg.planned_slew_per_s,
-        d_filter_n=cfg.d_filter_n)
+        prefilter_s=cfg.prefilter_s, d_filter_n=cfg.d_filter_n)
 
 
 def probe_reply(probe: Probe | None) -> dict[str, object]:

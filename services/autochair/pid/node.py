@@ -53,8 +53,7 @@ class PidWiring:
             with self.lock:
                 verdict = self.core.set_desired(
                     Command(cmd.v_mps, cmd.omega_radps, source, cmd.stamp_ns,
-                            cmd.stream_start_ns, cmd.accel, cmd.jerk), time.monotonic(),
-                    time.time_ns())
+                            cmd.stream_start_ns), time.monotonic(), time.time_ns())
             self.node.health.count(f"desired_{verdict.value}")
             if verdict is Verdict.TOOK_OVER:
                 self.node.event("warning", f"pid: a {source} command stream begun later took "

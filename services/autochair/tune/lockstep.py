@@ -56,13 +56,10 @@ class Rig:
     def act(self, t: float, v_meas: float, omega_meas: float,
             desired: tuple[float, float] | None = None) -> PidOutput:
         """One PID tick at `t` on a measurement: a new desired velocity first if given (the
-        same command stream; a planned one, control.core.Planned, with its acceleration and
-        jerk), then the volts for the next `sense`."""
+        same command stream), then the volts for the next `sense`."""
         ns = round(t * 1e9)
         if desired is not None:
-            self.core.set_desired(Command(desired[0], desired[1], "autonomy", ns, 1,
-                                          getattr(desired, "accel", None),
-                                          getattr(desired, "jerk", None)), t, ns)
+            self.core.set_desired(Command(desired[0], desired[1], "autonomy", ns, 1), t, ns)
         out = self.core.update(v_meas, omega_meas, DT, t, ns)
         self.volts = (out.longitudinal_v, out.angular_v)
         return out
