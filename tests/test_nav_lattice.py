@@ -357,3 +357,46 @@ def test_a_chair_no_single_stage_helps_gets_the_first_stage_of_a_deeper_way_in()
         pose, stages = (pose[0] + d * math.cos(psi), pose[1] + d * math.sin(psi), psi), stages + 1
     assert stages >= 2
 
+
+def test_a_stages_turn_is_carried_on_and_then_its_straight_driven() -> None:
+    # Office A's far corner again (nav_eval seed 1): after a stage's turn, the planner looked
+    # again from the turned chair, where MPEPC (not blocked there) turned it back by a few
+    # degrees towards the lattice's heading, then stood blocked and was given the same
+    # turn: a loop, aborted "no progress". A stage's turn now carries on to its end, and its
+    # straight is driven next (each rechecked).
+    from autochair.nav.planner import PlanRequest, compute
+
+    fld = _hallway()
+    goal, here = (5.5, 3.5, math.pi), (5.55, 3.02, math.radians(69))
+    res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, fld, None, None, LAW))
+    p = res.plan
+    assert p is not None and not res.blocked_by and p.final_turn and p.then is not None
+    psi, land = p.target[2], p.then
+    assert p.target[:2] == pytest.approx(here[:2])
+    assert abs(math.remainder(psi - here[2], 2 * math.pi)) > math.radians(3)
+    prev = (*p.target, p.vmax_mps)
+
+    def request(yaw: float, omega: float, then: tuple[float, float] | None) -> PlanRequest:
+        return PlanRequest(1, 0, (here[0], here[1], yaw), 0.0, omega, goal, fld, None, prev,
+                           LAW, then=then)
+
+    # turning: the rest of the same turn, the same straight after it
+    mid = here[2] + 0.5 * math.remainder(psi - here[2], 2 * math.pi)
+    res = compute(request(mid, math.copysign(0.3, psi - here[2]), land))
+    assert res.plan is not None and not res.blocked_by
+    assert res.plan.final_turn and res.plan.then == land
+    assert res.plan.target[2] == pytest.approx(psi)
+    # turned (a degree past) and at rest: the straight onto its landing
+    done = psi - math.copysign(math.radians(1.0), here[2] - psi)
+    res = compute(request(done, 0.0, land))
+    assert res.plan is not None and not res.blocked_by
+    assert res.plan.straight_m > 0.0 and not res.plan.final_turn
+    assert res.plan.target[:2] == pytest.approx(land, abs=0.005)
+    assert res.plan.straight_m == pytest.approx(math.hypot(land[0] - here[0],
+                                                           land[1] - here[1]), abs=0.005)
+    # positive control: looked at again from the turned chair, something else (in nav_eval
+    # MPEPC's turn back; here, after these calls, its sampler elsewhere: another stage)
+    res = compute(request(done, 0.0, None))
+    assert res.plan is not None
+    assert not (res.plan.straight_m > 0.0
+                and res.plan.target[:2] == pytest.approx(land, abs=0.005))

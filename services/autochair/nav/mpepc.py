@@ -201,6 +201,10 @@ class Plan:
     # > 0: drive straight this far along the chair's heading onto `target` and stop (a stage
     # of a manoeuvre: Mpepc.stage); the core moves there without steering (its straight final).
     straight_m: float = 0.0
+    # A stage's turn (final_turn): where its straight lands (x, y), driven next from rest
+    # (the planner continues the stage rather than look again from the turned chair, where
+    # MPEPC's small turns towards the lattice's heading undid it: nav_eval seed 1).
+    then: tuple[float, float] | None = None
 
 
 def wrap(a: F64) -> F64:
@@ -786,15 +790,26 @@ class Mpepc:
                    ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                    rates: tuple[float, float] = (0.0, 0.0),
                    straight_to: tuple[float, float] | None = None,
-                   v0: float = 0.0) -> Plan | None:
+                   v0: float = 0.0, turn_to: float | None = None) -> Plan | None:
         """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
-        with `straight_to` (the landing of a straight stage under way), the rest of that
-        straight if it still lies ahead on the chair's line and sweeps clear. Either is
-        also evaluated as MPEPC's candidates are (`_costs`: people, the stop after the
-        plan period) and dropped if that predicts a hit. None: no stage."""
+        with `straight_to` (the landing of a straight stage under way, or of a stage's turn
+        done), the rest of that straight if it still lies ahead on the chair's line and
+        sweeps clear; or with `turn_to` as well (a stage's turn under way), the rest of that
+        turn if it sweeps clear. Each is also evaluated as MPEPC's candidates are (`_costs`:
+        people, the stop after the plan period) and dropped if that predicts a hit. None:
+        no stage."""
         x, y, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
-        if straight_to is not None:
+        if straight_to is not None and turn_to is not None:
+            # (onto ψ and 2° past: the spare Mpepc.stage checked the turn with)
+            e = float(wrap(np.array(turn_to - yaw)))
+            spare = math.copysign(math.radians(2.0), e)
+            n = max(2, math.ceil(abs(e + spare) * self.field.footprint.reach_m / 0.05) + 1)
+            if float(self.field.footprint_clearance(np.full(n, x), np.full(n, y), yaw
+                     + np.linspace(0.0, e + spare, n)).min()) < self.p.contact_m:
+                return None
+            psi, dist = yaw + e, math.hypot(straight_to[0] - x, straight_to[1] - y)
+        elif straight_to is not None:
             dx, dy = straight_to[0] - x, straight_to[1] - y
             along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
             if along <= 0.005 or lateral > 0.02:
@@ -826,7 +841,10 @@ class Mpepc:
         return Plan((float(zz[0, 0]), float(zz[0, 1]), 0.0, vmin), tgt, vmin, float(cost[0]),
                     float(info["phi0"][0] - info["phi_end"][0]), float(info["survival"][0]),
                     float(info["clearance"][0]), path, False, math.nan, float(cost[1]),
-                    len(zz), final_turn=turn, straight_m=0.0 if turn else dist)
+                    len(zz), final_turn=turn, straight_m=0.0 if turn else dist,
+                    then=straight_to if straight_to is not None else
+                    (x + dist * math.cos(psi), y + dist * math.sin(psi))
+                    if turn and dist > 0.0 else None)
 
     def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
                         goal: tuple[float, float, float]) -> bool:
