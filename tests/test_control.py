@@ -737,3 +737,33 @@ def test_a_straight_stage_into_an_obstacle_is_refused_by_the_core() -> None:
     # positive control: the same wall 20 cm further on leaves room for it
     core, pose, _ = _straight_stage(front + 0.28, 0.12)
     assert pose[0] == pytest.approx(2.12, abs=0.005)
+
+
+def test_a_stage_turns_straight_is_asked_for_by_the_core() -> None:
+    """The core's plan requests carry a stage turn's straight (Plan.then: where it lands), so
+    the planner carries the stage on once the turn is done instead of looking again from the
+    turned chair (nav_eval seed 1, office A's far corner: MPEPC turned it back, a loop)."""
+    from autochair.nav.field import GridMap, NavField
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    walls = np.array([[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
+                      [-1.0, 3.0, -1.0, -3.0]])
+    core = fresh_core(INSTANT)
+    core.inline_planning = False
+    core.on_field(NavField(GridMap.from_shapes(walls, np.zeros((0, 3))), Footprint()))
+    core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(4.0, 1.5, 0.0)]), 0.0).ok
+
+    def request(then: tuple[float, float] | None, t: float) -> object:
+        plan = Plan((0.0, 0.3, 0.0, 0.15), (2.0, 0.0, 0.3), 0.15, 0.0, 0.0, 1.0, 1.0,
+                    np.zeros((1, 3)), False, math.nan, 0.0, 1, final_turn=True, then=then)
+        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
+        return core.plan_request(t + 1.0)
+
+    req = request((2.2, 0.06), 0.0)
+    assert req is not None and req.then == (2.2, 0.06)  # type: ignore[attr-defined]
+    assert req.previous[2] == pytest.approx(0.3)  # type: ignore[attr-defined]
+    # positive control: a turn that is not a stage's (the final manoeuvre's): nothing after it
+    req = request(None, 2.0)
+    assert req is not None and req.then is None  # type: ignore[attr-defined]

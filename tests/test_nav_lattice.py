@@ -285,3 +285,118 @@ def test_a_chair_stopped_blocked_near_a_tight_goal_gets_the_next_stage_of_its_wa
     assert res.plan is not None and not res.blocked_by
     assert res.plan.straight_m == pytest.approx(0.5 * d, abs=1e-6)
     assert res.plan.target[:2] == pytest.approx((tx, ty))
+
+
+def _hallway() -> NavField:
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD)
+    return NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+
+
+def _stage_sweeps_clear(fld: NavField, pose: tuple[float, float, float], psi: float,
+                        d: float) -> bool:
+    """The stage's turn onto ψ ± 2° and its straight along ψ, ψ ± 2° to d + 2 cm: clear by
+    contact_m (recomputed here, as Mpepc.stage must have checked them)."""
+    x, y, yaw = pose
+    contact, spare = MpepcParams().contact_m, math.radians(2.0)
+    e = math.remainder(psi - yaw, 2 * math.pi)
+    turn = yaw + np.linspace(0.0, e + math.copysign(spare, e) if e else 0.0, 60)
+    if fld.footprint_clearance(np.full(60, x), np.full(60, y), turn).min() < contact:
+        return False
+    k = np.linspace(0.0, d + 0.02, 40)
+    for h in (psi - spare, psi, psi + spare):
+        if fld.footprint_clearance(x + k * math.cos(h), y + k * math.sin(h),
+                                   np.full(40, h)).min() < contact:
+            return False
+    return True
+
+
+def test_a_chair_no_single_stage_helps_gets_the_first_stage_of_a_deeper_way_in() -> None:
+    # Office A's far corner (nav_eval seed 1): the chair stood at rest 0.49 m from the goal,
+    # blocked. No stage (nor two, searched exhaustively) lands where the final manoeuvre has a
+    # way with every sweep clear by 5 cm and the stages' spares: the lattice's way passes the
+    # wall a cm or two closer than the chair's straights may. A way of three stages shifts
+    # the chair's line first (the stages' checks unchanged).
+    from autochair.nav.planner import PlanRequest, compute, lattice_for
+
+    fld, control = _hallway(), _hallway()
+    goal, here = (5.5, 3.5, math.pi), (5.55, 3.02, math.radians(69))
+
+    def plan(f: NavField, params: MpepcParams) -> tuple[object, str]:
+        res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, f, None, None, LAW), params)
+        assert res.plan is not None
+        return res.plan, res.blocked_by
+
+    # positive control: with ways of one stage only (the stages before), blocked there
+    p, blocked = plan(control, MpepcParams(stage_depth=1))
+    assert blocked and not p.is_goal  # type: ignore[attr-defined]
+    p, blocked = plan(fld, MpepcParams())
+    assert not blocked and not p.is_goal  # type: ignore[attr-defined]
+    assert p.final_turn or p.straight_m > 0.0  # type: ignore[attr-defined]
+    # The way, each stage from where the one before lands: every sweep clear, and within
+    # three stages the final manoeuvre has a way.
+    mp = Mpepc(fld, LAW, MpepcParams())
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    assert ctg is not None
+    hf = lattice_for(fld, goal, ctg, here)
+    assert hf is not None
+    assert Mpepc(fld, LAW, MpepcParams(stage_depth=1)).stage(here, goal, hf) is None
+    pose, stages = here, 0
+    while mp.final_heading(pose, goal, turn=True, straight=True, step_deg=2.0) is None:
+        got = mp.stage(pose, goal, hf)
+        assert got is not None and stages < 3
+        psi, d = got
+        if stages == 0:  # the plan drives this stage's first part: its turn, or its straight
+            tx, ty, _ = p.target  # type: ignore[attr-defined]
+            turn = bool(p.final_turn)  # type: ignore[attr-defined]
+            assert (tx, ty) == pytest.approx(here[:2] if turn else (
+                here[0] + d * math.cos(psi), here[1] + d * math.sin(psi)))
+        assert 0.0 < d <= MpepcParams().stage_straight_m
+        assert _stage_sweeps_clear(fld, pose, psi, d)
+        pose, stages = (pose[0] + d * math.cos(psi), pose[1] + d * math.sin(psi), psi), stages + 1
+    assert stages >= 2
+
+
+def test_a_stages_turn_is_carried_on_and_then_its_straight_driven() -> None:
+    # Office A's far corner again (nav_eval seed 1): after a stage's turn, the planner looked
+    # again from the turned chair, where MPEPC (not blocked there) turned it back by a few
+    # degrees towards the lattice's heading, then stood blocked and was given the same
+    # turn: a loop, aborted "no progress". A stage's turn now carries on to its end, and its
+    # straight is driven next (each rechecked).
+    from autochair.nav.planner import PlanRequest, compute
+
+    fld = _hallway()
+    goal, here = (5.5, 3.5, math.pi), (5.55, 3.02, math.radians(69))
+    res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, fld, None, None, LAW))
+    p = res.plan
+    assert p is not None and not res.blocked_by and p.final_turn and p.then is not None
+    psi, land = p.target[2], p.then
+    assert p.target[:2] == pytest.approx(here[:2])
+    assert abs(math.remainder(psi - here[2], 2 * math.pi)) > math.radians(3)
+    prev = (*p.target, p.vmax_mps)
+
+    def request(yaw: float, omega: float, then: tuple[float, float] | None) -> PlanRequest:
+        return PlanRequest(1, 0, (here[0], here[1], yaw), 0.0, omega, goal, fld, None, prev,
+                           LAW, then=then)
+
+    # turning: the rest of the same turn, the same straight after it
+    mid = here[2] + 0.5 * math.remainder(psi - here[2], 2 * math.pi)
+    res = compute(request(mid, math.copysign(0.3, psi - here[2]), land))
+    assert res.plan is not None and not res.blocked_by
+    assert res.plan.final_turn and res.plan.then == land
+    assert res.plan.target[2] == pytest.approx(psi)
+    # turned (a degree past) and at rest: the straight onto its landing
+    done = psi - math.copysign(math.radians(1.0), here[2] - psi)
+    res = compute(request(done, 0.0, land))
+    assert res.plan is not None and not res.blocked_by
+    assert res.plan.straight_m > 0.0 and not res.plan.final_turn
+    assert res.plan.target[:2] == pytest.approx(land, abs=0.005)
+    assert res.plan.straight_m == pytest.approx(math.hypot(land[0] - here[0],
+                                                           land[1] - here[1]), abs=0.005)
+    # positive control: looked at again from the turned chair, something else (in nav_eval
+    # MPEPC's turn back; here, after these calls, its sampler elsewhere: another stage)
+    res = compute(request(done, 0.0, None))
+    assert res.plan is not None
+    assert not (res.plan.straight_m > 0.0
+                and res.plan.target[:2] == pytest.approx(land, abs=0.005))

@@ -563,7 +563,8 @@ class ControlCore:
                            self.cfg.law(self.tol_m * self.cfg.capture_fraction), people,
                            (self.limiter.v.rate, self.limiter.w.rate),
                            self.index == len(self.waypoints) - 1,
-                           self.plan is not None and self.plan.straight_m > 0.0)
+                           self.plan is not None and self.plan.straight_m > 0.0,
+                           None if self.plan is None else self.plan.then)
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""

@@ -169,6 +169,10 @@ class MpepcParams:
     stage_straight_m: float = 0.5
     stage_gain_m: float = 0.05  # a stage must lower the lattice's costs-to-go by this
     stage_final_tries: int = 12  # landings tried for the final manoeuvre (~5 ms each)
+    # Where no single stage does, ways of up to this many stages (Mpepc.stage_way), the
+    # `stage_beam` most promising landings at each depth tried (~10–25 ms each).
+    stage_depth: int = 3
+    stage_beam: int = 4
     n_global: int = 128  # rounded to a power of 2 (Sobol)
     n_local: int = 64
     local_rounds: int = 3
@@ -197,6 +201,10 @@ class Plan:
     # > 0: drive straight this far along the chair's heading onto `target` and stop (a stage
     # of a manoeuvre: Mpepc.stage); the core moves there without steering (its straight final).
     straight_m: float = 0.0
+    # A stage's turn (final_turn): where its straight lands (x, y), driven next from rest
+    # (the planner continues the stage rather than look again from the turned chair, where
+    # MPEPC's small turns towards the lattice's heading undid it: nav_eval seed 1).
+    then: tuple[float, float] | None = None
 
 
 def wrap(a: F64) -> F64:
@@ -560,13 +568,14 @@ class Mpepc:
         x, y, yaw = pose
         dx, dy = goal[0] - x, goal[1] - y
         reach, fld, contact = self.field.footprint.reach_m, self.field, self.p.contact_m
+        line = self.p.final_line * self.law.tolerance_m
 
         def sweep(off: float) -> F64 | None:
             """(3, n) poses the manoeuvre via yaw + off sweeps; None: its line misses."""
             psi = yaw + off
             c, s = math.cos(psi), math.sin(psi)
             along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
-            if along <= 0.0 or lateral > self.p.final_line * self.law.tolerance_m:
+            if along <= 0.0 or lateral > line:
                 return None
             # The last turn starts while the straight still lands (its last capture radius,
             # control/core.py _align): checked from there on (and `final_overshoot_m` past).
@@ -606,29 +615,15 @@ class Mpepc:
         i = int(np.argmax(robust))
         return yaw + float(offs[i]) if robust[i] >= contact else None
 
-    def stage(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
-              hf: HeadingField, step_deg: float = 5.0, step_m: float = 0.02,
-              spare_deg: float = 2.0, spare_m: float = 0.01) -> tuple[float, float] | None:
-        """The next stage of a manoeuvre from a chair at rest, executed without the law:
-        (ψ, d) for "turn in place onto ψ (if ψ is not its yaw), then drive d straight along
-        ψ". A pair counts only if the turn onto ψ ± `spare_deg` sweeps clear by `contact_m`
-        (a turn ends a degree or two off), and the straight along those headings to d +
-        `spare_m` + `final_overshoot_m` does too. Of those, in this order:
-        - the least costly (the turn at the lattice's `turn_m_per_rad`, the straight its
-          length) of the first `stage_final_tries` that land where the final manoeuvre
-          (final_heading) has a way to the goal: the manoeuvre's last stage;
-        - else the pair landing where the lattice's costs-to-go plus the pair's own cost are
-          least, among those where at every landing within `spare_deg` and `spare_m` the
-          lattice has a way on, at `stage_gain_m` less than from the chair (progress, never
-          a cycle).
-        None if no pair does (or the chair's own state has no way). Only the pair's first
-        part is driven (the caller: the turn, or with ψ = yaw the straight); the next plan
-        looks again from where it ended."""
+    def _pairs(self, pose: tuple[float, float, float], turn_m_per_rad: float,
+               step_deg: float = 5.0, step_m: float = 0.02, spare_deg: float = 2.0,
+               spare_m: float = 0.01) -> tuple[F64, F64, F64, F64, F64, F64, F64]:
+        """Every stage (ψ, d) from a chair at rest at `pose` (Mpepc.stage): the heading
+        offsets ψ − yaw (O), the distances d (D), the straights (O, D) and the turns (O,)
+        that sweep clear (as 1.0/0.0), the landings' x and y (O, D) and each pair's own cost
+        (O, D)."""
         p, fld = self.p, self.field
         x, y, yaw = pose
-        c0, ok0 = hf.at(np.array(x), np.array(y), np.array(yaw))
-        if not bool(ok0):
-            return None
         offs = np.radians(np.arange(-p.stage_turn_deg, p.stage_turn_deg + 0.5 * step_deg,
                                     step_deg))
         ds = np.arange(0.0, p.stage_straight_m + 0.5 * step_m, step_m)
@@ -656,47 +651,165 @@ class Mpepc:
         turn_ok = np.minimum.reduceat(d, np.concatenate([[0], np.cumsum(n)[:-1]])) \
             >= p.contact_m
         turn_ok[offs == 0.0] = True
-        move = hf.params.turn_m_per_rad * np.abs(offs)[:, None] + ds[None, :]  # (O, D)
-        clear = straight_ok & turn_ok[:, None]
-        clear[:, 0] = False  # (a turn alone onto the final manoeuvre's ψ: final_heading's)
+        move = turn_m_per_rad * np.abs(offs)[:, None] + ds[None, :]  # (O, D)
         lx0 = x + np.cos(yaw + offs)[:, None] * ds[None, :]
         ly0 = y + np.sin(yaw + offs)[:, None] * ds[None, :]
+        return (offs, ds, straight_ok.astype(float), turn_ok.astype(float), lx0, ly0, move)
+
+    def _last_stage(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                    pairs: tuple[F64, F64, F64, F64, F64, F64, F64]) -> tuple[int, int] | None:
+        """Of `pairs` (Mpepc._pairs at `pose`), the least costly of the first
+        `stage_final_tries` straights that land where the final manoeuvre (final_heading)
+        has a way to the goal, as (ψ index, d index); None: none of those."""
+        p = self.p
+        offs, _, straight_ok, turn_ok, lx0, ly0, move = pairs
+        clear = (straight_ok > 0.0) & (turn_ok[:, None] > 0.0)
+        clear[:, 0] = False  # (a turn alone onto the final manoeuvre's ψ: final_heading's)
         r = np.hypot(goal[0] - lx0, goal[1] - ly0)
         band = clear & (r > p.final_from * self.law.tolerance_m) & (r <= p.final_move_m)
         order = np.argsort(np.where(band, move, math.inf), axis=None)
         for flat in order[:min(p.stage_final_tries, int(band.sum()))]:
             i, j = np.unravel_index(int(flat), band.shape)
-            land = (float(lx0[i, j]), float(ly0[i, j]), yaw + float(offs[i]))
+            land = (float(lx0[i, j]), float(ly0[i, j]), pose[2] + float(offs[i]))
             if self.final_heading(land, goal, turn=True, straight=True, step_deg=2.0) \
                     is not None:
-                return yaw + float(offs[i]), float(ds[j])
+                return int(i), int(j)
+        return None
+
+    def stage(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+              hf: HeadingField, step_deg: float = 5.0, step_m: float = 0.02,
+              spare_deg: float = 2.0, spare_m: float = 0.01) -> tuple[float, float] | None:
+        """The next stage of a manoeuvre from a chair at rest, executed without the law:
+        (ψ, d) for "turn in place onto ψ (if ψ is not its yaw), then drive d straight along
+        ψ". A pair counts only if the turn onto ψ ± `spare_deg` sweeps clear by `contact_m`
+        (a turn ends a degree or two off), and the straight along those headings to d +
+        `spare_m` + `final_overshoot_m` does too. Of those, in this order:
+        - the least costly (the turn at the lattice's `turn_m_per_rad`, the straight its
+          length) of the first `stage_final_tries` that land where the final manoeuvre
+          (final_heading) has a way to the goal: the manoeuvre's last stage;
+        - else the pair landing where the lattice's costs-to-go plus the pair's own cost are
+          least, among those where at every landing within `spare_deg` and `spare_m` the
+          lattice has a way on, at `stage_gain_m` less than from the chair (progress, never
+          a cycle);
+        - else the first stage of the shortest way of up to `stage_depth` such stages that
+          ends in the final manoeuvre (Mpepc.stage_way).
+        None if no pair does (or the chair's own state has no way). Only the pair's first
+        part is driven (the caller: the turn, or with ψ = yaw the straight); the next plan
+        looks again from where it ended."""
+        p = self.p
+        x, y, yaw = pose
+        c0, ok0 = hf.at(np.array(x), np.array(y), np.array(yaw))
+        if not bool(ok0):
+            return None
+        pairs = self._pairs(pose, hf.params.turn_m_per_rad, step_deg, step_m, spare_deg,
+                            spare_m)
+        offs, ds, straight_ok, turn_ok, _, _, move = pairs
+        last = self._last_stage(pose, goal, pairs)
+        if last is not None:
+            return yaw + float(offs[last[0]]), float(ds[last[1]])
         # the landings within the spares: the lattice's costs-to-go there (the worst)
+        spare = math.radians(spare_deg)
+        psi = yaw + offs[:, None] + np.where(offs == 0.0, 0.0, spare)[:, None] \
+            * np.array([-1.0, 0.0, 1.0])
         dd = np.maximum(ds[:, None] + np.array([-spare_m, 0.0, spare_m]), 0.0)  # (D, 3)
         lx = x + np.cos(psi)[:, :, None, None] * dd  # (O, 3, D, 3)
         ly = y + np.sin(psi)[:, :, None, None] * dd
         cost, ok = hf.at(lx, ly, np.broadcast_to(psi[:, :, None, None], lx.shape))
         worst = np.where(ok, cost, math.inf).max(axis=(1, 3))  # (O, D)
         total = worst + move
-        good = straight_ok & turn_ok[:, None] & (worst <= float(c0) - p.stage_gain_m)
+        good = (straight_ok > 0.0) & (turn_ok[:, None] > 0.0) \
+            & (worst <= float(c0) - p.stage_gain_m)
         good[offs == 0.0, 0] = False  # (no turn and no straight: no stage)
-        if not good.any():
-            return None
-        i, j = np.unravel_index(int(np.argmin(np.where(good, total, math.inf))), good.shape)
-        return yaw + float(offs[i]), float(ds[j])
+        if good.any():
+            i, j = np.unravel_index(int(np.argmin(np.where(good, total, math.inf))),
+                                    good.shape)
+            return yaw + float(offs[i]), float(ds[j])
+        return self.stage_way(pose, goal, hf, pairs)
+
+    def stage_way(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                  hf: HeadingField, pairs: tuple[F64, F64, F64, F64, F64, F64, F64]
+                  ) -> tuple[float, float] | None:
+        """The first stage (ψ, d) of a way of 2 to `stage_depth` stages (Mpepc.stage: each
+        sweep clear with its spares) whose last one lands where the final manoeuvre has a
+        way (Mpepc._last_stage); the shortest first, None: none found. Where no single stage
+        does either (the lattice's way passes a wall a cm or two closer than the chair's
+        straights may: nav_eval seed 1's office A far corner), a way that first shifts the
+        chair's line. A beam search, so bounded: at each depth the `stage_beam` landings
+        (one per 2 cm and 5°) least in the stages' own costs plus the lattice's
+        costs-to-go there are tried."""
+        p = self.p
+        # (cost so far, pose, the way's first stage (None: this is the chair), its pairs)
+        level: list[tuple[float, tuple[float, float, float], tuple[float, float] | None,
+                          tuple[F64, F64, F64, F64, F64, F64, F64]]] = [(0.0, pose, None,
+                                                                         pairs)]
+        for _ in range(p.stage_depth - 1):
+            found: dict[tuple[int, int, int], tuple[float, tuple[float, float, float],
+                                                    tuple[float, float]]] = {}
+            for g, node, way, (offs, ds, straight_ok, turn_ok, lx, ly, move) in level:
+                ok = (straight_ok > 0.0) & (turn_ok[:, None] > 0.0)
+                ok[:, 0] = False  # (a turn alone: the next stage's own turn)
+                heads = np.broadcast_to((node[2] + offs)[:, None], lx.shape)
+                f = np.where(ok, g + move + self._landing_cost(hf, lx, ly, heads), math.inf)
+                for flat in np.argsort(f, axis=None)[:int(np.isfinite(f).sum())]:
+                    i, j = np.unravel_index(int(flat), f.shape)
+                    land = (float(lx[i, j]), float(ly[i, j]), float(heads[i, j]))
+                    key = (round(land[0] / 0.02), round(land[1] / 0.02),
+                           round(math.degrees(land[2]) / 5.0))
+                    if key in found and found[key][0] <= float(f[i, j]):
+                        continue
+                    found[key] = (float(f[i, j]), land,
+                                  (land[2], float(ds[j])) if way is None else way)
+            best = sorted(found.values(), key=lambda t: t[0])[:p.stage_beam]
+            level = []
+            for fl, land, way in best:
+                pl = self._pairs(land, hf.params.turn_m_per_rad)
+                if self._last_stage(land, goal, pl) is not None:
+                    return way
+                here = float(self._landing_cost(hf, np.array([land[0]]), np.array([land[1]]),
+                                                np.array([land[2]]))[0])
+                level.append((fl - here, land, way, pl))
+        return None
+
+    @staticmethod
+    def _landing_cost(hf: HeadingField, x: F64, y: F64, yaw: F64) -> F64:
+        """The lattice's least costs-to-go from positions after a turn of at most 90° from
+        `yaw` onto one of its headings (their own states: interpolating between headings
+        mixes in states with no way, which makes the costs jump by metres within cm);
+        inf: none has a way."""
+        step = hf.step
+        heads = np.arange(hf.params.headings) * step
+        turn = np.abs(wrap(heads - np.asarray(yaw)[..., None]))  # (..., K)
+        xs = np.broadcast_to(np.asarray(x)[..., None], turn.shape)
+        ys = np.broadcast_to(np.asarray(y)[..., None], turn.shape)
+        cost, ok = hf.at(xs, ys, np.broadcast_to(heads, turn.shape))
+        total = np.where(ok & (turn <= 0.5 * math.pi + 1e-9),
+                         cost + hf.params.turn_m_per_rad * turn, math.inf)
+        return np.asarray(total.min(-1), dtype=float)
 
     def stage_plan(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                    ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                    rates: tuple[float, float] = (0.0, 0.0),
                    straight_to: tuple[float, float] | None = None,
-                   v0: float = 0.0) -> Plan | None:
+                   v0: float = 0.0, turn_to: float | None = None) -> Plan | None:
         """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
-        with `straight_to` (the landing of a straight stage under way), the rest of that
-        straight if it still lies ahead on the chair's line and sweeps clear. Either is
-        also evaluated as MPEPC's candidates are (`_costs`: people, the stop after the
-        plan period) and dropped if that predicts a hit. None: no stage."""
+        with `straight_to` (the landing of a straight stage under way, or of a stage's turn
+        done), the rest of that straight if it still lies ahead on the chair's line and
+        sweeps clear; or with `turn_to` as well (a stage's turn under way), the rest of that
+        turn if it sweeps clear. Each is also evaluated as MPEPC's candidates are (`_costs`:
+        people, the stop after the plan period) and dropped if that predicts a hit. None:
+        no stage."""
         x, y, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
-        if straight_to is not None:
+        if straight_to is not None and turn_to is not None:
+            # (onto ψ and 2° past: the spare Mpepc.stage checked the turn with)
+            e = float(wrap(np.array(turn_to - yaw)))
+            spare = math.copysign(math.radians(2.0), e)
+            n = max(2, math.ceil(abs(e + spare) * self.field.footprint.reach_m / 0.05) + 1)
+            if float(self.field.footprint_clearance(np.full(n, x), np.full(n, y), yaw
+                     + np.linspace(0.0, e + spare, n)).min()) < self.p.contact_m:
+                return None
+            psi, dist = yaw + e, math.hypot(straight_to[0] - x, straight_to[1] - y)
+        elif straight_to is not None:
             dx, dy = straight_to[0] - x, straight_to[1] - y
             along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
             if along <= 0.005 or lateral > 0.02:
@@ -728,7 +841,10 @@ class Mpepc:
         return Plan((float(zz[0, 0]), float(zz[0, 1]), 0.0, vmin), tgt, vmin, float(cost[0]),
                     float(info["phi0"][0] - info["phi_end"][0]), float(info["survival"][0]),
                     float(info["clearance"][0]), path, False, math.nan, float(cost[1]),
-                    len(zz), final_turn=turn, straight_m=0.0 if turn else dist)
+                    len(zz), final_turn=turn, straight_m=0.0 if turn else dist,
+                    then=straight_to if straight_to is not None else
+                    (x + dist * math.cos(psi), y + dist * math.sin(psi))
+                    if turn and dist > 0.0 else None)
 
     def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
                         goal: tuple[float, float, float]) -> bool:

@@ -35,6 +35,8 @@ class PlanRequest:
     rates: tuple[float, float] = (0.0, 0.0)  # the limiter's dv/dt, dω/dt (its S-curve state)
     final: bool = True  # `goal` is the last waypoint (approached on the braking curve)
     straight: bool = False  # the core drives a straight stage onto `previous` (Mpepc.stage_plan)
+    # the core turned (or turns) in place as a stage whose straight lands here (Plan.then)
+    then: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -173,6 +175,13 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         # A straight stage under way (Mpepc.stage_plan): its rest, rechecked.
         on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
                             straight_to=req.previous[:2], v0=req.v)
+        if on is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, on)
+    if req.then is not None and req.previous is not None and abs(req.v) < 0.01:
+        # A stage's turn under way: its rest; done (at rest): its straight; each rechecked.
+        on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
+                            straight_to=req.then,
+                            turn_to=req.previous[2] if abs(req.omega) >= 0.01 else None)
         if on is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, on)
     plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
