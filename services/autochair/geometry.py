@@ -21,6 +21,14 @@ def wrap_angle(a: float) -> float:
 Pose = tuple[float, float, float]  # a planar pose: x m, y m, yaw rad
 
 
+def along_lateral(pose: Pose, px: float, py: float) -> tuple[float, float]:
+    """The point (px, py) from the line through `pose` along its yaw: (how far along it,
+    how far to its left)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dx, dy = px - pose[0], py - pose[1]
+    return dx * c + dy * s, dy * c - dx * s
+
+
 def compose(a: Pose, b: Pose) -> Pose:
     """a ∘ b: pose b, given in a's frame, in a's parent frame."""
     c, s = math.cos(a[2]), math.sin(a[2])

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import msgspec
 import numpy as np
 
+from autochair.geometry import along_lateral
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav.field import CostToGo, Footprint, NavField
 from autochair.nav.frames import MapFrame
@@ -787,7 +788,7 @@ class ControlCore:
         if p.straight_m > 0.0:
             # A straight stage of a manoeuvre (Mpepc.stage_plan): onto the target's along-track
             # point without steering, as the straight final; its translation rechecked here.
-            along = (tx - o.x) * math.cos(o.yaw) + (ty - o.y) * math.sin(o.yaw)
+            along = along_lateral((o.x, o.y, o.yaw), tx, ty)[0]
             if not self._room_to_go(o, along):
                 self._count("straights_refused")
                 return 0.0, 0.0
@@ -815,7 +816,7 @@ class ControlCore:
         cfg = self.cfg
         e = wrap(goal.yaw_rad - o.yaw)
         lw = self.limiter.w
-        along = (goal.x_m - o.x) * math.cos(o.yaw) + (goal.y_m - o.y) * math.sin(o.yaw)
+        along = along_lateral((o.x, o.y, o.yaw), goal.x_m, goal.y_m)[0]
         lv = self.limiter.v
         # A translation still landing (the straight final) finishes its move onto the
         # along-track point; nothing new starts here (forward only, and a residue of

@@ -37,6 +37,7 @@ from scipy.stats import qmc
 
 from autochair.control.law import Gains
 from autochair.control.limits import ComfortLimiter
+from autochair.geometry import along_lateral
 
 from .field import CostToGo, NavField, place_xy
 from .lattice import HeadingField
@@ -544,11 +545,10 @@ class Mpepc:
         cap = self.law.capture_m
         if r >= self.p.in_place_r_m or r <= cap or (r <= 2 * cap and abs(v0) < 0.01):
             return True
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        dx, dy = goal[0] - pose[0], goal[1] - pose[1]
-        along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
-        if along <= 0.0 or lateral > cap:
+        along, left = along_lateral(pose, goal[0], goal[1])
+        if along <= 0.0 or abs(left) > cap:
             return False
+        c, s = math.cos(pose[2]), math.sin(pose[2])
         k = np.linspace(0.0, 1.0, 5)
         clear = self.field.footprint_clearance(pose[0] + k * along * c, pose[1] + k * along * s,
                                                np.full(5, pose[2]))
@@ -566,17 +566,16 @@ class Mpepc:
         ends a degree or two off; the clearance there changes by cm per degree), keeping the
         most clearance; None if there is none."""
         x, y, yaw = pose
-        dx, dy = goal[0] - x, goal[1] - y
         reach, fld, contact = self.field.footprint.reach_m, self.field, self.p.contact_m
         line = self.p.final_line * self.law.tolerance_m
 
         def sweep(off: float) -> F64 | None:
             """(3, n) poses the manoeuvre via yaw + off sweeps; None: its line misses."""
             psi = yaw + off
-            c, s = math.cos(psi), math.sin(psi)
-            along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
-            if along <= 0.0 or lateral > line:
+            along, left = along_lateral((x, y, psi), goal[0], goal[1])
+            if along <= 0.0 or abs(left) > line:
                 return None
+            c, s = math.cos(psi), math.sin(psi)
             # The last turn starts while the straight still lands (its last capture radius,
             # control/core.py _align): checked from there on (and `final_overshoot_m` past).
             far = along + self.p.final_overshoot_m
@@ -810,9 +809,8 @@ class Mpepc:
                 return None
             psi, dist = yaw + e, math.hypot(straight_to[0] - x, straight_to[1] - y)
         elif straight_to is not None:
-            dx, dy = straight_to[0] - x, straight_to[1] - y
-            along, lateral = dx * c + dy * s, abs(dy * c - dx * s)
-            if along <= 0.005 or lateral > 0.02:
+            along, left = along_lateral(pose, *straight_to)
+            if along <= 0.005 or abs(left) > 0.02:
                 return None
             k = np.arange(0.0, along + self.p.final_overshoot_m + 0.005, 0.01)
             if float(self.field.footprint_clearance(x + k * c, y + k * s, np.full(k.size, yaw))
@@ -855,10 +853,8 @@ class Mpepc:
         if abs(v0) >= 0.01 or abs(w0) >= 0.01 or not self.law.tolerance_m < r \
                 <= self.p.final_move_m:
             return True
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        dx, dy = goal[0] - pose[0], goal[1] - pose[1]
-        lateral = abs(dy * c - dx * s)
-        if dx * c + dy * s <= 0.0 or not self.law.capture_m < lateral \
+        along, left = along_lateral(pose, goal[0], goal[1])
+        if along <= 0.0 or not self.law.capture_m < abs(left) \
                 <= self.p.final_line * self.law.tolerance_m:
             return True
         return self.final_heading(pose, goal, turn=False, straight=True) is not None
@@ -1059,8 +1055,7 @@ class Mpepc:
             psi = self.final_heading(pose, goal, turn=abs(v0) < 0.01, straight=abs(w0) < 0.01)
             if psi is not None:  # lined up: the core's straight final, else turn onto ψ
                 # (checked for people and the stop as the law along the line: the straight)
-                c, s = math.cos(psi), math.sin(psi)
-                along = (goal[0] - pose[0]) * c + (goal[1] - pose[1]) * s
+                along = along_lateral((pose[0], pose[1], psi), goal[0], goal[1])[0]
                 zz = np.array([[along, 0.0, 0.0, self.p.v_min_mps] if psi == pose[2] else
                                [0.0, float(wrap(np.array(psi - pose[2]))), 0.0,
                                 self.p.v_min_mps]])
