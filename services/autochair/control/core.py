@@ -868,9 +868,7 @@ class ControlCore:
         if fld is None:
             return True
         k = np.linspace(0.0, max(along, 0.0), max(2, math.ceil(along / 0.02) + 1))
-        clear = fld.footprint_clearance(o.x + k * math.cos(o.yaw), o.y + k * math.sin(o.yaw),
-                                        np.full(k.size, o.yaw))
-        return bool(clear.min() > TURN_CLEARANCE_M)
+        return fld.straight_clearance((o.x, o.y, o.yaw), k) > TURN_CLEARANCE_M
 
     def _room_to_approach(self, o: OdomSample, goal: Pose2D, r: float) -> bool:
         """Whether the law's last `r` to the goal keeps clear: the body turned over every yaw

@@ -235,6 +235,13 @@ class NavField:
         """Least clearance of the footprint outline at poses (...)."""
         return self.clearance_xy(*place_xy(self.outline, x, y, yaw)).min(axis=-1)  # type: ignore[no-any-return]
 
+    def straight_clearance(self, pose: tuple[float, float, float], ds: F64) -> float:
+        """Least clearance of the footprint driven straight ahead from `pose` (no steering),
+        sampled at the distances `ds` along its heading."""
+        x, y, yaw = pose
+        return float(self.footprint_clearance(x + ds * math.cos(yaw), y + ds * math.sin(yaw),
+                                              np.full(ds.size, yaw)).min())
+
     def cell(self, x: float, y: float) -> tuple[int, int] | None:
         gm = self.map
         ix = math.floor((x - gm.origin_x_m) / gm.resolution_m)

@@ -548,11 +548,8 @@ class Mpepc:
         along, left = along_lateral(pose, goal[0], goal[1])
         if along <= 0.0 or abs(left) > cap:
             return False
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        k = np.linspace(0.0, 1.0, 5)
-        clear = self.field.footprint_clearance(pose[0] + k * along * c, pose[1] + k * along * s,
-                                               np.full(5, pose[2]))
-        return bool(clear.min() >= self.p.contact_m)
+        return self.field.straight_clearance(pose, np.linspace(0.0, 1.0, 5) * along) \
+            >= self.p.contact_m
 
     def final_heading(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                       turn: bool, straight: bool, step_deg: float = 1.0, max_deg: float = 90.0,
@@ -812,9 +809,8 @@ class Mpepc:
             along, left = along_lateral(pose, *straight_to)
             if along <= 0.005 or abs(left) > 0.02:
                 return None
-            k = np.arange(0.0, along + self.p.final_overshoot_m + 0.005, 0.01)
-            if float(self.field.footprint_clearance(x + k * c, y + k * s, np.full(k.size, yaw))
-                     .min()) < self.p.contact_m:
+            if self.field.straight_clearance(pose, np.arange(
+                    0.0, along + self.p.final_overshoot_m + 0.005, 0.01)) < self.p.contact_m:
                 return None
             psi, dist = yaw, along
         else:
