@@ -185,8 +185,7 @@ class ScanDecoder:
         self.period_ms = period
         self.sync = ClockSync(sync_window, int(params.period_ms * 1e6))
         self.seq = 0
-        n = (req.end - req.start) // req.cluster + 1
-        self.n = n
+        self.n = req.size
         inc = 2 * math.pi / params.ares
         # A cluster's angle is the middle of its steps.
         self.angle_min = (req.start + (req.cluster - 1) / 2 - params.afrt) * inc

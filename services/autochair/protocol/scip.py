@@ -219,6 +219,11 @@ class ScanRequest:
     def nchars(self) -> int:
         return 3 if self.command == "MD" else 2
 
+    @property
+    def size(self) -> int:
+        """Values in one scan: one per cluster of the steps start..end (cluster 00 is 1)."""
+        return (self.end - self.start) // (self.cluster or 1) + 1
+
     def echo(self, remaining: int | None = None) -> bytes:
         """Echo line; scan blocks carry the remaining scan count in place of `count`."""
         n = self.count if remaining is None else remaining
@@ -326,10 +331,7 @@ class Scan:
 def _counted(echo: bytes, values: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     """`values` if there are as many as the echo's start, end and cluster ask for: a block cut
     short (a lost or spliced LF ends it early) is a FormatError, not a shorter scan."""
-    p = echo[2:12]
-    if not p.isdigit():
-        raise EchoError(f"scan echo without start/end/cluster digits {echo[:15]!r}")
-    want = (int(p[4:8]) - int(p[:4])) // (int(p[8:10]) or 1) + 1
+    want = ScanRequest.parse(echo).size
     if values.size != want:
         raise FormatError(f"scan has {values.size} values, its echo asks for {want}")
     return values
