@@ -36,13 +36,11 @@ def mask(zones: list[tuple[float, float, float, float]], size_m: float = 10.0,
 
 
 def map_grid(m: MapFile | None = None) -> OccupancyGrid:
-    """Localization's map as it publishes it (keys.LOC_MAP): by default the one the masks
-    are drawn over (the walls alone)."""
-    m = m or mask([])
-    h, w = m.occupied.shape
-    return OccupancyGrid(stamp_ns=0, frame_id="map", resolution_m=m.resolution_m, width=w,
-                         height=h, origin_x_m=m.origin_x_m, origin_y_m=m.origin_y_m,
-                         data=np.where(m.occupied, 100, 0).astype(np.uint8).tobytes())
+    """Localization's map as it publishes it (keys.LOC_MAP, its own `grid_msg`): by default
+    the one the masks are drawn over (the walls alone)."""
+    from autochair.localization.node import grid_msg
+
+    return grid_msg(m or mask([]), 0, "map")
 
 
 def open_scan() -> Scan:
@@ -274,10 +272,8 @@ def test_a_mask_not_drawn_over_localizations_map_is_a_stop() -> None:
 def test_a_mask_fits_the_map_as_localization_publishes_it(tmp_path: Path) -> None:
     """The check against the grid localization really sends (its saved map through
     `grid_msg`), from files as `autochair up --map --keepout` gives them."""
-    from autochair.localization.node import grid_msg
-
     k = Keepout(load_map(save_map(mask([(2.5, -2.0, 3.0, 3.0)]), tmp_path / "stairs.yaml")))
-    k.on_map(grid_msg(load_map(save_map(mask([]), tmp_path / "hall.yaml")), 0, "map"))
+    k.on_map(map_grid(load_map(save_map(mask([]), tmp_path / "hall.yaml"))))
     assert k.mismatch == ""
-    k.on_map(grid_msg(load_map(save_map(mask([], 12.0), tmp_path / "big.yaml")), 0, "map"))
+    k.on_map(map_grid(load_map(save_map(mask([], 12.0), tmp_path / "big.yaml"))))
     assert k.mismatch and "grid is not the map's" in k.mismatch  # positive control
