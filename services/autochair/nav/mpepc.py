@@ -250,6 +250,14 @@ def move(x: F64, y: F64, yaw: F64, v_old: F64, w_old: F64, st: F64, dt: float
     return x + v * np.cos(mid) * dt, y + v * np.sin(mid) * dt, wrap(yaw + w * dt)
 
 
+def spread(yaw: float, offs: F64, spare: float) -> F64:
+    """Headings (O, 3) of stages turning by `offs`: ψ and ψ ± spare (a turn ends a degree or
+    two off); the chair's own yaw exactly (no turn)."""
+    side: F64 = np.where(offs == 0.0, 0.0, spare)[:, None] * np.array([-1.0, 0.0, 1.0])
+    psi: F64 = yaw + offs[:, None] + side
+    return psi
+
+
 class Mpepc:
     def __init__(self, field: NavField, law: LawParams, params: MpepcParams | None = None) -> None:
         self.field, self.law = field, law
@@ -624,9 +632,7 @@ class Mpepc:
                                     step_deg))
         ds = np.arange(0.0, p.stage_straight_m + 0.5 * step_m, step_m)
         spare = math.radians(spare_deg)
-        # headings (O, 3): ψ and ψ ± spare (the chair's own yaw exactly: it needs no turn)
-        psi = yaw + offs[:, None] + np.where(offs == 0.0, 0.0, spare)[:, None] \
-            * np.array([-1.0, 0.0, 1.0])
+        psi = spread(yaw, offs, spare)
         # the straights, every cm along each heading: clear up to each distance (prefix min)
         far = p.stage_straight_m + spare_m + p.final_overshoot_m
         k = np.arange(0.0, far + 0.005, 0.01)
@@ -704,9 +710,7 @@ class Mpepc:
         if last is not None:
             return yaw + float(offs[last[0]]), float(ds[last[1]])
         # the landings within the spares: the lattice's costs-to-go there (the worst)
-        spare = math.radians(spare_deg)
-        psi = yaw + offs[:, None] + np.where(offs == 0.0, 0.0, spare)[:, None] \
-            * np.array([-1.0, 0.0, 1.0])
+        psi = spread(yaw, offs, math.radians(spare_deg))
         dd = np.maximum(ds[:, None] + np.array([-spare_m, 0.0, spare_m]), 0.0)  # (D, 3)
         lx = x + np.cos(psi)[:, :, None, None] * dd  # (O, 3, D, 3)
         ly = y + np.sin(psi)[:, :, None, None] * dd
