@@ -550,6 +550,29 @@ def test_lost_localization_stops_a_map_goal_then_it_resumes_or_aborts() -> None:
     assert core.state == "aborted" and "localization is lost" in core.reason
 
 
+@pytest.mark.parametrize("jump", [(0.5, 0.0, 0.0), (0.0, 0.0, math.radians(10))])
+def test_a_map_goal_is_not_resumed_on_a_place_refound_elsewhere(
+        jump: tuple[float, float, float]) -> None:
+    """H33 / ISO 14118: localization lost, then tracking again with a correction 0.5 m or 10°
+    from where it was lost (the chair stood still: a look-alike place?). The goal is aborted
+    with the reason and the chair stays at rest; positive controls: the same correction, or one
+    within 0.1 m / 2°, resumes (as in the test above)."""
+    def refound(corr: tuple[float, float, float]) -> tuple[ControlCore, float]:
+        core, pose, t = driving_to_a_map_goal(6.0)
+        t = run_unicycle(core, t, t + 2.0, pose, lambda t: core.on_loc_state("lost", t))
+        assert core.state == "blocked" and core.limiter.at_rest
+        x_stop = pose[0]
+        core.on_correction(corr)
+        run_unicycle(core, t, t + 2.0, pose, lambda t: core.on_loc_state("tracking", t))
+        return core, pose[0] - x_stop
+
+    core, went = refound((0.1, 0.0, math.radians(2)))
+    assert core.active and went > 0.1  # positive control: about where it was lost, resumed
+    core, went = refound(jump)
+    assert core.state == "aborted" and "re-found the chair" in core.reason
+    assert "send the goal again" in core.reason and went == 0.0
+
+
 def test_a_stale_plan_stops_the_chair_until_a_new_one_comes() -> None:
     core = fresh_core(INSTANT)
     core.inline_planning = False  # as in the node: plans come from a thread

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import msgspec
 import numpy as np
 
-from autochair.geometry import along_lateral
+from autochair.geometry import Pose, along_lateral, compose
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav.field import CostToGo, Footprint, NavField
 from autochair.nav.frames import MapFrame
@@ -41,6 +41,9 @@ TURN_CLEARANCE_M = 0.02  # an in-place turn keeps the body this clear of the map
 IN_PLACE_R_M = MpepcParams().in_place_r_m
 FINAL_MOVE_M, FINAL_LINE = MpepcParams().final_move_m, MpepcParams().final_line
 GOAL_SHIFT_M = 0.05  # a map goal moved this far in odom (the field's cell): new costs-to-go
+# A map goal moved further than this in odom by a localization that was lost and is tracking
+# again: the re-found place may be a look-alike (H33), so the goal is not resumed on it.
+REFOUND_M, REFOUND_RAD = 0.2, math.radians(5.0)
 LINEUP_M, LINEUP_RAD = 0.2, 0.3  # a line-up pose before a door counts as reached within these
 ACTIVE_STATES = (PLANNING, DRIVING, BLOCKED)
 
@@ -338,6 +341,8 @@ class ControlCore:
         # every step with localization's newest correction; None for goals in `odom`.
         self.frames = MapFrame()
         self.map_waypoints: list[Pose2D] | None = None
+        self._loc_lost = False  # a map goal's localization was lost and not yet trusted again
+        self._trusted: Pose | None = None  # the newest map → odom correction a goal was driven on
         self.inline_planning = True  # plan inside step(); the node plans in a thread instead
         self._plan_t = -math.inf
         self._plan_got_t = -math.inf  # when the current plan arrived
@@ -430,7 +435,8 @@ class ControlCore:
             self._lead[0].reset(self.limiter.v.value)
             self._lead[1].reset(self.limiter.w.value)
         self.goal_id += 1
-        self.map_waypoints = map_waypoints
+        self.map_waypoints, self._loc_lost = map_waypoints, False
+        self._trusted = self.frames.correction
         self.waypoints = [Pose2D(p.x_m, p.y_m, wrap(p.yaw_rad)) for p in req.waypoints]
         assert ctg is not None
         lineups = [Pose2D(*a) for a in fld.door_approaches(ctg, o.x, o.y)]
@@ -546,7 +552,7 @@ class ControlCore:
         o = self.odom
         if not self.active or o is None or now - self._plan_t < 1.0 / self.cfg.plan_rate_hz:
             return None
-        if self.map_waypoints is not None and self.frames.why_not(now):
+        if self.map_waypoints is not None and (self._loc_lost or self.frames.why_not(now)):
             return None  # where the goal is in odom is unknown: nothing to plan to
         self._plan_t = now
         p = self._predicted(o)
@@ -605,20 +611,37 @@ class ControlCore:
             return True
         why = self.frames.why_not(now)
         if why:
+            self._loc_lost = True
             self._blocked(f"localization: {why}", now)
             return False
+        if self._loc_lost:
+            # Tracking again: where does it put the chair, against where it was lost?
+            corr = self.frames.correction
+            assert self._trusted is not None and corr is not None and self.odom is not None
+            o = (self.odom.x, self.odom.y, self.odom.yaw)
+            was, now_at = compose(self._trusted, o), compose(corr, o)
+            moved = math.hypot(now_at[0] - was[0], now_at[1] - was[1])
+            turned = abs(wrap(now_at[2] - was[2]))
+            if moved > REFOUND_M or turned > REFOUND_RAD:
+                # Elsewhere than where it was lost, with the chair at rest meanwhile: no motion
+                # on a place nobody has confirmed (a look-alike? H33; ISO 14118).
+                self._end(ABORTED, f"localization re-found the chair {moved:.2f} m / "
+                          f"{math.degrees(turned):.0f}° from where it was lost: check where it "
+                          "is (autochair localize) and send the goal again", now)
+                return False
+            self._loc_lost = False
+            self.state, self.reason, self._blocked_since = PLANNING, "", None
+        self._trusted = self.frames.correction
         n = len(self.map_waypoints)
-        moved = 0.0
-        for i, p in enumerate(self.map_waypoints, len(self.waypoints) - n):
-            q = Pose2D(*self.frames.to_odom((p.x_m, p.y_m, p.yaw_rad)))
-            moved = max(moved, math.hypot(q.x_m - self.waypoints[i].x_m,
-                                          q.y_m - self.waypoints[i].y_m))
-            self.waypoints[i] = q
+        now_odom = [Pose2D(*self.frames.to_odom((p.x_m, p.y_m, p.yaw_rad)))
+                    for p in self.map_waypoints]
+        was = self.waypoints[len(self.waypoints) - n:]
+        moved = max(math.hypot(q.x_m - w.x_m, q.y_m - w.y_m)
+                    for q, w in zip(now_odom, was, strict=True))
+        self.waypoints[len(self.waypoints) - n:] = now_odom
         if moved > GOAL_SHIFT_M:  # the correction jumped (a relocalization): plan anew
             self._ctg_key, self.plan = (0, -1), None
             self._count("map_goal_shifts")
-        if self.state == BLOCKED and self.reason.startswith("localization:"):
-            self.state, self.reason, self._blocked_since = PLANNING, "", None
         return True
 
     def _blocked(self, why: str, now: float) -> None:
