@@ -635,9 +635,9 @@ class ControlCore:
         n = len(self.map_waypoints)
         now_odom = [Pose2D(*self.frames.to_odom((p.x_m, p.y_m, p.yaw_rad)))
                     for p in self.map_waypoints]
-        was = self.waypoints[len(self.waypoints) - n:]
+        before = self.waypoints[len(self.waypoints) - n:]
         moved = max(math.hypot(q.x_m - w.x_m, q.y_m - w.y_m)
-                    for q, w in zip(now_odom, was, strict=True))
+                    for q, w in zip(now_odom, before, strict=True))
         self.waypoints[len(self.waypoints) - n:] = now_odom
         if moved > GOAL_SHIFT_M:  # the correction jumped (a relocalization): plan anew
             self._ctg_key, self.plan = (0, -1), None
