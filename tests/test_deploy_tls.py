@@ -22,6 +22,7 @@ import zenoh
 from autochair import deploy
 from autochair.commands.certs import make_all
 from autochair.launcher import free_port
+from autochair.runtime.client import deadline
 from autochair.runtime.config import ConfigError
 from autochair.runtime.session import open_session
 from autochair_msgs import EStopAssert, EStopRelease, EStopReply, EStopState, Health, keys
@@ -197,6 +198,7 @@ def test_laptop_cannot_clear_an_estop_cause_but_a_service_can(chair: Chair,
 
     def release() -> EStopReply:
         replies = list(driver.get(keys.ESTOP_RELEASE.key, timeout=3.0,
+                                  attachment=deadline(time.time_ns(), 3.0),
                                   payload=enc.encode(EStopRelease(by="alice"))))
         oks = [r.ok for r in replies if r.ok is not None]
         assert len(oks) == 1, replies

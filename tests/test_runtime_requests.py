@@ -3,12 +3,13 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 
 import pytest
 
 from autochair.runtime import Node
-from autochair.runtime.client import RequestError, request
+from autochair.runtime.client import ENCODER, RequestError, deadline, request, too_late
 from autochair.runtime.config import ZenohSettings
 from autochair_msgs import EStopRelease, EStopReply, GoalReply, GoalRequest, keys
 from tests.helpers import wait_for
@@ -63,3 +64,39 @@ def test_no_service_is_a_one_line_error_and_types_are_checked(node: Node) -> Non
         request(node.session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), EStopReply)
     with pytest.raises(TypeError):
         request(node.session, keys.GOAL_CANCEL, EStopRelease(by="x"), GoalReply)
+
+
+def test_a_request_delivered_after_its_asker_gave_up_is_not_acted_on(node: Node) -> None:
+    """A goal or a release held up on the way (a stalled link, a busy service) and delivered
+    after the CLI said "no reply" must not start motion the person was told had failed."""
+    asked: list[str] = []
+
+    def on_release(req: EStopRelease) -> EStopReply:
+        asked.append(req.by)
+        return EStopReply(ok=True, latched=False)
+
+    node.serve(keys.ESTOP_RELEASE, on_release)
+    s, now = node.session, time.time_ns()
+
+    def send(attachment: bytes | None) -> str:
+        replies = list(s.get(keys.ESTOP_RELEASE.key, timeout=3.0, attachment=attachment,
+                             payload=ENCODER.encode(EStopRelease(by="alice"))))
+        assert len(replies) == 1
+        err = replies[0].err
+        return "" if err is None else err.payload.to_string()
+
+    assert send(deadline(now, 3.0)) == "" and asked == ["alice"]  # positive control: in time
+    assert "arrived 2.00 s after its asker stopped waiting" in send(deadline(now - 5 * 10**9, 3.0))
+    assert "stamped 1.00 s ahead" in send(deadline(now + 10**9, 3.0))
+    assert "carries no deadline" in send(None)
+    assert asked == ["alice"]  # none of the three reached the handler
+    assert node.health.counters[f"late_requests:{keys.ESTOP_RELEASE.key}"] == 3
+
+
+def test_too_late_bounds() -> None:
+    sent = 10**18
+    assert too_late(deadline(sent, 3.0), sent + 2_999_000_000, 0.1) == ""
+    assert too_late(deadline(sent, 3.0), sent + 3_001_000_000, 0.1).startswith("it arrived")
+    assert too_late(deadline(sent, 3.0), sent - 90_000_000, 0.1) == ""  # within the skew
+    assert "ahead of this clock" in too_late(deadline(sent, 3.0), sent - 110_000_000, 0.1)
+    assert "no deadline" in too_late(b"short", sent, 0.1)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import struct
 import threading
+import time
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -52,13 +54,37 @@ def request(session: zenoh.Session, topic: Any, req: msgspec.Struct, reply: type
     if topic.kind != "query" or topic.reply is not reply or not isinstance(req, topic.type):
         raise TypeError(f"{topic.key} takes {topic.type.__name__} → "
                         f"{getattr(topic.reply, '__name__', None)}")
-    for r in session.get(topic.key, payload=ENCODER.encode(req), timeout=timeout_s):
+    for r in session.get(topic.key, payload=ENCODER.encode(req), timeout=timeout_s,
+                         attachment=deadline(time.time_ns(), timeout_s)):
         if r.ok is not None:
             return msgspec.msgpack.decode(r.ok.payload.to_bytes(), type=reply)
         why = r.err.payload.to_string() if r.err is not None else "error reply"
         raise RequestError(f"{topic.key}: {why}")
     raise RequestError(f"no reply on {topic.key} within {timeout_s:g} s: is the service that "
                        "answers it running? (`autochair status`)")
+
+
+def deadline(sent_ns: int, timeout_s: float) -> bytes:
+    """A request's attachment: when it was sent and when its asker stops waiting (Unix ns)."""
+    return struct.pack("<qq", sent_ns, sent_ns + round(timeout_s * 1e9))
+
+
+def too_late(attachment: bytes | None, now_ns: int, skew_s: float) -> str:
+    """"" if a request may be acted on now, else why not (one line). A request that arrives
+    after its asker gave up is not acted on: the person was told it failed, and a goal or a
+    release delivered late (a stalled link, a busy service) would start motion nobody is
+    waiting for. Nor is one stamped further ahead than the clock skew allowed for commands
+    (its deadline cannot be trusted), or one that carries no deadline."""
+    if attachment is None or len(attachment) != 16:
+        return "it carries no deadline (send it with autochair's runtime.client.request)"
+    sent_ns, until_ns = struct.unpack("<qq", attachment)
+    if sent_ns - now_ns > skew_s * 1e9:
+        return (f"it is stamped {(sent_ns - now_ns) / 1e9:.2f} s ahead of this clock "
+                f"(allowed {skew_s:g} s): are the clocks synchronised?")
+    if now_ns > until_ns:
+        return (f"it arrived {(now_ns - until_ns) / 1e9:.2f} s after its asker stopped "
+                f"waiting ({(now_ns - sent_ns) / 1e9:.2f} s after it was sent)")
+    return ""
 
 
 def _decoding(topic: Any, handle: Callable[[zenoh.Sample, T], None],

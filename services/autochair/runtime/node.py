@@ -285,6 +285,14 @@ class Node:
                 self.health.count(f"bad_requests:{topic.key}")
                 query.reply_err(f"bad request on {topic.key}: {e}".encode())
                 return
+            late = client.too_late(None if query.attachment is None
+                                   else query.attachment.to_bytes(), time.time_ns(),
+                                   self.stale.clock_skew_s)
+            if late:
+                self.health.count(f"late_requests:{topic.key}")
+                self.event("warning", f"{topic.key}: request not acted on: {late}")
+                query.reply_err(f"{topic.key}: not acted on: {late}".encode())
+                return
             try:
                 reply = handler(request)
                 if not isinstance(reply, reply_type):
