@@ -162,12 +162,11 @@ def give_up(fld: NavField, ctg: CostToGo, pose: tuple[float, float, float],
             ) -> tuple[CostToGo, GridMap] | None:
     """The costs-to-go without the cells round the chair that it cannot get to forward-only
     from where it stands (lattice.unreachable, its states clear by `min_clear_m`: MPEPC's
-    contact margin),
-    and those cells; None unless the way down the present costs-to-go (its first `ahead_m`)
-    runs through them and a way is left. Unseen cells count as free (the chair must plan
-    into what it has not seen), so at the closed end of a corridor the way may run back
-    round an unseen wall end behind the chair, where it can neither turn nor reverse blind:
-    it stood "blocked" there (the L corridor, README, navigation)."""
+    contact margin), and those cells; None unless the way down the present costs-to-go (its
+    first `ahead_m`) runs through them and a way is left. Unseen cells count as free (the
+    chair must plan into what it has not seen), so at the closed end of a corridor the way
+    may run back round an unseen wall end behind the chair, where it can neither turn nor
+    reverse blind: it stood "blocked" there (the L corridor, README, navigation)."""
     closed = lattice.unreachable(fld, pose, params=lattice.LatticeParams(
         min_clear_m=min_clear_m, tight_factor=0.0))
     if closed is None:
@@ -219,6 +218,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
                             turn_to=req.previous[2] if abs(req.omega) >= 0.01 else None)
         if on is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
+
     def stuck(plan: Plan) -> bool:
         if plan.min_clearance_m < mp.contact_m:
             # Every motion is predicted to touch something: stand still (blocked) rather than
