@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
+import dataclasses
+import gzip
 import math
+from pathlib import Path
 
+import msgspec
 import numpy as np
 import pytest
 
 from autochair.control.core import ControlConfig
-from autochair.nav import lattice
+from autochair.nav import lattice, planner
 from autochair.nav.field import Footprint, GridMap, NavField
 from autochair.nav.mpepc import Mpepc, MpepcParams
-from autochair.nav.planner import free_field
+from autochair.nav.planner import PlanRequest, compute, free_field
+from autochair_msgs import OccupancyGrid
 
 FP = Footprint()
 LAW = ControlConfig().law(0.025)
@@ -169,8 +174,6 @@ def test_in_the_tolerance_the_goals_clear_turn_is_handed_over_whatever_it_costs(
     # At the desk, 3 cm off the goal and 90° off its heading: the turn clears by 5 cm, but
     # beside the wall its collision cost outweighed the heading term, so standing still looked
     # best and the chair stood there "blocked" (the navigation suite, seed 7; measured).
-    import msgspec
-
     fld = _desk_room()
     goal, here = (0.95, 1.2, 0.0), (0.94, 1.17, math.pi / 2)
     ctg = fld.cost_to_go(goal[0], goal[1])
@@ -400,3 +403,92 @@ def test_a_stages_turn_is_carried_on_and_then_its_straight_driven() -> None:
     assert res.plan is not None
     assert not (res.plan.straight_m > 0.0
                 and res.plan.target[:2] == pytest.approx(land, abs=0.005))
+
+
+def test_no_way_is_reachable_through_a_blind_turn() -> None:
+    # A 1.9 m corridor's closed end as the laser first sees it: its walls from 0.7 m ahead of
+    # the axle on, nothing beside or behind the chair. On the map it could turn round in place
+    # where it stands (its sweep clears the walls seen by 15 cm), but the body would swing over
+    # cells never seen, where the walls go on: there is no way back (in the corridor seen, the
+    # lattice finds no turn).
+    segs = [[0.7, 0.95, 6.0, 0.95], [0.7, -0.95, 6.0, -0.95], [-3.0, -3.0, -3.0, -2.9],
+            [-3.0, 3.0, -3.0, 2.9]]
+    gm = GridMap.from_shapes(np.array(segs), np.zeros((0, 3)), resolution_m=0.1)
+    fld = NavField(gm, FP)
+    here = (0.0, 0.0, 0.0)
+    sweep = np.linspace(-math.pi, math.pi, 181)
+    assert float(fld.footprint_clearance(*here[:2], sweep).min()) > 0.1
+    cx, _ = gm.centres()
+    blind = NavField(dataclasses.replace(gm, unknown=cx < 0.4), FP)
+    c = fld.cell
+    closed = lattice.unreachable(blind, here)
+    assert closed is not None and closed[c(-1.5, 0.0)] and not closed[c(2.0, 0.0)]
+    # positive control: all seen, it turns round there, and the way back is reachable
+    closed = lattice.unreachable(fld, here)
+    assert closed is not None and not closed[c(-1.5, 0.0)] and not closed[c(2.0, 0.0)]
+
+
+def test_behind_a_chair_that_cannot_turn_round_nothing_is_reachable() -> None:
+    fld = dead_end()
+    # In the corridor, 0.5 m in, facing its closed end: the hall behind is out of reach
+    # (a forward-only chair cannot turn round in 1 m), the corridor ahead is not.
+    closed = lattice.unreachable(fld, (0.5, 0.0, 0.0))
+    assert closed is not None
+    c = fld.cell
+    assert closed[c(-2.0, 0.0)] and closed[c(-1.0, 1.0)]
+    assert not closed[c(1.5, 0.0)] and not closed[c(0.5, 0.0)]
+    # positive control: in the hall facing the corridor it can turn, so the hall is reachable
+    # and so is the corridor
+    closed = lattice.unreachable(fld, (-2.0, 0.0, 0.0))
+    assert closed is not None
+    assert not closed[c(-3.0, 1.0)] and not closed[c(-1.0, -1.0)] and not closed[c(1.5, 0.0)]
+
+
+L_START_GRID = Path(__file__).parent / "data" / "l-corridor-start-grid.msgpack.gz"
+
+
+def _l_corridor_start() -> NavField:
+    """The live map (coarsened to 0.1 m as the control service does) of a run where the chair,
+    at the L corridor's closed end (0, 0) facing along it, stood "blocked" at the start: the
+    walls are seen only from ~0.4 m ahead of its axle, the back wall and the inner wall's end
+    lie in the laser's blind sector (unknown, so free)."""
+    msg = msgspec.msgpack.decode(gzip.decompress(L_START_GRID.read_bytes()), type=OccupancyGrid)
+    return NavField(GridMap.from_msg(msg).coarsened(2), FP)
+
+
+def test_at_a_corridors_closed_end_the_way_back_it_cannot_turn_onto_is_given_up() -> None:
+    fld = _l_corridor_start()
+    gm, here, goal = fld.map, (0.0, 0.0, 0.0), (8.0, 7.5, math.radians(90))
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    assert ctg is not None
+    # The 2-D way runs back round the unseen wall end behind the chair, and no in-place turn
+    # onto it keeps MPEPC's contact margin.
+    back = float(ctg.descent(gm, np.array(here[:2])))
+    assert abs(math.degrees(back) - 138) < 10
+    sweep = np.linspace(0.0, back, 40)
+    assert float(fld.footprint_clearance(0.0, 0.0, sweep).min()) < MpepcParams().contact_m
+    res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, fld, None, None, LAW))
+    # It drives: forward along the corridor, clear, on costs-to-go without the cells it cannot
+    # get to (behind it), which count what its way really is.
+    assert not res.blocked_by and res.plan is not None and not res.error
+    p = res.plan
+    assert p.vmax_mps > 0.3 and p.progress_m > 1.0 and p.min_clearance_m >= 0.05
+    assert p.path[-1, 0] > 1.5 and float(np.abs(p.path[:, 2]).max()) < math.radians(60)
+    assert res.given_up is not None and res.ctg is not None
+    given = fld.cells_of(res.given_up)
+    assert given[fld.cell(-1.0, 1.5)] and not given[fld.cell(2.0, 0.0)]
+    assert abs(float(res.ctg.descent(gm, np.array(here[:2])))) < math.radians(45)
+    assert fld.start_cost(res.ctg, 0.0, 0.0) > fld.start_cost(ctg, 0.0, 0.0) + 1.0
+    # Kept for the waypoint: on the next map the costs-to-go are recomputed without them.
+    nxt = compute(PlanRequest(1, 0, (0.5, 0.0, 0.0), 0.5, 0.0, goal, fld, None, None, LAW,
+                              given_up=res.given_up))
+    assert nxt.given_up is res.given_up and nxt.ctg is not None
+    assert abs(float(nxt.ctg.descent(gm, np.array([0.5, 0.0])))) < math.radians(45)
+    # Positive controls: where the way ahead is the way, nothing is given up; nor where the
+    # chair could turn round (2 cm to spare on this map, had it seen the cells it would
+    # sweep); on what it has seen, 5 cm are not to spare: given up.
+    ahead = fld.cost_to_go(6.0, 0.0)
+    assert ahead is not None and planner.give_up(fld, ahead, here, (6.0, 0.0, 0.0), 0.05) is None
+    seen = NavField(dataclasses.replace(gm, unknown=None), FP)
+    assert planner.give_up(seen, ctg, here, goal, min_clear_m=0.02) is None
+    assert planner.give_up(seen, ctg, here, goal, min_clear_m=0.05) is not None

@@ -84,45 +84,22 @@ def test_unreachable_goal_is_refused_at_once(stack_factory: Callable[..., Launch
 L_WORLD = (DEFAULT_WORLD.parent / "l_corridor.world").read_text()
 
 
-def shifted(world: str, dx: float) -> str:
-    """The world moved by dx along x (every shape's x coordinates)."""
-    xs = {"wall": (0, 2), "box": (0,), "circle": (0,), "person": (0, 2)}
-    out = []
-    for line in world.splitlines():
-        words = line.split("#", 1)[0].split()
-        if words and words[0] in xs:
-            v = words[1:]
-            for i in xs[words[0]]:
-                v[i] = f"{float(v[i]) + dx:g}"
-            line = " ".join([words[0], *v])
-        out.append(line)
-    return "\n".join(out) + "\n"
-
-
-# The chair 3 m into the L's first leg (the simulated chair starts at the origin): from the leg's
-# closed end the back wall and the inner wall's end lie in the laser's blind sector, unknown
-# cells count as free, and the costs-to-go to a goal in the unseen second leg ran round them
-# behind the chair, where it can neither turn nor reverse blind: it stood "blocked" at the start
-# in most runs (README, navigation: a known shortfall). These tests are about the corner and a
-# blocked way, so they start where the way ahead is also the shortest.
-L_INSIDE = shifted(L_WORLD, -3.0)
-
-
 def test_around_a_corner(stack_factory: Callable[..., Launcher], hub: str, tmp_path: Path,
                          monkeypatch: pytest.MonkeyPatch) -> None:
-    world_config(tmp_path, monkeypatch, L_INSIDE)
+    world_config(tmp_path, monkeypatch, L_WORLD)
     stack_factory(STACK)
     session = client_session(hub)
     try:
         truth = Recorder(session, keys.SIM_TRUTH)
         map_ready(session)
-        # Round the corner into the second leg, 1.5 m short of the pillar: a goal whose final
-        # turn in place would sweep the pillar (e.g. 5, 4 here) ends blocked, a known shortfall.
-        states = drive_to(session, Pose2D(5.0, 3.0, math.radians(90)), 90)
+        # From the first leg's closed end, round the corner into the second leg, 1.5 m short
+        # of the pillar: a goal whose final turn in place would sweep the pillar (e.g. 8, 4)
+        # ends blocked, a known shortfall.
+        states = drive_to(session, Pose2D(8.0, 3.0, math.radians(90)), 90)
         assert states[-1].state == "arrived", story(states)
         assert "driving" in {s.state for s in states}
         t = truth.latest()
-        assert math.hypot(t.x_m - 5.0, t.y_m - 3.0) < 0.10, t
+        assert math.hypot(t.x_m - 8.0, t.y_m - 3.0) < 0.10, t
     finally:
         session.close()
 
@@ -131,12 +108,12 @@ def test_a_goal_blocked_on_the_way_is_reported_then_aborted(
         stack_factory: Callable[..., Launcher], hub: str, tmp_path: Path,
         monkeypatch: pytest.MonkeyPatch) -> None:
     # Someone stands in the second leg (unseen from the start): the way is shut.
-    world_config(tmp_path, monkeypatch, L_INSIDE + "person 5.0 6.0 5.0 6.0 0.0 0.8\n")
+    world_config(tmp_path, monkeypatch, L_WORLD + "person 8.0 6.0 8.0 6.0 0.0 0.8\n")
     stack_factory(STACK)
     session = client_session(hub)
     try:
         map_ready(session)
-        states = drive_to(session, Pose2D(5.0, 7.5, math.radians(90)), 120)
+        states = drive_to(session, Pose2D(8.0, 7.5, math.radians(90)), 120)
         seen = [s.state for s in states]
         # On the way: it drove before it was blocked (not blocked where it started).
         assert "driving" in seen and "blocked" in seen[seen.index("driving"):], story(states)

@@ -25,7 +25,7 @@ import numpy as np
 
 from autochair.geometry import Pose, along_lateral, compose
 from autochair.geometry import wrap_angle as wrap
-from autochair.nav.field import CostToGo, Footprint, NavField
+from autochair.nav.field import CostToGo, Footprint, GridMap, NavField
 from autochair.nav.frames import MapFrame
 from autochair.nav.mpepc import ALIGNED_RAD, LawParams, MpepcParams, Person, Plan
 from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error
@@ -333,6 +333,7 @@ class ControlCore:
         self._free: NavField | None = None
         self.ctg: CostToGo | None = None
         self._ctg_key: tuple[int, int] = (0, -1)  # (id of its field, waypoint index)
+        self.given_up: GridMap | None = None  # cells kept out of ctg (nav/planner.give_up)
         self.plan: Plan | None = None
         self.lineups = 0  # line-up poses before doors, inserted ahead of the goal's waypoints
         self.final = False  # MPEPC took the goal itself: the law's own final approach
@@ -450,6 +451,7 @@ class ControlCore:
         self.aligning = self.straight = self.final = False
         self._land_left = None
         self.ctg, self._ctg_key, self.plan = ctg, (id(fld), 0), None
+        self.given_up = None
         self._plan_t, self._blocked_since = -math.inf, None
         self._last_blocked = ("", -math.inf)
         self.state, self.reason = PLANNING, ""
@@ -571,13 +573,14 @@ class ControlCore:
                            (self.limiter.v.rate, self.limiter.w.rate),
                            self.index == len(self.waypoints) - 1,
                            self.plan is not None and self.plan.straight_m > 0.0,
-                           None if self.plan is None else self.plan.then)
+                           None if self.plan is None else self.plan.then, self.given_up)
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""
         if res.goal_id != self.goal_id or res.index != self.index or not self.active:
             return
         self.ctg, self._ctg_key = res.ctg, (id(res.field), res.index)
+        self.given_up = res.given_up
         if res.error or res.plan is None:
             # The map closed the way: blocked (at rest) while the path is recomputed each
             # cycle on the newest map, aborted if it stays closed.
@@ -733,6 +736,7 @@ class ControlCore:
                 return self._follow_plan(o, now)
             self.index += 1  # passed: plan to the next one at once
             self.plan, self.ctg, self._plan_t = None, None, -math.inf
+            self.given_up = None
         if not self.final:
             return self._follow_plan(o, now)
         if self._plan_stale(now):  # the final approach, too, is watched by fresh plans

@@ -81,16 +81,18 @@ class GridMap:
     origin_x_m: float  # world position of cell (0, 0)'s corner
     origin_y_m: float
     frame_id: str = "map"
+    unknown: Bool | None = None  # (H, W) cells never observed (None: all were)
 
     @classmethod
     def from_msg(cls, msg: object) -> GridMap:
         """From an autochair_msgs.OccupancyGrid (unknown cells count as free: the chair
-        must be able to plan into what the laser has not seen yet)."""
+        must be able to plan into what the laser has not seen yet; they are kept apart for
+        where it matters that nothing was seen there: nav/lattice.unreachable)."""
         data = np.frombuffer(msg.data, dtype=np.uint8)  # type: ignore[attr-defined]
         grid = data.reshape(msg.height, msg.width)  # type: ignore[attr-defined]
         occ = (grid >= OCCUPIED_PCT) & (grid != 255)
         return cls(occ, float(msg.resolution_m), float(msg.origin_x_m),  # type: ignore[attr-defined]
-                   float(msg.origin_y_m), str(msg.frame_id))  # type: ignore[attr-defined]
+                   float(msg.origin_y_m), str(msg.frame_id), grid == 255)  # type: ignore[attr-defined]
 
     @classmethod
     def from_shapes(cls, segments: F64, circles: F64, resolution_m: float = 0.05,
@@ -125,8 +127,14 @@ class GridMap:
         pad = np.zeros((hh, ww), dtype=np.bool_)
         pad[:h, :w] = self.occupied
         occ = np.asarray(pad.reshape(hh // factor, factor, ww // factor, factor).any(axis=(1, 3)))
+        unknown = None
+        if self.unknown is not None:  # unknown where none of them was observed
+            pad = np.ones((hh, ww), dtype=np.bool_)
+            pad[:h, :w] = self.unknown
+            unknown = np.asarray(pad.reshape(hh // factor, factor, ww // factor,
+                                             factor).all(axis=(1, 3)))
         return GridMap(occ, self.resolution_m * factor, self.origin_x_m, self.origin_y_m,
-                       self.frame_id)
+                       self.frame_id, unknown)
 
     def centres(self) -> tuple[F64, F64]:
         h, w = self.occupied.shape
@@ -249,16 +257,20 @@ class NavField:
         h, w = gm.occupied.shape
         return (iy, ix) if 0 <= ix < w and 0 <= iy < h else None
 
-    def cost_to_go(self, gx: float, gy: float, outside_slope: float = 3.0) -> CostToGo | None:
-        """Fast-marching costs-to-go to (gx, gy); None if the goal point is not passable."""
+    def cost_to_go(self, gx: float, gy: float, outside_slope: float = 3.0,
+                   closed: Bool | None = None) -> CostToGo | None:
+        """Fast-marching costs-to-go to (gx, gy); None if the goal point is not passable.
+        `closed`: cells (H, W) given up besides the obstacles (planner.compute: those the
+        chair cannot get to from where it stands)."""
+        passable = self.passable if closed is None else self.passable & ~closed
         c = self.cell(gx, gy)
-        if c is None or not self.passable[c]:
+        if c is None or not passable[c]:
             return None
         res = self.map.resolution_m
-        phi0 = np.ones(self.passable.shape)
+        phi0 = np.ones(passable.shape)
         phi0[c] = -1.0  # the zero contour surrounds the goal cell
-        t = skfmm.travel_time(np.ma.MaskedArray(phi0, ~self.passable), self.speed, dx=res)
-        reach = ~np.ma.getmaskarray(t) & self.passable
+        t = skfmm.travel_time(np.ma.MaskedArray(phi0, ~passable), self.speed, dx=res)
+        reach = ~np.ma.getmaskarray(t) & passable
         phi = np.where(reach, np.ma.getdata(t), np.inf)
         phi[c] = 0.0
         # Extend into walls and unreachable cells: the nearest reachable cell's cost plus
@@ -269,13 +281,25 @@ class NavField:
         gy_, gx_ = np.gradient(full, res)
         return CostToGo(full, gx_, gy_, reach, (gx, gy))
 
+    def cells_of(self, marked: GridMap) -> Bool:
+        """This map's cells whose centres fall in a marked cell of another grid (over the same
+        world frame; a grid kept from an earlier map, which the live map outgrows)."""
+        cx, cy = self.map.centres()
+        h, w = marked.occupied.shape
+        ix = np.floor((cx - marked.origin_x_m) / marked.resolution_m).astype(np.intp)
+        iy = np.floor((cy - marked.origin_y_m) / marked.resolution_m).astype(np.intp)
+        ok = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+        out = np.zeros(ok.shape, dtype=np.bool_)
+        out[ok] = marked.occupied[iy[ok], ix[ok]]
+        return out
+
     def check_goal(self, x: float, y: float, yaw: float, min_clearance_m: float = 0.02) -> str:
         """'' if the chair fits at the pose, else why not (names the pose and the obstacle)."""
         if self.cell(x, y) is None:
             return f"({x:.2f}, {y:.2f}) is outside the map"
         clr = float(self.footprint_clearance(x, y, yaw))
         where = f"the chair's footprint at ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f}°)"
-        if self.map.occupied[self._cells_under(x, y, yaw)].any():
+        if self.map.occupied[self.cells_under(x, y, yaw)].any():
             return f"{where} overlaps an obstacle"
         if clr < min_clearance_m:
             return (f"{where} comes within {max(clr, 0.0):.2f} m of an obstacle (needs "
@@ -285,7 +309,7 @@ class NavField:
                     "the chair cannot get there")
         return ""
 
-    def _cells_under(self, x: float, y: float, yaw: float) -> tuple[npt.NDArray[np.intp], ...]:
+    def cells_under(self, x: float, y: float, yaw: float) -> tuple[npt.NDArray[np.intp], ...]:
         """Indices of the grid cells whose centres lie under the footprint at the pose."""
         fp, gm = self.footprint, self.map
         reach = math.hypot(max(fp.front_m, fp.rear_m), fp.half_width_m) + gm.resolution_m

@@ -22,15 +22,17 @@ median offset between the two) elsewhere, and seeds candidates along the lattice
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 import scipy.fft as sfft
+import scipy.ndimage as ndi
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
-from .field import NavField
+from .field import NavField, place_xy
 
 F64 = npt.NDArray[np.float64]
 Bool = npt.NDArray[np.bool_]
@@ -70,13 +72,15 @@ class LatticeParams:
     max_cost: float = 1e3  # the window's "no way" (finite, so interpolation stays defined)
 
 
-def footprint_kernel(fld: NavField, yaw: float) -> tuple[npt.NDArray[np.float64], int]:
+def footprint_kernel(fld: NavField, yaw: float, shift: tuple[float, float] = (0.0, 0.0)
+                     ) -> tuple[npt.NDArray[np.float64], int]:
     """(2K+1)² mask of the map cells under the chair's rectangle at `yaw` round the axle's
-    cell (centre K, K), grown by half a cell (a cell counts if it may overlap)."""
+    cell (centre K, K), grown by half a cell (a cell counts if it may overlap); the axle
+    `shift` (x, y, within half a cell) off that cell's centre."""
     fp, res = fld.footprint, fld.map.resolution_m
     k = math.ceil((fp.reach_m + res) / res)
     off = np.arange(-k, k + 1) * res
-    px, py = np.meshgrid(off, off)
+    px, py = np.meshgrid(off - shift[0], off - shift[1])
     c, s = math.cos(yaw), math.sin(yaw)
     u, v = c * px + s * py, -s * px + c * py  # into the chair frame
     g = res * 0.5 * (abs(c) + abs(s))  # half a cell's extent along the chair's axes
@@ -250,13 +254,17 @@ _KERNELS: dict[tuple[object, ...], npt.NDArray[np.complex128]] = {}
 
 
 def free_states(fld: NavField, box: tuple[int, int, int, int], f: int, n: int,
-                min_clear_m: float) -> Bool:
+                min_clear_m: float, shift: tuple[float, float] = (0.0, 0.0),
+                extra: Bool | None = None) -> Bool:
     """(2n, H, W) free states at 2n orientations (the headings and the half steps between)
     at every f-th map cell of rows i0..i1, columns j0..j1 (box, inclusive; cells off the map
-    count as obstacles). The rectangle's transforms are kept per window shape."""
+    and `extra` map cells count as obstacles), the axle `shift` off the cells' centres. The
+    rectangle's transforms are kept per window shape."""
     gm = fld.map
     i0, i1, j0, j1 = box
     near = fld.clearance < min_clear_m  # includes the obstacles themselves
+    if extra is not None:
+        near = near | extra
     k = math.ceil((fld.footprint.reach_m + gm.resolution_m) / gm.resolution_m)
     rows, cols = i1 - i0 + 1 + 2 * k, j1 - j0 + 1 + 2 * k
     win = np.ones((rows, cols), dtype=np.float64)
@@ -266,12 +274,12 @@ def free_states(fld: NavField, box: tuple[int, int, int, int], f: int, n: int,
     if a0 < a1 and b0 < b1:
         win[a0 - (i0 - k):a1 - (i0 - k), b0 - (j0 - k):b1 - (j0 - k)] = near[a0:a1, b0:b1]
     shape = (sfft.next_fast_len(rows, True), sfft.next_fast_len(cols, True))
-    key = (shape, gm.resolution_m, fld.footprint, n, k)
+    key = (shape, gm.resolution_m, fld.footprint, n, k, shift)
     kers = _KERNELS.get(key)
     if kers is None:
         stack = []
         for j in range(2 * n):
-            ker, _ = footprint_kernel(fld, j * math.pi / n)
+            ker, _ = footprint_kernel(fld, j * math.pi / n, shift)
             stack.append(sfft.rfft2(ker[::-1, ::-1], shape))
         kers = _KERNELS[key] = np.stack(stack)
         if len(_KERNELS) > 8:
@@ -306,6 +314,30 @@ def window(fld: NavField, goal: tuple[float, float, float],
     return out[0], out[1], out[2], out[3]
 
 
+Slices = tuple[slice, slice]
+
+
+def legal_moves(full: Bool, half_steps: Bool, p: LatticeParams,
+                turns: tuple[Bool, Bool] | None = None
+                ) -> Iterator[tuple[int, int, Slices, Slices, Bool, float, bool]]:
+    """Per motion (heading k → k2, an offset): the window slices of its start states (a) and
+    end states (b), where it is legal (both free; an in-place turn's swept half step free too,
+    and with `turns`, free states and half steps for in-place turns, its end and half step
+    free there too), its length and whether it turns in place."""
+    n, h, w = full.shape
+    for k, m in enumerate(moves(p)):
+        for k2, di, dj, length, turn in zip(m.k2, m.di, m.dj, m.length, m.turn, strict=True):
+            a = (slice(max(0, -di), h - max(0, di)), slice(max(0, -dj), w - max(0, dj)))
+            b = (slice(max(0, di), h - max(0, -di)), slice(max(0, dj), w - max(0, -dj)))
+            ok = full[k][a] & full[k2][b]
+            if turn:  # the swept body: the half step between the two headings
+                mid = k if k2 == (k + 1) % n else int(k2)
+                ok &= half_steps[mid][a]
+                if turns is not None:
+                    ok &= turns[1][mid][a] & turns[0][k2][b]
+            yield k, int(k2), a, b, ok, float(length), bool(turn)
+
+
 def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None = None,
           params: LatticeParams | None = None, start: tuple[float, float, float] | None = None
           ) -> HeadingField | None:
@@ -338,23 +370,17 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     src: list[I64] = []
     dst: list[I64] = []
     cost: list[F64] = []
-    for k, m in enumerate(moves(p)):
-        for k2, di, dj, length, turn in zip(m.k2, m.di, m.dj, m.length, m.turn, strict=True):
-            a = (slice(max(0, -di), h - max(0, di)), slice(max(0, -dj), w - max(0, dj)))
-            b = (slice(max(0, di), h - max(0, -di)), slice(max(0, dj), w - max(0, -dj)))
-            ok = full[k][a] & full[k2][b]
-            if turn:  # the swept body: the half step between the two headings
-                ok &= half_steps[k if k2 == (k + 1) % n else k2][a]
-            sp = np.minimum(speed[a], speed[b])
-            src.append(idx[k][a][ok])
-            dst.append(idx[k2][b][ok])
-            c = (length / sp)[ok] if not turn else np.full(int(ok.sum()), length)
-            if tight:
-                room = roomy_full[k][a] & roomy_full[k2][b]
-                if turn:
-                    room &= roomy_half[k if k2 == (k + 1) % n else k2][a]
-                c = c * np.where(room[ok], 1.0, 1.0 + p.tight_factor)
-            cost.append(c)
+    for k, k2, a, b, ok, length, in_place in legal_moves(full, half_steps, p):
+        sp = np.minimum(speed[a], speed[b])
+        src.append(idx[k][a][ok])
+        dst.append(idx[k2][b][ok])
+        c = (length / sp)[ok] if not in_place else np.full(int(ok.sum()), length)
+        if tight:
+            room = roomy_full[k][a] & roomy_full[k2][b]
+            if in_place:
+                room &= roomy_half[k if k2 == (k + 1) % n else k2][a]
+            c = c * np.where(room[ok], 1.0, 1.0 + p.tight_factor)
+        cost.append(c)
     # The goal region: a virtual node joined to free states near the goal pose.
     gx, gy, gyaw = goal
     ii, jj = np.mgrid[0:h, 0:w]
@@ -393,3 +419,87 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
             phi2 = ctg_phi[np.ix_(ii_map, jj_map)]
             offset = float(np.median(best[use] - phi2[use]))
     return HeadingField(d, full, ox, oy, p, offset, goal)
+
+
+def unreachable(fld: NavField, pose: tuple[float, float, float], half_m: float = 3.0,
+                params: LatticeParams | None = None, sweep_rad: float = math.radians(2.0),
+                grow_m: float = 0.3) -> Bool | None:
+    """The map's cells (H, W) within `half_m` of the chair (a square) that its axle cannot get
+    to from `pose` forward-only (this lattice's motions, its states clear by `min_clear_m`)
+    without leaving the square; None if the chair has no free state. The 2-D field counts
+    every cell the axle fits in, so its descent may point behind a chair that cannot turn
+    there (the closed end of a corridor narrower than its 2.02 m turning circle) round an end
+    it never gets to. The lattice is laid through the chair's exact position (a few cm decide
+    whether it turns), at the headings its body sweeps to in place from its own yaw clear by
+    `min_clear_m` (checked every `sweep_rad`) and the nearest one. The cells reached are grown
+    by `grow_m`: the lattice's 22.5° steps cannot drift sideways along a corridor as the
+    chair does (measured: in the L corridor, on the live map's 0.1 m cells, they reached a
+    band 0.4 m wide where the axle fits in 0.8 m), and only routes the chair cannot take at
+    all are to be given up, not the room it has on its way."""
+    p = params or LatticeParams()
+    gm = fld.map
+    res_m = gm.resolution_m
+    f = max(1, round(p.resolution_m / res_m))
+    p = LatticeParams(**{**p.__dict__, "resolution_m": f * res_m, "half_m": half_m})
+    box = window(fld, pose, None, p, f)
+    ci = math.floor((pose[1] - gm.origin_y_m) / res_m)
+    cj = math.floor((pose[0] - gm.origin_x_m) / res_m)
+    shift = (round(pose[0] - gm.origin_x_m - (cj + 0.5) * res_m, 3),
+             round(pose[1] - gm.origin_y_m - (ci + 0.5) * res_m, 3))
+    both = free_states(fld, box, f, p.headings, p.min_clear_m, shift)
+    full, half_steps = both[0::2], both[1::2]
+    turns = None
+    blind = np.zeros(gm.occupied.shape, dtype=np.bool_)
+    if gm.unknown is not None:
+        # No in-place turn sweeps the body over cells never observed (the chair's own
+        # excepted: it stands there): they are behind the laser (its blind sector), and the
+        # wall end the map lacks there is where the body would swing (the L corridor's
+        # closed end: 1.01 m turning reach, 1.0 m to the unseen wall).
+        under = np.zeros(gm.occupied.shape, dtype=np.bool_)
+        under[fld.cells_under(*pose)] = True  # (and the cells its outline crosses)
+        blind = gm.unknown & ~ndi.binary_dilation(under, np.ones((3, 3), dtype=np.bool_))
+        seen = free_states(fld, box, f, p.headings, p.min_clear_m, shift, blind)
+        turns = (seen[0::2], seen[1::2])
+    n, h, w = full.shape
+    i0, j0 = box[0], box[2]
+    ci, cj = (ci - i0) // f, (cj - j0) // f  # (the window is centred on the chair's cell)
+    step = 2 * math.pi / n
+    heads = {round(pose[2] / step) % n}
+    mh, mw = gm.occupied.shape
+    for sign in (1.0, -1.0):  # in place either way, as far as the swept body stays clear
+        angles = np.arange(0.0, math.pi + 1e-9, sweep_rad)
+        yaws = pose[2] + sign * angles
+        clear = fld.footprint_clearance(pose[0], pose[1], yaws) >= p.min_clear_m
+        ox, oy = place_xy(fld.outline, pose[0], pose[1], yaws)  # (and not blind)
+        ix = np.clip(np.floor((ox - gm.origin_x_m) / res_m).astype(np.intp), 0, mw - 1)
+        iy = np.clip(np.floor((oy - gm.origin_y_m) / res_m).astype(np.intp), 0, mh - 1)
+        clear &= ~blind[iy, ix].any(axis=-1)
+        upto = float(angles[-1]) if clear.all() else float(angles[int(np.argmin(clear))])
+        heads |= {k for k in range(n)
+                  if np.remainder(sign * (k * step - pose[2]), 2 * math.pi) < upto}
+    idx = np.arange(n * h * w).reshape(n, h, w)
+    starts = [int(idx[k, ci, cj]) for k in sorted(heads) if full[k, ci, cj]]
+    if not starts:
+        return None
+    src: list[I64] = []
+    dst: list[I64] = []
+    for k, k2, a, b, ok, _, _ in legal_moves(full, half_steps, p, turns):
+        src.append(idx[k][a][ok])
+        dst.append(idx[k2][b][ok])
+    virtual = n * h * w  # the chair: joined to its start states
+    s_all = np.concatenate([*src, np.full(len(starts), virtual)])
+    d_all = np.concatenate([*dst, np.array(starts, dtype=np.intp)])
+    graph = csr_matrix((np.ones(s_all.size), (s_all, d_all)), shape=(virtual + 1, virtual + 1))
+    order = breadth_first_order(graph, virtual, directed=True, return_predecessors=False)
+    got = np.zeros(virtual + 1, dtype=np.bool_)
+    got[order] = True
+    reached = got[:virtual].reshape(n, h, w).any(0)
+    reached = ndi.distance_transform_edt(~reached) * p.resolution_m <= grow_m
+    # lattice cell (a, b) is the map's (i0 + a·f, j0 + b·f): each covers f × f map cells
+    up = np.repeat(np.repeat(reached, f, 0), f, 1)
+    r0, c0 = i0 - f // 2, j0 - f // 2
+    a0, a1 = max(r0, 0), min(r0 + up.shape[0], mh)
+    b0, b1 = max(c0, 0), min(c0 + up.shape[1], mw)
+    out = np.zeros((mh, mw), dtype=np.bool_)
+    out[a0:a1, b0:b1] = ~up[a0 - r0:a1 - r0, b0 - c0:b1 - c0]
+    return out & fld.passable

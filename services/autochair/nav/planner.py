@@ -37,6 +37,7 @@ class PlanRequest:
     straight: bool = False  # the core drives a straight stage onto `previous` (Mpepc.stage_plan)
     # the core turned (or turns) in place as a stage whose straight lands here (Plan.then)
     then: tuple[float, float] | None = None
+    given_up: GridMap | None = None  # cells given up for this waypoint (PlanResult.given_up)
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,9 @@ class PlanResult:
     plan: Plan | None
     error: str = ""  # no path: why
     blocked_by: str = ""  # why the plan makes no progress ("blocked by …"); "" if it does
+    # Cells the chair cannot get to (give_up), kept out of the costs-to-go to this waypoint
+    # (the core hands them back with every request; on a new map they are applied again).
+    given_up: GridMap | None = None
 
 
 _planners: dict[int, tuple[NavField, Mpepc]] = {}
@@ -153,9 +157,39 @@ def blocker(fld: NavField, ctg: CostToGo, pose: tuple[float, float, float],
     return f"blocked by an obstacle at ({ob[0]:.2f}, {ob[1]:.2f})"
 
 
+def give_up(fld: NavField, ctg: CostToGo, pose: tuple[float, float, float],
+            goal: tuple[float, float, float], min_clear_m: float, ahead_m: float = 2.0
+            ) -> tuple[CostToGo, GridMap] | None:
+    """The costs-to-go without the cells round the chair that it cannot get to forward-only
+    from where it stands (lattice.unreachable, its states clear by `min_clear_m`: MPEPC's
+    contact margin), and those cells; None unless the way down the present costs-to-go (its
+    first `ahead_m`) runs through them and a way is left. Unseen cells count as free (the
+    chair must plan into what it has not seen), so at the closed end of a corridor the way
+    may run back round an unseen wall end behind the chair, where it can neither turn nor
+    reverse blind: it stood "blocked" there (the L corridor, README, navigation)."""
+    closed = lattice.unreachable(fld, pose, params=lattice.LatticeParams(
+        min_clear_m=min_clear_m, tight_factor=0.0))
+    if closed is None:
+        return None
+    way = [fld.cell(float(x), float(y)) for x, y in fld.descent_path(ctg, pose[0], pose[1],
+                                                                      max_m=ahead_m)]
+    if not any(c is not None and closed[c] for c in way):
+        return None
+    ctg2 = fld.cost_to_go(goal[0], goal[1], closed=closed)
+    if ctg2 is None or not math.isfinite(fld.start_cost(ctg2, pose[0], pose[1])):
+        return None
+    gm = fld.map
+    return ctg2, GridMap(closed, gm.resolution_m, gm.origin_x_m, gm.origin_y_m, gm.frame_id)
+
+
 def compute(req: PlanRequest, params: MpepcParams | None = None,
             blocked_progress_m: float = 0.1, blocked_gain: float = 0.1) -> PlanResult:
-    fld, ctg = req.field, req.ctg
+    fld, ctg, given_up = req.field, req.ctg, req.given_up
+    if ctg is None and given_up is not None:
+        # (on this map the cells given up may close the way: then they are dropped)
+        ctg = fld.cost_to_go(req.goal[0], req.goal[1], closed=fld.cells_of(given_up))
+        if ctg is None or not math.isfinite(fld.start_cost(ctg, req.pose[0], req.pose[1])):
+            ctg, given_up = None, None
     if ctg is None:
         ctg = fld.cost_to_go(req.goal[0], req.goal[1])
     error = path_error(fld, ctg, req.pose, req.goal, way_in=False)  # (checked at set_goal)
@@ -176,29 +210,42 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
                             straight_to=req.previous[:2], v0=req.v)
         if on is not None:
-            return PlanResult(req.goal_id, req.index, fld, ctg, on)
+            return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
     if req.then is not None and req.previous is not None and abs(req.v) < 0.01:
         # A stage's turn under way: its rest; done (at rest): its straight; each rechecked.
         on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
                             straight_to=req.then,
                             turn_to=req.previous[2] if abs(req.omega) >= 0.01 else None)
         if on is not None:
-            return PlanResult(req.goal_id, req.index, fld, ctg, on)
-    plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
-                    req.rates, req.final, hf)
-    blocked = ""
-    if plan.min_clearance_m < (params or MpepcParams()).contact_m:
-        # Every motion is predicted to touch something: stand still (blocked) rather than
-        # take the least bad contact.
-        blocked = blocker(fld, ctg, req.pose, req.people)
-    elif not plan.is_goal and not plan.final_turn and (plan.vmax_mps <= 0.0 or (
-            plan.progress_m < blocked_progress_m and plan.cost > plan.stop_cost - blocked_gain)):
+            return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
+
+    def stuck(plan: Plan) -> bool:
+        if plan.min_clearance_m < mp.contact_m:
+            # Every motion is predicted to touch something: stand still (blocked) rather than
+            # take the least bad contact.
+            return True
         # No progress, and nothing (a turn towards the path included) beats standing still; or
         # braking to rest is the best motion (the core brakes while blocked, as predicted).
-        blocked = blocker(fld, ctg, req.pose, req.people)
-    if blocked and hf is not None and abs(req.v) < 0.01 and abs(req.omega) < 0.01:
+        return not plan.is_goal and not plan.final_turn and (plan.vmax_mps <= 0.0 or (
+            plan.progress_m < blocked_progress_m and plan.cost > plan.stop_cost - blocked_gain))
+
+    plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
+                    req.rates, req.final, hf)
+    blocked = blocker(fld, ctg, req.pose, req.people) if stuck(plan) else ""
+    at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
+    if blocked and hf is not None and at_rest:
         # At rest and blocked where the lattice has a way: its next stage, driven exactly.
         staged = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates)
         if staged is not None:
-            return PlanResult(req.goal_id, req.index, fld, ctg, staged)
-    return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked)
+            return PlanResult(req.goal_id, req.index, fld, ctg, staged, given_up=given_up)
+    if blocked and at_rest:
+        # At rest and blocked where the way runs through cells the chair cannot get to: the
+        # way without them, kept for this waypoint (it never gets there from here on either).
+        alt = give_up(fld, ctg, req.pose, req.goal, mp.contact_m)
+        if alt is not None:
+            plan2 = mpc.plan(req.pose, req.v, req.omega, req.goal, alt[0], req.people,
+                             req.previous, req.rates, req.final, hf)
+            if not stuck(plan2):
+                return PlanResult(req.goal_id, req.index, fld, alt[0], plan2, given_up=alt[1])
+    return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked,
+                      given_up=given_up)
