@@ -187,6 +187,11 @@ class MoveGate:
         return True
 
 
+# Odometry samples a scan consumer's ring holds between two scans (`Node.queued`): 2 s of
+# keys.ODOM_SLOW (50 Hz), where a scan needs the last 0.25 s.
+ODOM_RING = 100
+
+
 class OdomBuffer:
     """Recent odometry, looked up by the nearest stamp."""
 
