@@ -48,8 +48,9 @@ class OccupancyMapper:
         self.l_hit, self.l_miss, self.l_min, self.l_max = l_hit, l_miss, l_min, l_max
         self.max_range_m = max_range_m
         self.logodds = np.zeros((self.h, self.w), dtype=np.float32)
-        # Scratch for integrate: per cell, the last free sample that wrote it.
-        self._owner = np.zeros(self.h * self.w, dtype=np.int64)
+        # Scratch for integrate: per cell, the last free sample that wrote it (int32: as
+        # large as the grid itself; a scan has far fewer than 2³¹ samples).
+        self._owner = np.zeros(self.h * self.w, dtype=np.int32)
         self.scans = 0
 
     def cells(self, pts: F64) -> npt.NDArray[np.int64]:
@@ -109,10 +110,10 @@ class OccupancyMapper:
         hits = np.unique(self._inside(ox + r * cos, oy + r * sin))
         # Each cell once, and none hit by this scan: the cells whose own sample is the one
         # that wrote them last (no sort of the many samples, no pass over the whole grid).
-        owner = self._owner
-        owner[free] = np.arange(free.size)
+        owner, order = self._owner, np.arange(free.size, dtype=np.int32)
+        owner[free] = order
         owner[hits] = -1
-        free = free[owner[free] == np.arange(free.size)]
+        free = free[owner[free] == order]
         flat = self.logodds.reshape(-1)
         flat[free] = np.clip(flat[free] + np.float32(self.l_miss), self.l_min, self.l_max)
         flat[hits] = np.clip(flat[hits] + np.float32(self.l_hit), self.l_min, self.l_max)

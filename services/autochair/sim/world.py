@@ -162,6 +162,8 @@ def _within(world: World, x0: F64, y0: F64, max_range: float) -> tuple[F64, F64]
     """The segments and circles that some ray from the origins `x0`, `y0` can hit within
     `max_range`: the others (farther than that from a disc holding every origin) are left
     out of `raycast`, whose result they cannot change (a hit beyond `max_range` is none)."""
+    if not x0.size:
+        return world.segments, world.circles
     cx, cy = float(x0.mean()), float(y0.mean())
     reach = max_range + float(np.hypot(x0 - cx, y0 - cy).max()) + 1e-6
     s = world.segments
