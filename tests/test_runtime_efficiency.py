@@ -1,6 +1,7 @@
 """The runtime's cheaper paths (issue 11): `Node.latest` (newest message when asked, no Python
-thread per sample), `Node.beat` (a loop on a thread of its own, watched like `every`) and the
-per-process Zenoh mode (`--zenoh-mode client`: one link, to the hub)."""
+thread per sample), `Node.queued` (every message since the last ask, likewise), `Node.beat` (a
+loop on a thread of its own, watched like `every`) and the per-process Zenoh mode
+(`--zenoh-mode client`: one link, to the hub)."""
 
 from __future__ import annotations
 
@@ -62,6 +63,34 @@ def test_latest_gives_the_newest_message_and_keeps_it_over_a_bad_one(
              "the malformed payload counted")
     got = get()
     assert got is not None and got.x_m == 4.0
+
+
+def test_queued_gives_every_message_since_the_last_ask_in_order(
+        node_and_peer: tuple[Node, Publisher, zenoh.Session]) -> None:
+    node, pub, _ = node_and_peer
+    take = node.queued(keys.SIM_TRUTH, 8)
+    assert take() == []  # nothing yet
+    got: list[float] = []
+
+    def received() -> list[float]:
+        got.extend(m.x_m for m in take())
+        return got
+
+    def linked() -> bool:  # positive control: a message arrives and is returned
+        pub.put(truth(-1.0))  # again until the peers are linked
+        return bool(received())
+
+    wait_for(linked, 10, "the first message")
+    for x in (1.0, 2.0, 3.0):
+        pub.put(truth(x))
+    wait_for(lambda: received()[-1:] == [3.0], 5, "the three messages")
+    assert [x for x in got if x > 0] == [1.0, 2.0, 3.0]  # each once, oldest first
+    assert take() == []  # asked again: nothing new
+    pub.put_raw(b"\xc1 not msgpack")
+    pub.put(truth(4.0))
+    got.clear()
+    wait_for(lambda: received() == [4.0], 5, "the good message after a malformed one")
+    assert node.health.counters.get(f"decode_errors:{keys.SIM_TRUTH.key}", 0) == 1
 
 
 def test_beat_is_watched_like_a_rate_loop_and_pause_exempts_it() -> None:

@@ -24,7 +24,7 @@ import msgspec
 import numpy as np
 
 from autochair.geometry import yaw_quaternion
-from autochair.mapping.core import MoveGate, OccupancyMapper, OdomBuffer
+from autochair.mapping.core import ODOM_RING, MoveGate, OccupancyMapper, OdomBuffer
 from autochair.mapping.mapfile import MapFile, MapFileError, load_map, map_path, save_map
 from autochair.runtime.config import ConfigError
 from autochair.runtime.node import Node, service_main
@@ -37,7 +37,6 @@ from autochair_msgs import (
     MapSaveReply,
     MapSaveRequest,
     OccupancyGrid,
-    Odometry,
     Quaternion,
     Vector3,
     keys,
@@ -88,6 +87,9 @@ class LocalizationService:
         self.node, self.cfg = node, cfg
         self.lock = threading.Lock()
         self.odom = OdomBuffer()
+        # 50 Hz, taken in as each scan is processed (interpolated at its stamps): no thread
+        # wakes per sample.
+        self.odom_waiting = node.queued(keys.ODOM_SLOW, ODOM_RING)
         self.gate = MoveGate()
         self.map: MapFile | None = None
         self.loc: Localizer | None = None
@@ -110,10 +112,6 @@ class LocalizationService:
         self._render_lock = threading.Lock()  # the map timer and MAP_SAVE both render
 
     # --- Zenoh side -----------------------------------------------------------------------
-    def on_odom(self, msg: Odometry) -> None:
-        with self.lock:
-            self.odom.add(msg)
-
     def on_set_pose(self, req: LocalizeRequest) -> LocalizeReply:
         if self.loc is None:
             return LocalizeReply(ok=False, error="mapping mode: the map starts where the "
@@ -161,6 +159,8 @@ class LocalizationService:
         health = self.node.health
         max_dt = int(self.cfg.max_odom_dt_s * 1e9)
         with self.lock:
+            for m in self.odom_waiting():
+                self.odom.add(m)
             pose = self.odom.at(msg.stamp_ns, max_dt)  # the first beam's: the scan's pose
             end = self.odom.at_last_beam(msg.stamp_ns, len(msg.ranges_m), msg.time_increment_s,
                                          max_dt)
@@ -222,7 +222,6 @@ class LocalizationService:
 def start(node: Node, cfg: LocalizationConfig) -> None:
     svc = LocalizationService(node, cfg)
     node.health.detail = f"{svc.mode}" + (f" on {Path(cfg.map).name}" if cfg.map else "")
-    node.subscribe(keys.ODOM_SLOW, svc.on_odom)  # 50 Hz, interpolated at the scan stamps
     # Matching runs on a worker thread, not the Zenoh thread; 4 scans may wait.
     node.subscribe(keys.SCAN, node.worker("localize", svc.process, 4, "scans_dropped_busy"))
     node.serve(keys.LOC_SET_POSE, svc.on_set_pose)

@@ -48,7 +48,9 @@ class OccupancyMapper:
         self.l_hit, self.l_miss, self.l_min, self.l_max = l_hit, l_miss, l_min, l_max
         self.max_range_m = max_range_m
         self.logodds = np.zeros((self.h, self.w), dtype=np.float32)
-        self._mask = np.zeros(self.h * self.w, dtype=np.bool_)  # scratch for integrate
+        # Scratch for integrate: per cell, the last free sample that wrote it (int32: as
+        # large as the grid itself; a scan has far fewer than 2³¹ samples).
+        self._owner = np.zeros(self.h * self.w, dtype=np.int32)
         self.scans = 0
 
     def cells(self, pts: F64) -> npt.NDArray[np.int64]:
@@ -60,6 +62,24 @@ class OccupancyMapper:
         iy = np.floor((y - self.spec.origin_y_m) / self.res).astype(np.int64)
         inside = (ix >= 0) & (ix < self.w) & (iy >= 0) & (iy < self.h)
         return np.where(inside, iy * self.w + ix, -1)
+
+    def _inside(self, x: F64, y: F64) -> npt.NDArray[np.int64]:
+        """Flat indices of the points inside the grid (the others dropped), as `_cells` with
+        the same arithmetic, done in place: `x` and `y` are overwritten (the free samples of
+        a scan are tens of thousands; temporaries cost more than the arithmetic)."""
+        x -= self.spec.origin_x_m
+        x /= self.res
+        np.floor(x, out=x)
+        y -= self.spec.origin_y_m
+        y /= self.res
+        np.floor(y, out=y)
+        ix, iy = x.astype(np.int64), y.astype(np.int64)
+        # a negative index is a huge unsigned one: one comparison per axis
+        inside = ix.view(np.uint64) < self.w
+        inside &= iy.view(np.uint64) < self.h
+        iy *= self.w
+        iy += ix
+        return iy[inside]
 
     def integrate(self, ranges: F64, angle_min: float, angle_inc: float, pose: Pose,
                   beam_poses: tuple[F64, F64, F64] | None = None) -> int:
@@ -79,20 +99,24 @@ class OccupancyMapper:
         # Free samples stop a cell short of the end point so the hit cell is not cleared; only
         # those are computed (a beam × sample product would be mostly past short beams' ends).
         count = np.searchsorted(t, r - self.res)  # per beam, the samples t < r − res
-        beam = np.repeat(np.arange(r.size), count)
-        k = np.arange(beam.size) - np.repeat(np.cumsum(count) - count, count)
-        free = self._cells(ox[beam] + cos[beam] * t[k], oy[beam] + sin[beam] * t[k])
-        hits = np.unique(self._cells(ox + r * cos, oy + r * sin))
-        free, hits = free[free >= 0], hits[hits >= 0]
-        # Each cell once: a mask over the grid instead of sorting the (many) free samples.
-        mask = self._mask
-        mask[:] = False
-        mask[free] = True
-        mask[hits] = False
+        tk = t[np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)]
+        x = np.repeat(cos, count)
+        x *= tk
+        x += np.repeat(ox, count)  # ox + cos·t, sample by sample
+        y = np.repeat(sin, count)
+        y *= tk
+        y += np.repeat(oy, count)
+        free = self._inside(x, y)
+        hits = np.unique(self._inside(ox + r * cos, oy + r * sin))
+        # Each cell once, and none hit by this scan: the cells whose own sample is the one
+        # that wrote them last (no sort of the many samples, no pass over the whole grid).
+        owner, order = self._owner, np.arange(free.size, dtype=np.int32)
+        owner[free] = order
+        owner[hits] = -1
+        free = free[owner[free] == order]
         flat = self.logodds.reshape(-1)
-        flat[mask] += self.l_miss
-        flat[hits] += self.l_hit
-        np.clip(flat, self.l_min, self.l_max, out=flat)
+        flat[free] = np.clip(flat[free] + np.float32(self.l_miss), self.l_min, self.l_max)
+        flat[hits] = np.clip(flat[hits] + np.float32(self.l_hit), self.l_min, self.l_max)
         self.scans += 1
         return int(r.size)
 
@@ -162,6 +186,11 @@ class MoveGate:
                 return False
         self._last = (pose, stamp_ns)
         return True
+
+
+# Odometry samples a scan consumer's ring holds between two scans (`Node.queued`): 2 s of
+# keys.ODOM_SLOW (50 Hz), where a scan needs the last 0.25 s.
+ODOM_RING = 100
 
 
 class OdomBuffer:

@@ -17,9 +17,17 @@ import numpy as np
 from autochair.geometry import Pose, compose, quaternion_yaw, sweep_poses
 from autochair.runtime.node import Node, service_main
 from autochair.safety.keepout import load_keepout, paint
-from autochair_msgs import FrameTransform, LaserScan, LocalizedPose, OccupancyGrid, Odometry, keys
+from autochair_msgs import FrameTransform, LaserScan, LocalizedPose, OccupancyGrid, keys
 
-from .core import GridSpec, MoveGate, OccupancyMapper, OdomBuffer, VoxelCloud, scan_points
+from .core import (
+    ODOM_RING,
+    GridSpec,
+    MoveGate,
+    OccupancyMapper,
+    OdomBuffer,
+    VoxelCloud,
+    scan_points,
+)
 
 Positive = Annotated[float, msgspec.Meta(gt=0)]
 
@@ -60,6 +68,9 @@ class MappingService:
                                       cfg.l_hit, cfg.l_miss)
         self.cloud = VoxelCloud(cfg.voxel_m, cfg.max_points)
         self.odom = OdomBuffer()
+        # 50 Hz, taken in as each scan is integrated (interpolated at its stamps): no thread
+        # wakes per sample.
+        self.odom_waiting = node.queued(keys.ODOM_SLOW, ODOM_RING)
         self.gate = MoveGate(max_age_ns=int(cfg.still_period_s * 1e9))
         self.mount: Pose = node.chair.laser_mount
         self.tf_error = ""
@@ -68,10 +79,6 @@ class MappingService:
         self.keepout = load_keepout("mapping", cfg.keepout_map)
         self.unplaced = ""
         self.cloud_pub = node.publisher(keys.MAP_CLOUD)
-
-    def on_odom(self, msg: Odometry) -> None:
-        with self.lock:
-            self.odom.add(msg)
 
     def on_tf(self, msg: FrameTransform) -> None:
         if msg.child_frame_id != self.cfg.laser_frame:
@@ -88,6 +95,8 @@ class MappingService:
     def integrate(self, scan: LaserScan) -> None:
         cfg, health = self.cfg, self.node.health
         with self.lock:
+            for msg in self.odom_waiting():
+                self.odom.add(msg)
             pose = self.odom.at(scan.stamp_ns, int(cfg.max_odom_dt_s * 1e9))
         if pose is None:
             if cfg.require_odom:
@@ -145,7 +154,6 @@ class MappingService:
 
 def start(node: Node, cfg: MappingConfig) -> None:
     svc = MappingService(node, cfg)
-    node.subscribe(keys.ODOM_SLOW, svc.on_odom)  # 50 Hz, interpolated at the scan stamps
     node.subscribe(keys.TF_STATIC, svc.on_tf)
     if svc.keepout is not None:
         node.subscribe(keys.TF, svc.on_correction)

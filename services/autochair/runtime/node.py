@@ -263,6 +263,28 @@ class Node:
 
         return get
 
+    def queued(self, topic: keys.Topic[T], capacity: int) -> Callable[[], list[T]]:
+        """The messages of `topic` received since the last call, oldest first, for a worker
+        that needs them only when it runs (mapping and localization place each scan by the
+        odometry received before it): Zenoh holds them in a ring of `capacity` (the oldest
+        dropped when full) and no Python thread wakes per message, unlike `subscribe`.
+        Returns `take()`; a malformed payload is counted and reported as in `subscribe`."""
+        decoder = msgspec.msgpack.Decoder(topic.type)
+        counter = f"decode_errors:{topic.key}"
+        sub = self.session.declare_subscriber(topic.key, zenoh.handlers.RingChannel(capacity))
+        self._closers.append(sub.undeclare)
+
+        def take() -> list[T]:
+            out: list[T] = []
+            while (sample := sub.try_recv()) is not None:
+                try:
+                    out.append(decoder.decode(sample.payload.to_bytes()))
+                except (msgspec.DecodeError, msgspec.ValidationError) as e:
+                    self._malformed(counter, sample, e)
+            return out
+
+        return take
+
     def _malformed(self, counter: str, sample: zenoh.Sample, e: Exception) -> None:
         """Count a payload that does not decode; report the 1st, 10th, 100th, 1000th."""
         self.health.count(counter)

@@ -319,6 +319,7 @@ class SafetyCore:
                                          p.half_width_m + p.padding_m, 0.05)
         self._sectors: dict[tuple[str, float], BOOL | None] = {}
         self._fov: dict[tuple[float, float], tuple[float, float]] = {}
+        self._unseen_bins: dict[tuple[float, float], BOOL] = {}
 
     # --- geometry ------------------------------------------------------------------------------
     def _penetration(self, pts: F64, x: F64, y: F64, th: F64, pad: float) -> F64:
@@ -327,9 +328,20 @@ class SafetyCore:
         dx = pts[None, :, 0] - x[:, None]
         dy = pts[None, :, 1] - y[:, None]
         c, s = np.cos(th)[:, None], np.sin(th)[:, None]
-        lx, ly = c * dx + s * dy, -s * dx + c * dy
-        return np.minimum(np.minimum(p.front_m + pad - lx, lx + p.rear_m + pad),
-                          p.half_width_m + pad - np.abs(ly))
+        # min(front + pad − lx, lx + rear + pad, half + pad − |ly|) with lx = c·dx + s·dy,
+        # ly = −s·dx + c·dy: the same operations in the same order, in place (this runs on
+        # every scan at (poses × points); the temporaries cost more than the arithmetic).
+        lx = c * dx
+        lx += np.multiply(s, dy, out=(tmp := np.empty_like(dx)))
+        ly = np.multiply(-s, dx, out=dx)
+        ly += np.multiply(c, dy, out=tmp)
+        out = np.subtract(p.front_m + pad, lx, out=tmp)
+        lx += p.rear_m
+        lx += pad
+        np.minimum(out, lx, out=out)
+        np.abs(ly, out=ly)
+        np.subtract(p.half_width_m + pad, ly, out=ly)
+        return np.minimum(out, ly, out=out)
 
     def _free(self, pts: F64, x: F64, y: F64, th: F64, steps: F64) -> float:
         """Free extent along poses (x, y, th)[k] reached after steps[k] (steps[0] = 0): the
@@ -435,6 +447,15 @@ class SafetyCore:
             self._fov[key] = unseen_swing(self.p, fov)
         return self._fov[key]
 
+    def unseen_bins(self, fov: tuple[float, float]) -> BOOL:
+        """Cached mask of the bins not wholly within a field of view (start, width): a
+        laser's is the same scan after scan."""
+        if fov not in self._unseen_bins:
+            if len(self._unseen_bins) > 64:
+                self._unseen_bins.clear()
+            self._unseen_bins[fov] = ~fov_bins(*fov)
+        return self._unseen_bins[fov]
+
     # --- bounds --------------------------------------------------------------------------------
     def limit(self, pts: F64, v: float, omega: float) -> Limit:
         """Bounds for chair-frame scan points `pts` (N, 2) while moving at (v, ω), from the
@@ -483,7 +504,7 @@ class SafetyCore:
                 sel = mask[bins]
                 n = int(sel.sum())
                 if name == "rev":
-                    rear_seen = not (mask & ~fov_bins(*fov)).any()
+                    rear_seen = not (mask & self.unseen_bins(fov)).any()
                     if not rear_seen:
                         n = 0  # the rear is (partly) unseen: see below
                 # A sector the laser does not wholly see behind the chair is judged by the whole

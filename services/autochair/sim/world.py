@@ -135,8 +135,9 @@ def raycast(world: World, x: float | F64, y: float | F64, angles: F64, max_range
     x0 = np.broadcast_to(np.asarray(x, dtype=np.float64), angles.shape)[:, None]
     y0 = np.broadcast_to(np.asarray(y, dtype=np.float64), angles.shape)[:, None]
     best = np.full(angles.shape[0], np.inf)
-    if len(world.segments):
-        s = world.segments
+    segments, circles = _within(world, x0, y0, max_range)
+    if len(segments):
+        s = segments
         ex, ey = (s[:, 2] - s[:, 0])[None, :], (s[:, 3] - s[:, 1])[None, :]
         qx, qy = s[None, :, 0] - x0, s[None, :, 1] - y0
         den = dx * ey - dy * ex
@@ -145,8 +146,8 @@ def raycast(world: World, x: float | F64, y: float | F64, angles: F64, max_range
             u = (qx * dy - qy * dx) / den
         ok = (np.abs(den) > 1e-12) & (t > 1e-9) & (u >= 0) & (u <= 1)
         best = np.minimum(best, np.where(ok, t, np.inf).min(axis=1))
-    if len(world.circles):
-        c = world.circles
+    if len(circles):
+        c = circles
         ox, oy = x0 - c[None, :, 0], y0 - c[None, :, 1]
         b = dx * ox + dy * oy
         disc = b * b - (ox * ox + oy * oy - (c[:, 2] ** 2)[None, :])
@@ -155,3 +156,22 @@ def raycast(world: World, x: float | F64, y: float | F64, angles: F64, max_range
         t = np.where(t1 > 1e-9, t1, t2)
         best = np.minimum(best, np.where((disc >= 0) & (t > 1e-9), t, np.inf).min(axis=1))
     return np.where(best <= max_range, best, np.inf)
+
+
+def _within(world: World, x0: F64, y0: F64, max_range: float) -> tuple[F64, F64]:
+    """The segments and circles that some ray from the origins `x0`, `y0` can hit within
+    `max_range`: the others (farther than that from a disc holding every origin) are left
+    out of `raycast`, whose result they cannot change (a hit beyond `max_range` is none)."""
+    if not x0.size:
+        return world.segments, world.circles
+    cx, cy = float(x0.mean()), float(y0.mean())
+    reach = max_range + float(np.hypot(x0 - cx, y0 - cy).max()) + 1e-6
+    s = world.segments
+    if len(s):
+        ax, ay, ex, ey = s[:, 0] - cx, s[:, 1] - cy, s[:, 2] - s[:, 0], s[:, 3] - s[:, 1]
+        t = np.clip(-(ax * ex + ay * ey) / np.maximum(ex * ex + ey * ey, 1e-300), 0.0, 1.0)
+        s = s[np.hypot(ax + t * ex, ay + t * ey) <= reach]
+    c = world.circles
+    if len(c):
+        c = c[np.hypot(c[:, 0] - cx, c[:, 1] - cy) - c[:, 2] <= reach]
+    return s, c
