@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -20,6 +21,15 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("slow") and not item.get_closest_marker("offline"):
             item.add_marker(pytest.mark.xdist_group("system"))
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """An xdist worker running the in-process tests yields the CPU to the system tests' stacks
+    (which run on real-time deadlines): nice 10 from its first such test on. The worker with
+    the system tests runs them all before any other test, so they keep their priority."""
+    if os.environ.get("PYTEST_XDIST_WORKER") and not item.get_closest_marker("xdist_group") \
+            and os.nice(0) == 0:
+        os.nice(10)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
