@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -9,6 +10,36 @@ import pytest
 
 from autochair.launcher import Launcher, free_port
 from tests.helpers import make_stack
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook reads the groups
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Under xdist (`./dev test`: -n 2 --dist loadgroup) the system tests run one at a time in
+    one worker, as they did serially: each is a whole stack on real time and deadlines, and two
+    at once on a 2-core machine make the simulator fall behind real time. The other tests (in
+    process, their own clocks) share the machine with them from the other worker."""
+    for item in items:
+        if item.get_closest_marker("slow") and not item.get_closest_marker("offline"):
+            item.add_marker(pytest.mark.xdist_group("system"))
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """An xdist worker running the in-process tests yields the CPU to the system tests' stacks
+    (which run on real-time deadlines): nice 10 from its first such test on. The worker with
+    the system tests runs them all before any other test, so they keep their priority."""
+    if os.environ.get("PYTEST_XDIST_WORKER") and not item.get_closest_marker("xdist_group") \
+            and os.nice(0) == 0:
+        os.nice(10)
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Fail loudly if xdist lost the groups (it marks them in the node ids, which pytest 9.2
+    no longer lets it do: pytest-xdist#1386) rather than run two stacks at once."""
+    if getattr(session.config.option, "loadgroup", False) and any(
+            item.get_closest_marker("xdist_group") and "@" not in item.nodeid
+            for item in session.items):
+        raise pytest.UsageError("xdist's --dist loadgroup lost the test groups (pytest-xdist"
+                                "#1386 with pytest 9.2): the system tests would run two at once")
 
 
 @pytest.fixture

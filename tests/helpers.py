@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import shutil
 import signal
 import subprocess
@@ -219,8 +220,10 @@ def npm_ready() -> Path:
                     "or apt-get install -y nodejs npm")
     stamp = JS / "node_modules" / ".package-lock.json"
     lock = JS / "package-lock.json"
-    if not stamp.exists() or stamp.stat().st_mtime < lock.stat().st_mtime:
-        r = subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"],
-                           cwd=JS, capture_output=True, text=True, timeout=600)
-        assert r.returncode == 0, f"npm ci failed: {r.stderr[-2000:]}"
+    with lock.open() as held:
+        fcntl.flock(held, fcntl.LOCK_EX)  # one `npm ci` at a time (xdist workers share tests/js)
+        if not stamp.exists() or stamp.stat().st_mtime < lock.stat().st_mtime:
+            r = subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"],
+                               cwd=JS, capture_output=True, text=True, timeout=600)
+            assert r.returncode == 0, f"npm ci failed: {r.stderr[-2000:]}"
     return JS

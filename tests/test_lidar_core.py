@@ -128,6 +128,35 @@ def test_clock_wraps_and_gaps_count_dropped_scans() -> None:
     assert all(b > a for a, b in pairwise(stamps))
 
 
+def test_a_stalled_device_says_which_gaps_are_its_own() -> None:
+    """A device whose process stalls past its slots skips them (not bunched) and counts them:
+    the ingest's dropped_scans is those plus what the link lost, so a system test can tell
+    a stalled simulator from scans lost on the way."""
+    link, client, counts = make()
+
+    def count(k: str, n: int) -> None:
+        counts[k] = counts.get(k, 0) + n
+
+    params, req = client.start(None, None, 1, 0)
+    dec = ScanDecoder(params, req, "laser", count)
+    scans = run_scans(link, client, dec, 3)
+    assert link.dev.skipped_scans == 0 and "dropped_scans" not in counts
+    link.t += 0.35  # stalled 0.35 s just after a scan (10 Hz): the next two slots pass
+    scans += run_scans(link, client, dec, 1)
+    assert scans[-1].device_time_ms - scans[-2].device_time_ms == 300
+    assert link.dev.skipped_scans == 2 and counts["dropped_scans"] == 2
+    link.drop_next_scans = 3  # lost on the link: the device sent them
+    scans += run_scans(link, client, dec, 1)
+    assert link.dev.skipped_scans == 2 and counts["dropped_scans"] == 5
+    # Every second scan (interval 1): only skipped scans it would have sent count.
+    dev = UrgDevice(UrgParams(), lambda _t: np.full(682, 1000, dtype=np.int64))
+    dev.handle(b"SCIP2.0", 0)
+    dev.handle(b"MD0044072501100", 0)
+    sent = [len(dev.poll(t + 1e-9)) for t in (0.1, 0.2, 0.3, 0.4, 1.0)]
+    assert sent == [1, 0, 1, 0, 0] and dev.skipped_scans == 3  # scans 5, 7, 9 of 1..10
+    assert dev.poll(1.1 + 1e-9) and dev.skipped_scans == 3  # scan 11, on time
+
+
 def test_clock_sync_min_filter_ignores_latency_spikes() -> None:
     sync = ClockSync(window=20, period_ns=0)
     rng = np.random.default_rng(0)

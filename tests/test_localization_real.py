@@ -19,7 +19,7 @@ from autochair.localization.matching import compose, refine, transform
 from autochair.localization.mrpt_rawlog import SENA, read_rawlog
 from autochair.localization.slam import Scan, Slam, SlamParams, points_field
 
-pytestmark = [pytest.mark.slow,
+pytestmark = [pytest.mark.slow, pytest.mark.offline,
               pytest.mark.skipif(not SENA.exists(), reason="apt-get install mrpt-common")]
 
 FIRST_PASS = 30  # keyframes of the first pass over the loop's start

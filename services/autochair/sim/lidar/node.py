@@ -95,9 +95,12 @@ class Endpoint:
                 for line in lines:
                     h.count("requests")
                     out += dev.handle(line, now)
+            skipped = dev.skipped_scans
             for block in dev.poll(now):
                 h.count("scans_sent")
                 out += block
+            if dev.skipped_scans > skipped:  # this process stalled past a scan's slot
+                h.count("skipped_scans", dev.skipped_scans - skipped)
             if len(out) > MAX_OUT:
                 h.count("tx_dropped_bytes", len(out) - MAX_OUT)
                 out = out[-MAX_OUT:]

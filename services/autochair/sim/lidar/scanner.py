@@ -70,6 +70,10 @@ class UrgDevice:
         self._scan_index = 0  # scans since the stream started (for interval skipping)
         self._remaining = 0
         self.scans_sent = 0
+        # Scans the device owed but never sent because its caller (this simulator's process)
+        # stalled past their slots: a gap in the device clock that the ingest counts as
+        # dropped_scans, though nothing was lost on the link.
+        self.skipped_scans = 0
 
     @property
     def period_s(self) -> float:
@@ -162,6 +166,9 @@ class UrgDevice:
         t_scan = self._next_scan_s
         missed = int((now_s - t_scan) / self.period_s)
         self._next_scan_s = t_scan + (missed + 1) * self.period_s
+        every = req.interval + 1  # scan j (from 1) is sent when (j − 1) % every == 0
+        first = self._scan_index  # = (first missed j) − 1
+        self.skipped_scans += (first + missed - 1) // every - (first - 1) // every
         self._scan_index += missed + 1
         if (self._scan_index - 1) % (req.interval + 1):
             return out
