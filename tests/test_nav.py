@@ -316,3 +316,20 @@ def test_the_stop_after_one_plan_period_is_the_limiters_s_curve() -> None:
     assert float(brake[0][0, -1]) == pytest.approx(x, abs=0.05)  # (0.1 s steps)
     assert x - (1.0 ** 2 / (2 * law.a_mps2)) > 0.3  # what the acceleration-only model missed
 
+
+
+def test_a_coarsened_grid_is_occupied_if_any_cell_is_and_unknown_if_all_are() -> None:
+    """Against the plain definition (any / all over each block, the edges padded free and
+    unknown), on random grids whose sizes are not multiples of the factor."""
+    rng = np.random.default_rng(3)
+    for f, (h, w) in ((2, (37, 51)), (3, (40, 29)), (2, (400, 600))):
+        occ, unknown = rng.random((h, w)) < 0.05, rng.random((h, w)) < 0.9
+        got = GridMap(occ, 0.05, 0.0, 0.0, "map", unknown).coarsened(f)
+        hh, ww = -(-h // f) * f, -(-w // f) * f
+        for cells, every, merged in ((occ, False, got.occupied), (unknown, True, got.unknown)):
+            pad = np.full((hh, ww), every)
+            pad[:h, :w] = cells
+            blocks = pad.reshape(hh // f, f, ww // f, f)
+            want = blocks.all(axis=(1, 3)) if every else blocks.any(axis=(1, 3))
+            assert merged is not None and np.array_equal(merged, want)
+            assert 0 < want.sum() < want.size  # (neither all nor none: the test can fail)

