@@ -55,16 +55,13 @@ class OccupancyMapper:
 
     def cells(self, pts: F64) -> npt.NDArray[np.int64]:
         """Flat cell indices of (N, 2) map-frame points; -1 outside the grid."""
-        return self._cells(pts[:, 0], pts[:, 1])
-
-    def _cells(self, x: F64, y: F64) -> npt.NDArray[np.int64]:
-        ix = np.floor((x - self.spec.origin_x_m) / self.res).astype(np.int64)
-        iy = np.floor((y - self.spec.origin_y_m) / self.res).astype(np.int64)
+        ix = np.floor((pts[:, 0] - self.spec.origin_x_m) / self.res).astype(np.int64)
+        iy = np.floor((pts[:, 1] - self.spec.origin_y_m) / self.res).astype(np.int64)
         inside = (ix >= 0) & (ix < self.w) & (iy >= 0) & (iy < self.h)
         return np.where(inside, iy * self.w + ix, -1)
 
     def _inside(self, x: F64, y: F64) -> npt.NDArray[np.int64]:
-        """Flat indices of the points inside the grid (the others dropped), as `_cells` with
+        """Flat indices of the points inside the grid (the others dropped), as `cells` with
         the same arithmetic, done in place: `x` and `y` are overwritten (the free samples of
         a scan are tens of thousands; temporaries cost more than the arithmetic)."""
         x -= self.spec.origin_x_m

@@ -195,9 +195,14 @@ class Node:
         """Undecoded samples of `key_expr` held by Zenoh until drained (the logger's intake):
         no Python thread wakes per sample, unlike `subscribe` (profiled: a 100 Hz subscription
         wakes its callback thread 100 × a second). See `Inbox`."""
+        return Inbox(self._ring(key_expr, capacity), key_expr, capacity, self.health)
+
+    def _ring(self, key_expr: str, capacity: int) -> Any:
+        """A subscriber whose samples Zenoh holds in a ring of `capacity` (the oldest dropped
+        when full) until taken with `try_recv`: no Python thread wakes per sample."""
         sub = self.session.declare_subscriber(key_expr, zenoh.handlers.RingChannel(capacity))
         self._closers.append(sub.undeclare)
-        return Inbox(sub, key_expr, capacity, self.health)
+        return sub
 
     def subscribe(self, topic: keys.Topic[T], callback: Callable[[T], None],
                   key: str | None = None) -> None:
@@ -266,13 +271,11 @@ class Node:
     def queued(self, topic: keys.Topic[T], capacity: int) -> Callable[[], list[T]]:
         """The messages of `topic` received since the last call, oldest first, for a worker
         that needs them only when it runs (mapping and localization place each scan by the
-        odometry received before it): Zenoh holds them in a ring of `capacity` (the oldest
-        dropped when full) and no Python thread wakes per message, unlike `subscribe`.
+        odometry received before it): a ring of `capacity` (`_ring`), unlike `subscribe`.
         Returns `take()`; a malformed payload is counted and reported as in `subscribe`."""
         decoder = msgspec.msgpack.Decoder(topic.type)
         counter = f"decode_errors:{topic.key}"
-        sub = self.session.declare_subscriber(topic.key, zenoh.handlers.RingChannel(capacity))
-        self._closers.append(sub.undeclare)
+        sub = self._ring(topic.key, capacity)
 
         def take() -> list[T]:
             out: list[T] = []
