@@ -90,7 +90,13 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
             return any(abs(q.y_m - 8.3) < 0.4 and 7.0 < q.x_m < 9.0
                        for m in people.messages() for q in m.people)
 
-        wait_for(walker, 10, "the walker at the far end reported")
+        def instead() -> str:  # for a failure: how the drive ended, what was reported
+            seen = [(round(q.x_m, 1), round(q.y_m, 1)) for m in people.messages()
+                    for q in m.people]
+            return (f"the walker at the far end reported; the goal: {story(states)}; "
+                    f"{len(people.messages())} reports, the last people {seen[-6:]}")
+
+        wait_for(walker, 10, instead)
         wrong = [(round(q.x_m, 2), round(q.y_m, 2)) for m in people.messages()
                  for q in m.people if not (abs(q.y_m - 8.3) < 0.6 and 6.8 < q.x_m < 9.2)]
         assert not wrong, f"walls reported as people: {wrong[:8]}"

@@ -15,6 +15,9 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from collections import deque
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -69,52 +72,72 @@ class ControlNode:
         # People for MPEPC, tracked in the scans (on the scan callback, its own lock).
         self.people = ScanPeople(chair.laser_mount)
         self.people_lock = threading.Lock()
+        # Odometry for the tracker, taken in on the next scan: the odometry callback never
+        # waits for a scan being tracked (deque appends and pops are thread-safe).
+        self.people_odom: deque[Odometry] = deque(maxlen=500)
         self.people_pub = node.publisher(keys.PEOPLE)
         self.people_grid: OccupancyGrid | None = None  # the grid the tracker's map is of
+        # The newest odometry, taken into the core when it next runs (tick, request, plan).
+        # Kept off the core's lock: a goal's route check holds it for 0.1-0.5 s (costs-to-go
+        # on a loaded CPU), and odometry waiting behind it was taken for stale odometry by
+        # the tick that got the lock first (goals aborted at the start, 2 CI runs in session
+        # 10). Its time stays when it arrived: a silent odometry service is still stale.
+        self.odom_in: OdomSample | None = None
+        self._taken: OdomSample | None = None
+
+    @contextmanager
+    def held(self) -> Iterator[None]:
+        """The core, under its lock, with the newest odometry taken in."""
+        with self.lock:
+            o = self.odom_in
+            if o is not self._taken and o is not None:
+                self._taken = o
+                self.core.on_odom(o)
+            yield
 
     # --- inputs -----------------------------------------------------------------------------
     def on_odom(self, o: Odometry) -> None:
-        sample = OdomSample(o.x_m, o.y_m, o.yaw_rad, o.v_mps, o.omega_radps, time.monotonic())
-        with self.lock:
-            self.core.on_odom(sample)
-        with self.people_lock:
-            self.people.on_odom(o)
+        self.odom_in = OdomSample(o.x_m, o.y_m, o.yaw_rad, o.v_mps, o.omega_radps,
+                                  time.monotonic())
+        self.people_odom.append(o)
         self.node.health.count("odom")
 
     def on_scan(self, msg: LaserScan) -> None:
         with self.people_lock:
+            while self.people_odom:
+                self.people.on_odom(self.people_odom.popleft())
             found = self.people.on_scan(msg.stamp_ns, msg.ranges_m, msg.angle_min_rad,
                                         msg.angle_increment_rad, msg.range_min_m,
                                         msg.range_max_m, msg.time_increment_s)
         if found is None:
             self.node.health.count("scans_without_odometry")
             return
-        with self.lock:
+        with self.held():
             self.core.people = [Person(q.x_m, q.y_m, q.vx_mps, q.vy_mps, q.radius_m)
                                 for q in found]
         self.people_pub.put(People(stamp_ns=msg.stamp_ns, frame_id="odom", people=found))
 
     def on_estop(self, msg: EStopState) -> None:
-        with self.lock:
+        with self.held():
             self.core.on_estop(msg.latched, time.monotonic())
 
     def on_owner(self, msg: CommandOwner) -> None:
-        with self.lock:
+        with self.held():
             self.core.on_owner(msg.owner, time.monotonic())
 
     def on_limit(self, msg: SafetyLimit) -> None:
-        with self.lock:  # plan within the monitor's bounds instead of being clamped by the PID
+        with self.held():  # plan within the monitor's bounds instead of being clamped by the PID
             self.core.on_limit(msg.omega_max_radps)
 
     def on_tf(self, msg: FrameTransform) -> None:
         if msg.parent_frame_id != "map" or msg.child_frame_id != "odom":
             return
         t, r = msg.translation, msg.rotation
-        with self.lock:
+        with self.held():
             self.core.on_correction((t.x, t.y, quaternion_yaw(r.x, r.y, r.z, r.w)))
 
     def on_loc(self, msg: LocalizedPose) -> None:
-        with self.lock:
+        with self.held():
             self.core.on_loc_state(msg.state, time.monotonic())
 
     def on_grid(self, msg: OccupancyGrid) -> None:
@@ -123,7 +146,7 @@ class ControlNode:
     # --- loops ------------------------------------------------------------------------------
     def tick(self) -> None:
         core = self.core
-        with self.lock:
+        with self.held():
             # The plan steps by the loop's schedule, not by when its thread woke: that jitter
             # (8-35 ms apart, measured) taken for time made the plan's acceleration chatter
             # (±0.2 m/s², its jerk ±1.8 m/s³ tick to tick); the commands are a 50 Hz stream.
@@ -146,7 +169,7 @@ class ControlNode:
             self.node.health.count("commands")
 
     def plan_tick(self) -> None:
-        with self.lock:
+        with self.held():
             req = self.core.plan_request(time.monotonic())
         if req is None:
             return
@@ -156,7 +179,7 @@ class ControlNode:
         self.node.health.count("plans")
         if ms > 1000.0 / self.cfg.plan_rate_hz:
             self.node.health.count("plans_late")
-        with self.lock:
+        with self.held():
             self.core.on_plan(res, time.monotonic())
             state = self.core.state
         self.publish_plan(req, res, state, ms)
@@ -204,13 +227,13 @@ class ControlNode:
             return
         self.grid_key = key
         fld = NavField(gm, self.core.footprint)
-        with self.lock:
+        with self.held():
             self.core.on_field(fld)
         self.node.health.count("nav_fields")
 
     # --- requests and status ------------------------------------------------------------------
     def status_msg(self) -> GoalStatus:
-        with self.lock:
+        with self.held():
             s = self.core.status()
         return GoalStatus(stamp_ns=time.time_ns(), goal_id=s.goal_id, state=s.state,
                           waypoint_index=s.waypoint_index, waypoint_count=s.waypoint_count,
@@ -218,7 +241,7 @@ class ControlNode:
                           reason=s.reason)
 
     def on_set(self, req: GoalRequest) -> GoalReply:
-        with self.lock:
+        with self.held():
             result = self.core.set_goal(req, time.monotonic())
             if result.ok:
                 self.stream_start_ns = time.time_ns()
@@ -232,7 +255,7 @@ class ControlNode:
         return result
 
     def on_cancel(self, _: GoalRequest) -> GoalReply:
-        with self.lock:
+        with self.held():
             result = self.core.cancel(time.monotonic())
         if result.goal_id:
             self.node.event("info", f"goal {result.goal_id} cancelled")
