@@ -18,7 +18,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import msgspec
 import numpy as np
@@ -180,6 +180,42 @@ class OdomSample:
     v: float
     omega: float
     t: float  # receive time, monotonic s
+
+
+@dataclass(frozen=True)
+class GoalCheck:
+    """A goal past the quick checks, in `odom`, and once `routed` its route check's result."""
+
+    req: GoalRequest
+    map_waypoints: list[Pose2D] | None  # as requested, for a goal in `map`
+    odom: OdomSample  # where the route is checked from
+    fld: NavField
+    error: str = ""
+    ctg: CostToGo | None = None  # to the first waypoint
+    lineups: tuple[Pose2D, ...] = ()  # poses to line up at before doors (field.door_approaches)
+
+    def routed(self) -> GoalCheck:
+        """The route checked: a waypoint where the footprint does not fit — clear of
+        obstacles by the position tolerance plus the planner's contact margin, so that
+        wherever within the tolerance the chair stops it touches nothing — or no path to the
+        first one. Pure and slow (costs-to-go and the forward lattice: 0.05 s, 1.5 s on a
+        loaded CPU), so the node runs it without the core's lock."""
+        wps, o = self.req.waypoints, self.odom
+        margin = MpepcParams().contact_m
+        for i, p in enumerate(wps):
+            err = self.fld.check_goal(p.x_m, p.y_m, p.yaw_rad, self.req.tolerance_m + margin)
+            if err:
+                return replace(self, error=f"waypoint {i}: {err}" if len(wps) > 1 else err)
+        first = wps[0]
+        ctg = self.fld.cost_to_go(first.x_m, first.y_m)
+        # (the forward way into the goal's own heading only for the goal itself: a first
+        # waypoint of several is passed within pass_radius_m at any heading)
+        error = path_error(self.fld, ctg, (o.x, o.y, o.yaw), (first.x_m, first.y_m,
+                           first.yaw_rad), way_in=len(wps) == 1)
+        if error or ctg is None:  # (no ctg: path_error said why)
+            return replace(self, error=error)
+        return replace(self, ctg=ctg, lineups=tuple(
+            Pose2D(*a) for a in self.fld.door_approaches(ctg, o.x, o.y)))
 
 
 @dataclass(frozen=True)
@@ -400,6 +436,14 @@ class ControlCore:
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
 
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
+        """Check a goal and take it, in one step (the node runs the slow route check between
+        `check_goal` and `accept_goal` without the core's lock)."""
+        check = self.check_goal(req, now)
+        return check if isinstance(check, GoalReply) else self.accept_goal(check.routed(), now)
+
+    def check_goal(self, req: GoalRequest, now: float) -> GoalCheck | GoalReply:
+        """What can be checked at once (a refusal, or the goal in `odom` with the field its
+        route is to be checked on)."""
         map_waypoints = None
         if req.frame_id == "map":
             why = self.frames.why_not(now)
@@ -411,22 +455,33 @@ class ControlCore:
                 Pose2D(*self.frames.to_odom((p.x_m, p.y_m, p.yaw_rad))) for p in req.waypoints])
         o = self.odom
         error = validate(req, self.cfg, *((o.x, o.y) if o is not None else (0.0, 0.0)))
-        if not error and (o is None or now - o.t > self.odom_timeout_s):
-            error = "no fresh odometry: is the odometry service up?"
-        if not error and self.estop_latched:
-            error = "the e-stop is latched: release it first (autochair release)"
-        if not error and self.owner != "autonomy":
-            error = f"the drive is handed to {self.owner}: hand it back first"
-        fld: NavField | None = None
-        ctg: CostToGo | None = None
-        if not error:
-            assert o is not None
-            fld = self._field_for(o, req.waypoints)
-            error, ctg = self._check_route(fld, o, req.waypoints, req.tolerance_m)
+        error = error or self._why_not_now(now)
         if error:
             self._count("rejected_goals")
             return GoalReply(ok=False, error=error)
-        assert o is not None and fld is not None
+        assert o is not None
+        return GoalCheck(req, map_waypoints, o, self._field_for(o, req.waypoints))
+
+    def _why_not_now(self, now: float) -> str:
+        """Why no goal may start now ('' if one may)."""
+        o = self.odom
+        if o is None or now - o.t > self.odom_timeout_s:
+            return "no fresh odometry: is the odometry service up?"
+        if self.estop_latched:
+            return "the e-stop is latched: release it first (autochair release)"
+        if self.owner != "autonomy":
+            return f"the drive is handed to {self.owner}: hand it back first"
+        return ""
+
+    def accept_goal(self, check: GoalCheck, now: float) -> GoalReply:
+        """Take a routed goal, if nothing that forbids it came meanwhile (an e-stop, a
+        hand-over, odometry gone)."""
+        error = check.error or self._why_not_now(now)
+        if error:
+            self._count("rejected_goals")
+            return GoalReply(ok=False, error=error)
+        assert check.ctg is not None and self.odom is not None
+        req, o = check.req, self.odom
         if not self.active:
             # Start from what the chair does now (at rest, or teleop), never from what an
             # earlier goal last commanded: nothing lunges.
@@ -436,21 +491,19 @@ class ControlCore:
             self._lead[0].reset(self.limiter.v.value)
             self._lead[1].reset(self.limiter.w.value)
         self.goal_id += 1
-        self.map_waypoints, self._loc_lost = map_waypoints, False
+        self.map_waypoints, self._loc_lost = check.map_waypoints, False
         self._trusted = self.frames.correction
         self.waypoints = [Pose2D(p.x_m, p.y_m, wrap(p.yaw_rad)) for p in req.waypoints]
-        assert ctg is not None
-        lineups = [Pose2D(*a) for a in fld.door_approaches(ctg, o.x, o.y)]
-        self.waypoints[:0] = lineups  # (first leg only)
-        self.lineups = len(lineups)
-        if lineups:
-            ctg = None  # the first waypoint is a line-up pose now: recomputed next cycle
+        self.waypoints[:0] = check.lineups  # (first leg only)
+        self.lineups = len(check.lineups)
+        # (with line-ups the first waypoint is a line-up pose: its ctg is computed next cycle)
+        ctg = None if check.lineups else check.ctg
         self.index = 0
         self.tol_m, self.tol_rad = req.tolerance_m, req.tolerance_rad
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
         self.aligning = self.straight = self.final = False
         self._land_left = None
-        self.ctg, self._ctg_key, self.plan = ctg, (id(fld), 0), None
+        self.ctg, self._ctg_key, self.plan = ctg, (id(check.fld), 0), None
         self.given_up = None
         self._plan_t, self._blocked_since = -math.inf, None
         self._last_blocked = ("", -math.inf)
@@ -465,24 +518,6 @@ class ControlCore:
         pts = [(o.x, o.y)] + [(p.x_m, p.y_m) for p in waypoints]
         self._free = free_field(pts, self.footprint)
         return self._free
-
-    def _check_route(self, fld: NavField, o: OdomSample, waypoints: list[Pose2D],
-                     tolerance_m: float) -> tuple[str, CostToGo | None]:
-        """'' and the costs-to-go to the first waypoint, or why the chair cannot get there:
-        a waypoint where its footprint does not fit — clear of obstacles by the position
-        tolerance plus the planner's contact margin, so that wherever within the tolerance
-        the chair stops it touches nothing — or no path to the first one."""
-        margin = MpepcParams().contact_m
-        for i, p in enumerate(waypoints):
-            err = fld.check_goal(p.x_m, p.y_m, p.yaw_rad, tolerance_m + margin)
-            if err:
-                return (f"waypoint {i}: {err}" if len(waypoints) > 1 else err), None
-        first = waypoints[0]
-        ctg = fld.cost_to_go(first.x_m, first.y_m)
-        goal = (first.x_m, first.y_m, first.yaw_rad)
-        # (the forward way into the goal's own heading only for the goal itself: a first
-        # waypoint of several is passed within pass_radius_m at any heading)
-        return path_error(fld, ctg, (o.x, o.y, o.yaw), goal, way_in=len(waypoints) == 1), ctg
 
     def cancel(self, now: float) -> GoalReply:
         if not self.active:

@@ -45,7 +45,7 @@ from autochair_msgs import (
     keys,
 )
 
-from .core import ABORTED, CANCELLED, ControlConfig, ControlCore, OdomSample
+from .core import ABORTED, CANCELLED, ControlConfig, ControlCore, GoalCheck, OdomSample
 
 
 class ControlNode:
@@ -242,9 +242,20 @@ class ControlNode:
 
     def on_set(self, req: GoalRequest) -> GoalReply:
         with self.held():
-            result = self.core.set_goal(req, time.monotonic())
-            if result.ok:
-                self.stream_start_ns = time.time_ns()
+            check = self.core.check_goal(req, time.monotonic())
+        if isinstance(check, GoalCheck):
+            # The route check (costs-to-go, the forward lattice: up to 1.5 s on a loaded CPU)
+            # runs without the lock, so the 50 Hz loop and odometry go on meanwhile; the goal
+            # is taken only if its asker is still waiting.
+            routed = check.routed()
+            late = self.node.too_late()
+            with self.held():
+                result = (GoalReply(ok=False, error=f"not acted on: {late}") if late
+                          else self.core.accept_goal(routed, time.monotonic()))
+                if result.ok:
+                    self.stream_start_ns = time.time_ns()
+        else:
+            result = check
         if result.ok:
             last = req.waypoints[-1]
             self.node.event("info", f"goal {result.goal_id}: {len(req.waypoints)} waypoint(s) "

@@ -119,6 +119,7 @@ class Node:
         # without the thread's wake-up latency.
         self.due: dict[str, float] = {}
         self._hung = threading.Event()  # the SIGUSR2 test hook
+        self._asked = threading.local()  # the request `serve` is handling on this thread
         self._threads: list[threading.Thread] = []
         self._closers: list[Callable[[], Any]] = []
         settings = settings or ZenohSettings()
@@ -310,14 +311,14 @@ class Node:
                 self.health.count(f"bad_requests:{topic.key}")
                 query.reply_err(f"bad request on {topic.key}: {e}".encode())
                 return
-            late = client.too_late(None if query.attachment is None
-                                   else query.attachment.to_bytes(), time.time_ns(),
-                                   self.stale.clock_skew_s)
+            attachment = None if query.attachment is None else query.attachment.to_bytes()
+            late = client.too_late(attachment, time.time_ns(), self.stale.clock_skew_s)
             if late:
                 self.health.count(f"late_requests:{topic.key}")
                 self.event("warning", f"{topic.key}: request not acted on: {late}")
                 query.reply_err(f"{topic.key}: not acted on: {late}".encode())
                 return
+            self._asked.attachment = attachment
             try:
                 reply = handler(request)
                 if not isinstance(reply, reply_type):
@@ -329,6 +330,17 @@ class Node:
             query.reply(query.key_expr, client.ENCODER.encode(reply))
 
         self.queryable(topic, on_query)
+
+    def too_late(self) -> str:
+        """In a `serve` handler: why its request may no longer be acted on ('' if it may).
+        A handler that works long before it acts (a goal's route check) asks again just
+        before acting: its asker may have given up meanwhile (hazards H43)."""
+        late = client.too_late(getattr(self._asked, "attachment", None), time.time_ns(),
+                               self.stale.clock_skew_s)
+        if late:
+            self.health.count("late_requests")
+            self.event("warning", f"request not acted on: {late}")
+        return late
 
     def queryable(self, topic: keys.Topic[Any], handler: Callable[[zenoh.Query], None]) -> None:
         """Serve raw queries on a `kind="query"` row (prefer `serve`); the handler must reply
