@@ -78,10 +78,10 @@ class ControlNode:
         self.people_pub = node.publisher(keys.PEOPLE)
         self.people_grid: OccupancyGrid | None = None  # the grid the tracker's map is of
         # The newest odometry, taken into the core when it next runs (tick, request, plan).
-        # Kept off the core's lock: a goal's route check holds it for 0.1-0.5 s (costs-to-go
-        # on a loaded CPU), and odometry waiting behind it was taken for stale odometry by
-        # the tick that got the lock first (goals aborted at the start, 2 CI runs in session
-        # 10). Its time stays when it arrived: a silent odometry service is still stale.
+        # Kept off the core's lock: odometry waiting behind a long holder of the lock (a
+        # goal's route check was one, 0.1-1.5 s on a loaded CPU) was taken for stale by the
+        # tick that got the lock first (goals aborted at the start, a CI run in session 10).
+        # Its time stays when it arrived: a silent odometry service is still stale.
         self.odom_in: OdomSample | None = None
         self._taken: OdomSample | None = None
 
