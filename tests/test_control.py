@@ -762,6 +762,52 @@ def test_a_straight_stage_into_an_obstacle_is_refused_by_the_core() -> None:
     assert pose[0] == pytest.approx(2.12, abs=0.005)
 
 
+def _rolled_past(wall_y: float | None) -> tuple[ControlCore, float]:
+    """The core rolling at 0.2 m/s at (2, 0, 0) in a room (a wall alongside at `wall_y`),
+    given MPEPC's in-place plan "turn to 0° at (1.95, 0)": a point the chair has rolled 5 cm
+    past (its pose predicted a few cm off), re-sent every plan period for 1.5 s; the largest
+    |ω| sent."""
+    from autochair.nav.field import GridMap, NavField
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    walls = [[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
+             [-1.0, 3.0, -1.0, -3.0]]
+    if wall_y is not None:
+        walls.append([0.0, wall_y, 4.0, wall_y])
+    core = fresh_core(INSTANT)
+    core.inline_planning = False
+    core.on_field(NavField(GridMap.from_shapes(np.array(walls), np.zeros((0, 3))), Footprint()))
+    core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.2, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(4.5, -1.5, 0.0)]), 0.0).ok
+    plan = Plan((0.0, 0.0, 0.0, 0.15), (1.95, 0.0, 0.0), 0.15, 0.0, 0.0, 1.0, 1.0,
+                np.zeros((1, 3)), False, math.nan, 0.0, 1)
+    pose, v, t, spin = [2.0, 0.0, 0.0], 0.2, 0.0, 0.0
+    while t < 1.5 and core.active:
+        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
+        for _ in range(25):
+            out = core.step(t) or (0.0, 0.0)
+            spin = max(spin, abs(out[1]))
+            pose[2] = wrap(pose[2] + out[1] * 0.02)
+            pose[0] += out[0] * math.cos(pose[2]) * 0.02
+            pose[1] += out[0] * math.sin(pose[2]) * 0.02
+            v = out[0]
+            core.on_odom(OdomSample(pose[0], pose[1], pose[2], v, out[1], t))
+            t += 0.02
+    return core, spin
+
+
+def test_a_chair_rolled_past_an_in_place_plans_point_is_not_spun_round_without_room() -> None:
+    """The law towards a point just behind the chair spins it round (MPEPC predicts that, but
+    from its predicted pose: one a few cm off swung the body 33° onto a wall, nav_eval seed 7
+    with predict_s 0.66). With a wall 0.6 m beside the axle the core brakes instead."""
+    core, spin = _rolled_past(None)  # positive control: in the open the law spins it round
+    assert spin > 0.3 and not core.counters.get("spins_refused")
+    core, spin = _rolled_past(0.6)
+    assert spin < 0.05 and core.counters.get("spins_refused", 0) > 0
+    assert core.limiter.at_rest
+
+
 def test_a_stage_turns_straight_is_asked_for_by_the_core() -> None:
     """The core's plan requests carry a stage turn's straight (Plan.then: where it lands), so
     the planner carries the stage on once the turn is done instead of looking again from the

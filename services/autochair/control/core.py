@@ -857,8 +857,19 @@ class ControlCore:
             self._move = (max(along, 0.0), None)
             return 0.0, 0.0
         turn = p.z[0] < IN_PLACE_R_M and abs(wrap(tyaw - o.yaw)) >= 2 * ALIGNED_RAD
-        if turn or math.hypot(tx - o.x, ty - o.y) < self.tol_m * self.cfg.capture_fraction:
+        r = math.hypot(tx - o.x, ty - o.y)
+        if turn or r < self.tol_m * self.cfg.capture_fraction:
             self._move = (None, wrap(tyaw - o.yaw))  # time-optimal in-place turn
+            return 0.0, 0.0
+        if p.z[0] < IN_PLACE_R_M and along_lateral((o.x, o.y, o.yaw), tx, ty)[0] <= 0.0 \
+                and not self._room_to_approach(o, Pose2D(tx, ty, tyaw), r):
+            # Rolled past an in-place plan's point, the law spins the chair round to it. MPEPC
+            # predicted that spin, but from its predicted pose: one a few cm off swung the body
+            # 33° onto a wall (nav_eval seed 7 with predict_s 0.66). Without room for it, both
+            # axes brake and the next plan starts from rest (as H40 near the goal).
+            self._move = (None, None)
+            self._last_blocked = (NO_ROOM_TO_TURN, now)
+            self._count("spins_refused")
             return 0.0, 0.0
         out = park_kuipers(o.x, o.y, o.yaw, tx, ty, tyaw, self.gains, min(p.vmax_mps, self.vmax),
                            omega_floor=self.cfg.omega_floor_radps)
