@@ -808,6 +808,31 @@ def test_a_chair_rolled_past_an_in_place_plans_point_is_not_spun_round_without_r
     assert core.limiter.at_rest
 
 
+def test_a_late_handover_does_not_carry_the_chair_past_its_goal() -> None:
+    """Heading for the goal 1 m ahead at 1 m/s, while the plans still name a target beyond it
+    (the plan that hands the goal over comes late on a loaded CPU: a forward-only chair
+    overshot a goal by 6 cm, which it cannot come back to), the law is capped to a stop on
+    the goal at the limiter's full braking."""
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    core = fresh_core(INSTANT)
+    core.inline_planning = False
+    core.on_odom(OdomSample(0.0, 0.0, 0.0, 1.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(1.0, 0.0, 0.0)]), 0.0).ok
+    plan = Plan((3.0, 0.0, 0.0, 1.2), (3.0, 0.0, 0.0), 1.2, 0.0, 0.0, 1.0, 1.0,
+                np.zeros((1, 3)), False, math.nan, 0.0, 1)
+    x, t, v = 0.0, 0.0, 1.0
+    while t < 4.0 and core.active:
+        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
+        for _ in range(25):
+            v = (core.step(t) or (0.0, 0.0))[0]
+            x += v * 0.02
+            core.on_odom(OdomSample(x, 0.0, 0.0, v, 0.0, t))
+            t += 0.02
+    assert 0.95 < x <= 1.0 + 1e-6 and v < 0.1, (x, v)
+
+
 def test_a_stage_turns_straight_is_asked_for_by_the_core() -> None:
     """The core's plan requests carry a stage turn's straight (Plan.then: where it lands), so
     the planner carries the stage on once the turn is done instead of looking again from the

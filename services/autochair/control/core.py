@@ -873,6 +873,17 @@ class ControlCore:
             return 0.0, 0.0
         out = park_kuipers(o.x, o.y, o.yaw, tx, ty, tyaw, self.gains, min(p.vmax_mps, self.vmax),
                            omega_floor=self.cfg.omega_floor_radps)
+        # Never faster than a stop on the goal at the limiter's full braking allows, heading
+        # for it: the plan that hands the goal over may come late (a loaded CPU: 0.37 s, and
+        # a forward-only chair overshot a goal 6 cm it could not come back to).
+        goal = self.waypoints[-1]
+        along, lateral = along_lateral((o.x, o.y, o.yaw), goal.x_m, goal.y_m)
+        lv = self.limiter.v
+        if along > 0.0 and abs(lateral) < 2.0 * self.tol_m and out.v_mps > 0.0:
+            swing = max(lv.rate + lv.amax, 0.0) / lv.jmax
+            cap = braking_speed(along - max(lv.value, 0.0) * swing, lv.amax, lv.jmax)
+            if out.v_mps > cap:
+                return cap, out.omega_radps * cap / out.v_mps
         return out.v_mps, out.omega_radps
 
     def _plan_stale(self, now: float) -> bool:
