@@ -49,7 +49,7 @@ class LaggedChair:
             self.rest.append((p.x, p.y, p.yaw))
 
     def predicted(self) -> OdomSample:
-        return self.core._predicted(OdomSample(self.x, self.y, self.yaw, 0.0, 0.0, 0.0))
+        return self.core._predicted(OdomSample(self.x, self.y, self.yaw, 0.0, 0.0, 0.0), 0.0)
 
     def state(self) -> np.ndarray:
         lim = self.lim

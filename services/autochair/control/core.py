@@ -40,6 +40,9 @@ NO_ROOM_TO_TURN = "no room to turn to the goal's heading here"
 TURN_CLEARANCE_M = 0.02  # an in-place turn keeps the body this clear of the map (NavField's margin)
 IN_PLACE_R_M = MpepcParams().in_place_r_m
 FINAL_MOVE_M, FINAL_LINE = MpepcParams().final_move_m, MpepcParams().final_line
+# The most a sample is moved on by its age (_predicted): older is stale odometry anyway (the
+# node's [stale] odometry_s, 0.3 s), and a wrong stamp must not throw the pose far.
+MAX_ODOM_AGE_S = 0.3
 GOAL_SHIFT_M = 0.05  # a map goal moved this far in odom (the field's cell): new costs-to-go
 # A map goal moved further than this in odom by a localization that was lost and is tracking
 # again: the re-found place may be a look-alike (H33), so the goal is not resumed on it.
@@ -180,6 +183,9 @@ class OdomSample:
     v: float
     omega: float
     t: float  # receive time, monotonic s
+    # How old the sample was on arrival (its encoder frame's stamp to its receipt, s): the way
+    # through the gateway, odometry and Zenoh, 10-30 ms quiet, longer on a loaded CPU.
+    age_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -548,7 +554,7 @@ class ControlCore:
                     if req is not None:
                         self.on_plan(compute(req), now)
                 if self.active and self._in_odom(now):
-                    v_des, w_des = self._desired(self._predicted(self.odom), now)
+                    v_des, w_des = self._desired(self._predicted(self.odom, now), now)
                     self._watch_progress(self.odom, now)
         if not self.active and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
@@ -592,7 +598,7 @@ class ControlCore:
         if self.map_waypoints is not None and (self._loc_lost or self.frames.why_not(now)):
             return None  # where the goal is in odom is unknown: nothing to plan to
         self._plan_t = now
-        p = self._predicted(o)
+        p = self._predicted(o, now)
         wp = self.waypoints[self.index]
         fld = self._field_for(o, self.waypoints) if self.field is None else self.field
         ctg = self.ctg if self._ctg_key == (id(fld), self.index) else None
@@ -734,20 +740,29 @@ class ControlCore:
             self._lead[1].reset(self.limiter.w.value)
         self._count("stopped_" + state)
 
-    def _predicted(self, o: OdomSample) -> OdomSample:
+    def _predicted(self, o: OdomSample, now: float) -> OdomSample:
         """The pose once the commands already sent have acted: the drive chain (PID prefilter,
         dead time; ChainAxis) still holds motion the odometry has not seen, and a feedback law
         acting on the lagging pose overshoots, above all near the goal where κ ~ 1/r and at
         the end of a turn at the limits. Less what the lead has sent ahead of the plan (its
         `ahead`): the plan continues from its own integral, where the chair ends once the
-        led command has played out."""
+        led command has played out. First the sample is moved on to `now` at its own velocity
+        over its age (the way to this process and the wait since): the chain's delays were
+        identified on fresh odometry, and on a loaded CPU the older pose made the straight
+        final brake late (a 3 m goal overshot by 6-7 cm, recorded live)."""
         cv, cw = self._chain
         h = 1.0 / self.cfg.rate_hz
         horizon = max(cv.delay, cw.delay) + 8 * max(cv.lag, cw.lag)  # lags decay to < 0.4 %
         n = math.ceil(horizon / h) if horizon > 0 else 0
         x, y, yaw = o.x, o.y, o.yaw
+        age = min(max(now - o.t, 0.0) + o.age_s, MAX_ODOM_AGE_S)
+        if age > 0.0:
+            yaw_mid = yaw + 0.5 * o.omega * age
+            x += o.v * math.cos(yaw_mid) * age
+            y += o.v * math.sin(yaw_mid) * age
+            yaw += o.omega * age
         if n == 0:
-            return o
+            return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
         for v, w in zip(cv.future(h, n), cw.future(h, n), strict=True):
             yaw_mid = yaw + 0.5 * w * h
             x += v * math.cos(yaw_mid) * h

@@ -97,8 +97,9 @@ class ControlNode:
 
     # --- inputs -----------------------------------------------------------------------------
     def on_odom(self, o: Odometry) -> None:
+        age = (time.time_ns() - o.stamp_ns) / 1e9  # (clamped in the core's prediction)
         self.odom_in = OdomSample(o.x_m, o.y_m, o.yaw_rad, o.v_mps, o.omega_radps,
-                                  time.monotonic())
+                                  time.monotonic(), max(age, 0.0))
         self.people_odom.append(o)
         self.node.health.count("odom")
 
