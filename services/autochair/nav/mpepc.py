@@ -227,9 +227,9 @@ def braking_speed(d: F64, a: float, j: float) -> F64:
 
 
 def scurve(value: F64, rate: F64, target: F64, vmax: float | F64, amax: float | F64,
-           jmax: float | F64, dt: float) -> tuple[F64, F64]:
+           jmax: float | F64, dt: float | F64) -> tuple[F64, F64]:
     """control/limits.py SCurveAxis.step, batched: (value, rate) after one step of dt (the
-    limits may be columns: one axis a row)."""
+    limits may be columns: one axis a row; dt may be per candidate)."""
     target = clip(target, -vmax, vmax)
     e = target - value
     jd = jmax * dt
@@ -242,7 +242,7 @@ def scurve(value: F64, rate: F64, target: F64, vmax: float | F64, amax: float | 
     return np.where(snap, target, v), np.where(snap, land, r)
 
 
-def move(x: F64, y: F64, yaw: F64, v_old: F64, w_old: F64, st: F64, dt: float
+def move(x: F64, y: F64, yaw: F64, v_old: F64, w_old: F64, st: F64, dt: float | F64
          ) -> tuple[F64, F64, F64]:
     """The pose after a step of dt from the limiter's (v, ω) before it to st's after it, by
     the step's mean v and ω."""
@@ -301,9 +301,11 @@ class Mpepc:
         return np.stack([pose[0] + go * np.cos(psi), pose[1] + go * np.sin(psi), psi], 1)
 
     # --- prediction ---------------------------------------------------------------------------
-    def limiter(self, st: F64, vd: F64, wd: F64, dt: float, v_jerk: bool = True) -> None:
+    def limiter(self, st: F64, vd: F64, wd: F64, dt: float | F64, v_jerk: bool = True,
+                jerk_from: int | None = None) -> None:
         """One step of the comfort limiter (control/limits.py ComfortLimiter.step), batched:
-        st = (v, a, ω, ω̇) rows, advanced in place; the curvature kept as it does."""
+        st = (v, a, ω, ω̇) rows, advanced in place; the curvature kept as it does. dt may be
+        per candidate; `jerk_from`: v's jerk limit from this candidate on (else `v_jerk`)."""
         g = self.law
         avd = np.abs(vd)
         avd_ = np.maximum(avd, 1e-9)
@@ -316,11 +318,17 @@ class Mpepc:
             s, reach / np.maximum(np.abs(kappa), 1e-9) / avd_), s)
         vd, wd = vd * s, wd * s
         big = np.abs(vd) > 1e-3
-        if v_jerk:
-            st[0], st[1] = scurve(st[0], st[1], vd, g.vmax_mps, g.a_mps2, g.jerk_mps3, dt)
-        else:  # acceleration-limited only (see MpepcParams.v_jerk)
-            dv = clip(vd - st[0], -g.a_mps2 * dt, g.a_mps2 * dt)
-            st[0], st[1] = st[0] + dv, dv / dt
+        cut = (0 if v_jerk else vd.size) if jerk_from is None else jerk_from
+        if cut < vd.size:  # v's jerk limit
+            j = slice(cut, None)
+            dj = dt[j] if isinstance(dt, np.ndarray) else dt
+            st[0, j], st[1, j] = scurve(st[0, j], st[1, j], vd[j], g.vmax_mps, g.a_mps2,
+                                        g.jerk_mps3, dj)
+        if cut > 0:  # acceleration-limited only (see MpepcParams.v_jerk)
+            a = slice(0, cut)
+            da = dt[a] if isinstance(dt, np.ndarray) else dt
+            dv = clip(vd[a] - st[0, a], -g.a_mps2 * da, g.a_mps2 * da)
+            st[0, a], st[1, a] = st[0, a] + dv, dv / da
         wt = wd.copy()  # (where not big)
         np.divide(wd * st[0], vd, out=wt, where=big)
         st[2], st[3] = scurve(st[2], st[3], wt, g.omega_max_radps, g.omega_acc_radps2,
@@ -351,34 +359,66 @@ class Mpepc:
         out = np.empty((5, n, self.steps))
         commit = min(self.steps, max(1, math.ceil(g.commit_s / dt - 1e-9)))
         on_final = final if final.any() else None  # (None: law_step skips that work)
-        sure = self.committed(x, y, yaw, st.copy(), tgt, vmax, turning.copy(), arrived.copy(),
-                              on_final, commit * dt)
+        span = commit * dt
+        n_c = max(1, math.ceil(span / self.p.exact_dt_s - 1e-9))  # the committed motion's steps
         fine = math.ceil(self.p.fine_s / dt - 1e-9)
-        for k in range(self.steps):
-            n_sub = self.p.fine_substeps if k < fine else 1
-            for _ in range(n_sub):
-                x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived,
-                                          on_final, dt / n_sub, self.p.v_jerk)
-            out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
-            out[3, :, k], out[4, :, k] = st[0], st[2]
+        # The prediction's law steps: (their dt, the step of `out` each completes, else -1)
+        sched = [(dt / n_sub, k if j == n_sub - 1 else -1) for k in range(self.steps)
+                 for n_sub in [self.p.fine_substeps if k < fine else 1] for j in range(n_sub)]
+        # The committed motion (its own steps, v's jerk on) is simulated alongside the
+        # prediction's first steps, side by side in one batch of 2N: two independent
+        # simulations with the same numbers as one after the other, at half the numpy calls
+        # (their per-call cost dominates at a few hundred candidates).
+        m = min(n_c, len(sched))
+        both = np.concatenate([st, st], 1)
+        xx, yy, ww = np.concatenate([x, x]), np.concatenate([y, y]), np.concatenate([yaw, yaw])
+        tgt2, vmax2 = np.concatenate([tgt, tgt]), np.concatenate([vmax, vmax])
+        turning2, arrived2 = np.concatenate([turning, turning]), np.concatenate([arrived, arrived])
+        final2 = None if on_final is None else np.concatenate([on_final, on_final])
+        dts = np.full(2 * n, span / n_c)  # (the prediction's half set per step)
+        kept: list[F64] = []
+        every = max(1, round(0.5 * dt / self.p.exact_dt_s))  # committed poses kept: ~0.1 s
+        for j in range(m):
+            dts[:n] = sched[j][0]
+            xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
+                                       dts, jerk_from=0 if self.p.v_jerk else n)
+            if sched[j][1] >= 0:
+                k = sched[j][1]
+                out[0, :, k], out[1, :, k], out[2, :, k] = xx[:n], yy[:n], ww[:n]
+                out[3, :, k], out[4, :, k] = both[0, :n], both[2, :n]
+            if (j + 1) % every == 0 or j == n_c - 1:
+                kept.append(np.stack([xx[n:], yy[n:], ww[n:]]))
+        sure = self.committed(xx[n:], yy[n:], ww[n:], both[:, n:].copy(), tgt, vmax,
+                              turning2[n:].copy(), arrived2[n:].copy(), on_final, span, m, kept)
+        x, y, yaw, st = xx[:n], yy[:n], ww[:n], both[:, :n].copy()
+        turning, arrived = turning2[:n].copy(), arrived2[:n].copy()
+        for step_dt, k in sched[m:]:
+            x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, on_final,
+                                      step_dt, self.p.v_jerk)
+            if k >= 0:
+                out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
+                out[3, :, k], out[4, :, k] = st[0], st[2]
         return out[0], out[1], out[2], out[3], out[4], sure
 
     def committed(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                   turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
-                  final: npt.NDArray[np.bool_] | None, span_s: float) -> F64:
+                  final: npt.NDArray[np.bool_] | None, span_s: float, start: int = 0,
+                  kept: list[F64] | None = None) -> F64:
         """(3, N, B) poses of what a plan commits the chair to: its first `span_s` as the
         core's limiter drives it (v's jerk on, steps of `exact_dt_s`), then braking to rest from
-        there. The drive chain's lag (dead time, the PID's prefilter: control/core.py
-        ChainAxis) is in the start pose: the core plans from its chain predictor's pose (where
-        the chair would stand once the commands already sent have acted), and what the chain
-        passes on integrates to the commands, so the stop ends where the lagging chair comes to
-        rest (measured 2 cm / 0.7° after a braked 35° swing) and the body's real sweep lies
-        within 2.5 cm of the predicted one (tests/test_nav_stop.py), inside `brake_clear_m`."""
+        there (from its step `start` on, the poses kept before it in `kept`: simulate runs the
+        first steps alongside the prediction). The drive chain's lag (dead time, the PID's
+        prefilter: control/core.py ChainAxis) is in the start pose: the core plans from its
+        chain predictor's pose (where the chair would stand once the commands already sent
+        have acted), and what the chain passes on integrates to the commands, so the stop ends
+        where the lagging chair comes to rest (measured 2 cm / 0.7° after a braked 35° swing)
+        and the body's real sweep lies within 2.5 cm of the predicted one
+        (tests/test_nav_stop.py), inside `brake_clear_m`."""
         h = self.p.exact_dt_s
         n = max(1, math.ceil(span_s / h - 1e-9))
         every = max(1, round(0.5 * self.p.dt_s / h))  # poses kept: the sweep at ~0.1 s
-        kept = []
-        for k in range(n):
+        kept = [] if kept is None else kept
+        for k in range(start, n):
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
                                       span_s / n, True)
             if (k + 1) % every == 0 or k == n - 1:
@@ -387,11 +427,12 @@ class Mpepc:
 
     def law_step(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                  turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
-                 final: npt.NDArray[np.bool_] | None, dt: float, v_jerk: bool = False
-                 ) -> tuple[F64, F64, F64]:
-        """The 50 Hz loop over dt: the law (or the in-place turn) towards the targets, then the
-        limiter; `turning` and `arrived` are updated in place. `final`: the candidates on the
-        core's final approach (None: none)."""
+                 final: npt.NDArray[np.bool_] | None, dt: float | F64, v_jerk: bool = False,
+                 jerk_from: int | None = None) -> tuple[F64, F64, F64]:
+        """The 50 Hz loop over dt (per candidate if an array): the law (or the in-place turn)
+        towards the targets, then the limiter; `turning` and `arrived` are updated in place.
+        `final`: the candidates on the core's final approach (None: none). `jerk_from`: v's
+        jerk limit for the candidates from this index on only (else `v_jerk` for all)."""
         g = self.law
         tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
         dx, dy = tx - x, ty - y
@@ -436,13 +477,13 @@ class Mpepc:
         halt = vmax <= 0.0
         if halt.any():
             vd, wd = np.where(halt, 0.0, vd), np.where(halt, 0.0, wd)
-        return self.advance(x, y, yaw, st, vd, wd, dt, v_jerk)
+        return self.advance(x, y, yaw, st, vd, wd, dt, v_jerk, jerk_from)
 
-    def advance(self, x: F64, y: F64, yaw: F64, st: F64, vd: F64, wd: F64, dt: float,
-                v_jerk: bool = True) -> tuple[F64, F64, F64]:
+    def advance(self, x: F64, y: F64, yaw: F64, st: F64, vd: F64, wd: F64, dt: float | F64,
+                v_jerk: bool = True, jerk_from: int | None = None) -> tuple[F64, F64, F64]:
         """One step of dt: the limiter towards (vd, ωd), the pose by the step's mean v, ω."""
         v_old, w_old = st[0].copy(), st[2].copy()
-        self.limiter(st, vd, wd, dt, v_jerk)
+        self.limiter(st, vd, wd, dt, v_jerk, jerk_from)
         return move(x, y, yaw, v_old, w_old, st, dt)
 
     def braking(self, x: F64, y: F64, yaw: F64, st: F64) -> F64:
