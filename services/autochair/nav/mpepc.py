@@ -365,31 +365,49 @@ class Mpepc:
         # The prediction's law steps: (their dt, the step of `out` each completes, else -1)
         sched = [(dt / n_sub, k if j == n_sub - 1 else -1) for k in range(self.steps)
                  for n_sub in [self.p.fine_substeps if k < fine else 1] for j in range(n_sub)]
-        # The committed motion (its own steps, v's jerk on) is simulated alongside the
-        # prediction's first steps, side by side in one batch of 2N: two independent
-        # simulations with the same numbers as one after the other, at half the numpy calls
-        # (their per-call cost dominates at a few hundred candidates).
-        m = min(n_c, len(sched))
+        # The committed motion (its own steps, v's jerk on) and the stop after it are simulated
+        # alongside the prediction, side by side in one batch of 2N: independent simulations
+        # with the same numbers as one after the other, at half the numpy calls (their per-call
+        # cost dominates at a few hundred candidates). The stop is the law step with vmax 0
+        # (the law's v and ω 0: the limiter brakes, as `braking` does, the same numbers).
         both = np.concatenate([st, st], 1)
         xx, yy, ww = np.concatenate([x, x]), np.concatenate([y, y]), np.concatenate([yaw, yaw])
         tgt2, vmax2 = np.concatenate([tgt, tgt]), np.concatenate([vmax, vmax])
         turning2, arrived2 = np.concatenate([turning, turning]), np.concatenate([arrived, arrived])
         final2 = None if on_final is None else np.concatenate([on_final, on_final])
         dts = np.full(2 * n, span / n_c)  # (the prediction's half set per step)
-        kept: list[F64] = []
-        every = max(1, round(0.5 * dt / self.p.exact_dt_s))  # committed poses kept: ~0.1 s
-        for j in range(m):
-            dts[:n] = sched[j][0]
+        kept: list[F64] = []  # the committed motion's poses, then the stop's
+        stop: list[F64] = []
+        every = max(1, round(0.5 * dt / self.p.exact_dt_s))  # poses kept: ~0.1 s
+        n_b, j_b = self.brake_steps(), -1  # the stop's steps, the one done (-1: not braking)
+        m, stopped = len(sched), False  # the steps simulated side by side; the stop done
+        for j, (step_dt, k) in enumerate(sched):
+            dts[:n] = step_dt
             xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
                                        dts, jerk_from=0 if self.p.v_jerk else n)
-            if sched[j][1] >= 0:
-                k = sched[j][1]
+            if k >= 0:
                 out[0, :, k], out[1, :, k], out[2, :, k] = xx[:n], yy[:n], ww[:n]
                 out[3, :, k], out[4, :, k] = both[0, :n], both[2, :n]
-            if (j + 1) % every == 0 or j == n_c - 1:
-                kept.append(np.stack([xx[n:], yy[n:], ww[n:]]))
-        sure = self.committed(xx[n:], yy[n:], ww[n:], both[:, n:].copy(), tgt, vmax,
-                              turning2[n:].copy(), arrived2[n:].copy(), on_final, span, m, kept)
+            if j_b < 0:
+                if (j + 1) % every == 0 or j == n_c - 1:
+                    kept.append(np.stack([xx[n:], yy[n:], ww[n:]]))
+                if j == n_c - 1:  # committed: the stop from here
+                    vmax2[n:], dts[n:], j_b = 0.0, self.p.exact_dt_s, 0
+                continue
+            done = not both[:, n:].any()  # (braking: every candidate at rest)
+            if (j_b + 1) % every == 0 or j_b == n_b - 1 or done:
+                stop.append(np.stack([xx[n:], yy[n:], ww[n:]]))
+            j_b += 1
+            if done or j_b == n_b:
+                m, stopped = j + 1, True
+                break
+        side = (xx[n:], yy[n:], ww[n:], both[:, n:].copy())
+        if j_b < 0:  # (the committed motion outlasts the prediction)
+            sure = self.committed(*side, tgt, vmax, turning2[n:].copy(), arrived2[n:].copy(),
+                                  on_final, span, m, kept)
+        else:  # (the stop goes on alone where it outlasts the prediction)
+            sure = np.concatenate([np.stack(kept, -1), np.stack(stop, -1) if stopped
+                                   else self.braking(*side, j_b, stop)], -1)
         x, y, yaw, st = xx[:n], yy[:n], ww[:n], both[:, :n].copy()
         turning, arrived = turning2[:n].copy(), arrived2[:n].copy()
         for step_dt, k in sched[m:]:
@@ -486,15 +504,22 @@ class Mpepc:
         self.limiter(st, vd, wd, dt, v_jerk, jerk_from)
         return move(x, y, yaw, v_old, w_old, st, dt)
 
-    def braking(self, x: F64, y: F64, yaw: F64, st: F64) -> F64:
+    def brake_steps(self) -> int:
+        """The steps of `exact_dt_s` the longest stop takes."""
+        g = self.law
+        stop_s = g.vmax_mps / g.a_mps2 + 2 * g.a_mps2 / g.jerk_mps3
+        return max(1, math.ceil(stop_s / self.p.exact_dt_s))
+
+    def braking(self, x: F64, y: F64, yaw: F64, st: F64, start: int = 0,
+                kept: list[F64] | None = None) -> F64:
         """(3, N, B) poses while the limiter brakes to rest (v, ω desired 0, as the core does
         when a plan says blocked) from state st, at `exact_dt_s` (kept every ~0.1 s), until
-        every candidate is at rest."""
+        every candidate is at rest; from its step `start` on (the poses kept before it in
+        `kept`: simulate runs the first steps alongside the prediction)."""
         g, h = self.law, self.p.exact_dt_s
-        stop_s = g.vmax_mps / g.a_mps2 + 2 * g.a_mps2 / g.jerk_mps3  # the longest stop
-        steps = max(1, math.ceil(stop_s / h))
+        steps = self.brake_steps()
         every = max(1, round(0.5 * self.p.dt_s / h))  # poses kept: the sweep at ~0.1 s
-        kept = []
+        kept = [] if kept is None else kept
         zero = np.zeros((2, x.size))
         # v's and ω's limits as columns: both axes in one call (the same numbers, half the
         # calls; numpy's per-call cost dominates at a few hundred candidates)
@@ -502,7 +527,7 @@ class Mpepc:
                np.array([[g.a_mps2], [g.omega_acc_radps2]]),
                np.array([[g.jerk_mps3], [g.omega_jerk_radps3]]))
         vw, rates = st[0::2], st[1::2]  # views: (v, ω), (v̇, ω̇)
-        for k in range(steps):
+        for k in range(start, steps):
             # advance(…, zero, zero, h), less the limiter's curvature work, which leaves a
             # desired (0, 0) as it is: the same numbers, the planner's longest loop.
             old = vw.copy()
