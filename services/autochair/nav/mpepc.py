@@ -39,7 +39,7 @@ from autochair.control.law import Gains
 from autochair.control.limits import ComfortLimiter
 from autochair.geometry import along_lateral
 
-from .field import CostToGo, NavField, place_xy
+from .field import BATCH_POINTS, CostToGo, NavField, place_xy
 from .lattice import HeadingField
 
 F64 = npt.NDArray[np.float64]
@@ -226,9 +226,10 @@ def braking_speed(d: F64, a: float, j: float) -> F64:
     return np.where(v <= c, v, 0.5 * (-c + np.sqrt(c * c + 8.0 * a * d)))
 
 
-def scurve(value: F64, rate: F64, target: F64, vmax: float, amax: float, jmax: float,
-           dt: float) -> tuple[F64, F64]:
-    """control/limits.py SCurveAxis.step, batched: (value, rate) after one step of dt."""
+def scurve(value: F64, rate: F64, target: F64, vmax: float | F64, amax: float | F64,
+           jmax: float | F64, dt: float | F64) -> tuple[F64, F64]:
+    """control/limits.py SCurveAxis.step, batched: (value, rate) after one step of dt (the
+    limits may be columns: one axis a row; dt may be per candidate)."""
     target = clip(target, -vmax, vmax)
     e = target - value
     jd = jmax * dt
@@ -241,7 +242,7 @@ def scurve(value: F64, rate: F64, target: F64, vmax: float, amax: float, jmax: f
     return np.where(snap, target, v), np.where(snap, land, r)
 
 
-def move(x: F64, y: F64, yaw: F64, v_old: F64, w_old: F64, st: F64, dt: float
+def move(x: F64, y: F64, yaw: F64, v_old: F64, w_old: F64, st: F64, dt: float | F64
          ) -> tuple[F64, F64, F64]:
     """The pose after a step of dt from the limiter's (v, ω) before it to st's after it, by
     the step's mean v and ω."""
@@ -300,26 +301,36 @@ class Mpepc:
         return np.stack([pose[0] + go * np.cos(psi), pose[1] + go * np.sin(psi), psi], 1)
 
     # --- prediction ---------------------------------------------------------------------------
-    def limiter(self, st: F64, vd: F64, wd: F64, dt: float, v_jerk: bool = True) -> None:
+    def limiter(self, st: F64, vd: F64, wd: F64, dt: float | F64, v_jerk: bool = True,
+                jerk_from: int | None = None) -> None:
         """One step of the comfort limiter (control/limits.py ComfortLimiter.step), batched:
-        st = (v, a, ω, ω̇) rows, advanced in place; the curvature kept as it does."""
+        st = (v, a, ω, ω̇) rows, advanced in place; the curvature kept as it does. dt may be
+        per candidate; `jerk_from`: v's jerk limit from this candidate on (else `v_jerk`)."""
         g = self.law
         avd = np.abs(vd)
+        avd_ = np.maximum(avd, 1e-9)
         s = np.minimum(1.0, g.omega_max_radps / np.maximum(np.abs(wd), 1e-9))
-        s = np.where(avd * s > g.vmax_mps, g.vmax_mps / np.maximum(avd, 1e-9), s)
+        s = np.where(avd * s > g.vmax_mps, g.vmax_mps / avd_, s)
         moving = avd * s > 1e-3
-        kappa = np.where(moving, wd / np.where(moving, vd, 1.0), 0.0)
+        kappa = np.divide(wd, vd, out=np.zeros(vd.size), where=moving)  # (0 where not)
         reach = np.maximum(np.sign(wd) * st[2] + g.omega_acc_radps2 * g.lookahead_s, 0.0)
         s = np.where(kappa != 0.0, np.minimum(
-            s, reach / np.maximum(np.abs(kappa), 1e-9) / np.maximum(avd, 1e-9)), s)
+            s, reach / np.maximum(np.abs(kappa), 1e-9) / avd_), s)
         vd, wd = vd * s, wd * s
         big = np.abs(vd) > 1e-3
-        if v_jerk:
-            st[0], st[1] = scurve(st[0], st[1], vd, g.vmax_mps, g.a_mps2, g.jerk_mps3, dt)
-        else:  # acceleration-limited only (see MpepcParams.v_jerk)
-            dv = clip(vd - st[0], -g.a_mps2 * dt, g.a_mps2 * dt)
-            st[0], st[1] = st[0] + dv, dv / dt
-        wt = np.where(big, wd * st[0] / np.where(big, vd, 1.0), wd)
+        cut = (0 if v_jerk else vd.size) if jerk_from is None else jerk_from
+        if cut < vd.size:  # v's jerk limit
+            j = slice(cut, None)
+            dj = dt[j] if isinstance(dt, np.ndarray) else dt
+            st[0, j], st[1, j] = scurve(st[0, j], st[1, j], vd[j], g.vmax_mps, g.a_mps2,
+                                        g.jerk_mps3, dj)
+        if cut > 0:  # acceleration-limited only (see MpepcParams.v_jerk)
+            a = slice(0, cut)
+            da = dt[a] if isinstance(dt, np.ndarray) else dt
+            dv = clip(vd[a] - st[0, a], -g.a_mps2 * da, g.a_mps2 * da)
+            st[0, a], st[1, a] = st[0, a] + dv, dv / da
+        wt = wd.copy()  # (where not big)
+        np.divide(wd * st[0], vd, out=wt, where=big)
         st[2], st[3] = scurve(st[2], st[3], wt, g.omega_max_radps, g.omega_acc_radps2,
                               g.omega_jerk_radps3, dt)
 
@@ -347,34 +358,85 @@ class Mpepc:
                 & (np.abs(tgt[:, 1] - goal[1]) < 1e-6) & ~in_place
         out = np.empty((5, n, self.steps))
         commit = min(self.steps, max(1, math.ceil(g.commit_s / dt - 1e-9)))
-        sure = self.committed(x, y, yaw, st.copy(), tgt, vmax, turning.copy(), arrived.copy(),
-                              final, commit * dt)
+        on_final = final if final.any() else None  # (None: law_step skips that work)
+        span = commit * dt
+        n_c = max(1, math.ceil(span / self.p.exact_dt_s - 1e-9))  # the committed motion's steps
         fine = math.ceil(self.p.fine_s / dt - 1e-9)
-        for k in range(self.steps):
-            n_sub = self.p.fine_substeps if k < fine else 1
-            for _ in range(n_sub):
-                x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
-                                          dt / n_sub, self.p.v_jerk)
-            out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
-            out[3, :, k], out[4, :, k] = st[0], st[2]
+        # The prediction's law steps: (their dt, the step of `out` each completes, else -1)
+        sched = [(dt / n_sub, k if j == n_sub - 1 else -1) for k in range(self.steps)
+                 for n_sub in [self.p.fine_substeps if k < fine else 1] for j in range(n_sub)]
+        # The committed motion (its own steps, v's jerk on) and the stop after it are simulated
+        # alongside the prediction, side by side in one batch of 2N: independent simulations
+        # with the same numbers as one after the other, at half the numpy calls (their per-call
+        # cost dominates at a few hundred candidates). The stop is the law step with vmax 0
+        # (the law's v and ω 0: the limiter brakes, as `braking` does, the same numbers).
+        both = np.concatenate([st, st], 1)
+        xx, yy, ww = np.concatenate([x, x]), np.concatenate([y, y]), np.concatenate([yaw, yaw])
+        tgt2, vmax2 = np.concatenate([tgt, tgt]), np.concatenate([vmax, vmax])
+        turning2, arrived2 = np.concatenate([turning, turning]), np.concatenate([arrived, arrived])
+        final2 = None if on_final is None else np.concatenate([on_final, on_final])
+        dts = np.full(2 * n, span / n_c)  # (the prediction's half set per step)
+        kept: list[F64] = []  # the committed motion's poses, then the stop's
+        stop: list[F64] = []
+        every = max(1, round(0.5 * dt / self.p.exact_dt_s))  # poses kept: ~0.1 s
+        n_b, j_b = self.brake_steps(), -1  # the stop's steps, the one done (-1: not braking)
+        m, stopped = len(sched), False  # the steps simulated side by side; the stop done
+        for j, (step_dt, k) in enumerate(sched):
+            dts[:n] = step_dt
+            xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
+                                       dts, jerk_from=0 if self.p.v_jerk else n)
+            if k >= 0:
+                out[0, :, k], out[1, :, k], out[2, :, k] = xx[:n], yy[:n], ww[:n]
+                out[3, :, k], out[4, :, k] = both[0, :n], both[2, :n]
+            if j_b < 0:
+                if (j + 1) % every == 0 or j == n_c - 1:
+                    kept.append(np.stack([xx[n:], yy[n:], ww[n:]]))
+                if j == n_c - 1:  # committed: the stop from here
+                    vmax2[n:], dts[n:], j_b = 0.0, self.p.exact_dt_s, 0
+                continue
+            done = not both[:, n:].any()  # (braking: every candidate at rest)
+            if (j_b + 1) % every == 0 or j_b == n_b - 1 or done:
+                stop.append(np.stack([xx[n:], yy[n:], ww[n:]]))
+            j_b += 1
+            if done or j_b == n_b:
+                m, stopped = j + 1, True
+                break
+        side = (xx[n:], yy[n:], ww[n:], both[:, n:].copy())
+        if j_b < 0:  # (the committed motion outlasts the prediction)
+            sure = self.committed(*side, tgt, vmax, turning2[n:].copy(), arrived2[n:].copy(),
+                                  on_final, span, m, kept)
+        else:  # (the stop goes on alone where it outlasts the prediction)
+            sure = np.concatenate([np.stack(kept, -1), np.stack(stop, -1) if stopped
+                                   else self.braking(*side, j_b, stop)], -1)
+        x, y, yaw, st = xx[:n], yy[:n], ww[:n], both[:, :n].copy()
+        turning, arrived = turning2[:n].copy(), arrived2[:n].copy()
+        for step_dt, k in sched[m:]:
+            x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, on_final,
+                                      step_dt, self.p.v_jerk)
+            if k >= 0:
+                out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
+                out[3, :, k], out[4, :, k] = st[0], st[2]
         return out[0], out[1], out[2], out[3], out[4], sure
 
     def committed(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                   turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
-                  final: npt.NDArray[np.bool_], span_s: float) -> F64:
+                  final: npt.NDArray[np.bool_] | None, span_s: float, start: int = 0,
+                  kept: list[F64] | None = None) -> F64:
         """(3, N, B) poses of what a plan commits the chair to: its first `span_s` as the
         core's limiter drives it (v's jerk on, steps of `exact_dt_s`), then braking to rest from
-        there. The drive chain's lag (dead time, the PID's prefilter: control/core.py
-        ChainAxis) is in the start pose: the core plans from its chain predictor's pose (where
-        the chair would stand once the commands already sent have acted), and what the chain
-        passes on integrates to the commands, so the stop ends where the lagging chair comes to
-        rest (measured 2 cm / 0.7° after a braked 35° swing) and the body's real sweep lies
-        within 2.5 cm of the predicted one (tests/test_nav_stop.py), inside `brake_clear_m`."""
+        there (from its step `start` on, the poses kept before it in `kept`: simulate runs the
+        first steps alongside the prediction). The drive chain's lag (dead time, the PID's
+        prefilter: control/core.py ChainAxis) is in the start pose: the core plans from its
+        chain predictor's pose (where the chair would stand once the commands already sent
+        have acted), and what the chain passes on integrates to the commands, so the stop ends
+        where the lagging chair comes to rest (measured 2 cm / 0.7° after a braked 35° swing)
+        and the body's real sweep lies within 2.5 cm of the predicted one
+        (tests/test_nav_stop.py), inside `brake_clear_m`."""
         h = self.p.exact_dt_s
         n = max(1, math.ceil(span_s / h - 1e-9))
         every = max(1, round(0.5 * self.p.dt_s / h))  # poses kept: the sweep at ~0.1 s
-        kept = []
-        for k in range(n):
+        kept = [] if kept is None else kept
+        for k in range(start, n):
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
                                       span_s / n, True)
             if (k + 1) % every == 0 or k == n - 1:
@@ -383,32 +445,40 @@ class Mpepc:
 
     def law_step(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                  turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
-                 final: npt.NDArray[np.bool_], dt: float, v_jerk: bool = False
-                 ) -> tuple[F64, F64, F64]:
-        """The 50 Hz loop over dt: the law (or the in-place turn) towards the targets, then the
-        limiter; `turning` and `arrived` are updated in place."""
+                 final: npt.NDArray[np.bool_] | None, dt: float | F64, v_jerk: bool = False,
+                 jerk_from: int | None = None) -> tuple[F64, F64, F64]:
+        """The 50 Hz loop over dt (per candidate if an array): the law (or the in-place turn)
+        towards the targets, then the limiter; `turning` and `arrived` are updated in place.
+        `final`: the candidates on the core's final approach (None: none). `jerk_from`: v's
+        jerk limit for the candidates from this index on only (else `v_jerk` for all)."""
         g = self.law
         tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
         dx, dy = tx - x, ty - y
         r = np.hypot(dx, dy)
+        alpha = np.arctan2(dy, dx)
+        # the three angle differences wrapped in one call (numpy's per-call cost dominates)
+        diff = np.empty((3, x.size))
+        np.subtract(tyaw, yaw, out=diff[0])
+        np.subtract(tyaw, alpha, out=diff[1])
+        np.subtract(yaw, alpha, out=diff[2])
+        e, th, de = wrap(diff)
         # As the core's _follow_plan decides every tick (not once): an in-place candidate turns
         # while its yaw error is ≥ 2·ALIGNED_RAD, and the law stops translating only within the
         # capture radius of the target. A chair still rolling when it turned (or past the
         # target) gets the law towards a point behind it, which spins it round: predicted so
         # (a sticky "arrived" predicted a stop; the core's spin touched the bench, seed 1).
         arrived[:] = r < g.capture_m
-        turning &= np.abs(wrap(tyaw - yaw)) >= 2 * ALIGNED_RAD
+        ae = np.abs(e)
+        turning &= ae >= 2 * ALIGNED_RAD
         captured = turning | arrived
-        alpha = np.arctan2(dy, dx)
-        th, de = wrap(tyaw - alpha), wrap(yaw - alpha)
         k1t = g.k1 * th
         kappa = -(g.k2 * (de - np.arctan(-k1t)) + (1 + g.k1 / (1 + k1t * k1t)) * np.sin(de)) \
             / np.maximum(r, 1e-6)
-        vd = vmax / (1 + g.beta * np.abs(kappa) ** g.lam)
-        vd = np.maximum(vd, np.minimum(vmax, g.omega_floor_radps / np.maximum(
-            np.abs(kappa), 1e-9)))
+        akappa = np.abs(kappa)
+        vd = vmax / (1 + g.beta * akappa ** g.lam)
+        vd = np.maximum(vd, np.minimum(vmax, g.omega_floor_radps / np.maximum(akappa, 1e-9)))
         vd = np.minimum(vd, vmax * r / g.r_thresh_m)
-        if final.any():  # (control/core.py _desired: braking curve from where the limiter
+        if final is not None:  # (control/core.py _desired: braking curve from where the limiter
             # will have swung its acceleration round to braking)
             f = g.brake_fraction
             swing = np.maximum(st[1] + f * g.a_mps2, 0.0) / g.jerk_mps3
@@ -416,42 +486,53 @@ class Mpepc:
                                  f * g.jerk_mps3)
             vd = np.where(final, np.minimum.reduce([vd, stop, g.approach_rate_1ps * r]), vd)
         wd = kappa * vd
-        e = wrap(tyaw - yaw)
-        ae = np.abs(e)
-        wa = np.sign(e) * np.minimum(np.minimum(g.omega_max_radps, np.sqrt(
-            2 * g.align_brake_radps2 * ae)), g.align_gain_1ps * ae)
-        vd, wd = np.where(captured, 0.0, vd), np.where(captured, wa, wd)
+        if captured.any():
+            wa = np.sign(e) * np.minimum(np.minimum(g.omega_max_radps, np.sqrt(
+                2 * g.align_brake_radps2 * ae)), g.align_gain_1ps * ae)
+            vd, wd = np.where(captured, 0.0, vd), np.where(captured, wa, wd)
         # vmax 0 (only the stop seed; the search keeps vmax ≥ v_min): the law's v and ω are 0,
         # i.e. the limiter brakes (v, ω) to rest, as the core does when a plan is blocked.
         halt = vmax <= 0.0
-        vd, wd = np.where(halt, 0.0, vd), np.where(halt, 0.0, wd)
-        return self.advance(x, y, yaw, st, vd, wd, dt, v_jerk)
+        if halt.any():
+            vd, wd = np.where(halt, 0.0, vd), np.where(halt, 0.0, wd)
+        return self.advance(x, y, yaw, st, vd, wd, dt, v_jerk, jerk_from)
 
-    def advance(self, x: F64, y: F64, yaw: F64, st: F64, vd: F64, wd: F64, dt: float,
-                v_jerk: bool = True) -> tuple[F64, F64, F64]:
+    def advance(self, x: F64, y: F64, yaw: F64, st: F64, vd: F64, wd: F64, dt: float | F64,
+                v_jerk: bool = True, jerk_from: int | None = None) -> tuple[F64, F64, F64]:
         """One step of dt: the limiter towards (vd, ωd), the pose by the step's mean v, ω."""
         v_old, w_old = st[0].copy(), st[2].copy()
-        self.limiter(st, vd, wd, dt, v_jerk)
+        self.limiter(st, vd, wd, dt, v_jerk, jerk_from)
         return move(x, y, yaw, v_old, w_old, st, dt)
 
-    def braking(self, x: F64, y: F64, yaw: F64, st: F64) -> F64:
+    def brake_steps(self) -> int:
+        """The steps of `exact_dt_s` the longest stop takes."""
+        g = self.law
+        stop_s = g.vmax_mps / g.a_mps2 + 2 * g.a_mps2 / g.jerk_mps3
+        return max(1, math.ceil(stop_s / self.p.exact_dt_s))
+
+    def braking(self, x: F64, y: F64, yaw: F64, st: F64, start: int = 0,
+                kept: list[F64] | None = None) -> F64:
         """(3, N, B) poses while the limiter brakes to rest (v, ω desired 0, as the core does
         when a plan says blocked) from state st, at `exact_dt_s` (kept every ~0.1 s), until
-        every candidate is at rest."""
+        every candidate is at rest; from its step `start` on (the poses kept before it in
+        `kept`: simulate runs the first steps alongside the prediction)."""
         g, h = self.law, self.p.exact_dt_s
-        stop_s = g.vmax_mps / g.a_mps2 + 2 * g.a_mps2 / g.jerk_mps3  # the longest stop
-        steps = max(1, math.ceil(stop_s / h))
+        steps = self.brake_steps()
         every = max(1, round(0.5 * self.p.dt_s / h))  # poses kept: the sweep at ~0.1 s
-        kept = []
-        zero = np.zeros(x.size)
-        for k in range(steps):
+        kept = [] if kept is None else kept
+        zero = np.zeros((2, x.size))
+        # v's and ω's limits as columns: both axes in one call (the same numbers, half the
+        # calls; numpy's per-call cost dominates at a few hundred candidates)
+        lim = (np.array([[g.vmax_mps], [g.omega_max_radps]]),
+               np.array([[g.a_mps2], [g.omega_acc_radps2]]),
+               np.array([[g.jerk_mps3], [g.omega_jerk_radps3]]))
+        vw, rates = st[0::2], st[1::2]  # views: (v, ω), (v̇, ω̇)
+        for k in range(start, steps):
             # advance(…, zero, zero, h), less the limiter's curvature work, which leaves a
             # desired (0, 0) as it is: the same numbers, the planner's longest loop.
-            v_old, w_old = st[0].copy(), st[2].copy()
-            st[0], st[1] = scurve(st[0], st[1], zero, g.vmax_mps, g.a_mps2, g.jerk_mps3, h)
-            st[2], st[3] = scurve(st[2], st[3], zero, g.omega_max_radps, g.omega_acc_radps2,
-                                  g.omega_jerk_radps3, h)
-            x, y, yaw = move(x, y, yaw, v_old, w_old, st, h)
+            old = vw.copy()
+            vw[...], rates[...] = scurve(vw, rates, zero, *lim, h)
+            x, y, yaw = move(x, y, yaw, old[0], old[1], st, h)
             done = not st.any()  # every candidate at rest: the rest is where it stands
             if (k + 1) % every == 0 or k == steps - 1 or done:
                 kept.append(np.stack([x, y, yaw]))
@@ -466,8 +547,8 @@ class Mpepc:
                  hf: HeadingField | None = None) -> tuple[F64, dict[str, F64]]:
         p, dt, fld = self.p, self.p.dt_s, self.field
         xs, ys, yaws, vs, ws, brake = self.simulate(pose, v0, w0, z, a0, q0, goal, last)
-        px, py = place_xy(fld.outline, xs, ys, yaws)  # (N, T, P) each
-        d_static = fld.clearance_xy(px, py).min(axis=-1)
+        t = np.asarray((np.arange(self.steps) + 1) * dt, dtype=np.float64)
+        d_static, to_people = self.outline_distances(xs, ys, yaws, people, t)  # (N, T)
         pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
         # Already closer than `contact_m` (a noisy live map, a chair nudged to a wall): only
         # getting closer still counts as a hit, so the chair can move away instead of freezing.
@@ -477,14 +558,11 @@ class Mpepc:
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
         # Both that motion and its stop as the core's limiter really drives them (committed).
-        d_brake = fld.clearance_xy(*place_xy(fld.outline, brake[0], brake[1], brake[2])).min(-1)
+        d_brake = fld.footprint_clearance(brake[0], brake[1], brake[2])
         hit[:, -1] |= d_brake.min(1) < min(p.brake_clear_m, d0 - 0.005)
         d_all = d_static
-        t = (np.arange(self.steps) + 1) * dt
-        for person in people:
-            cx, cy = person.x_m + person.vx_mps * t, person.y_m + person.vy_mps * t
-            dp = (np.hypot(px - cx[:, None], py - cy[:, None]).min(-1)
-                  - person.radius_m)
+        for person, (to_path, to_here) in zip(people, to_people, strict=True):
+            dp = to_path - person.radius_m
             hit |= dp < 0.0
             d_all = np.minimum(d_all, dp)
             pc = 1 - (1 - pc) * (1 - np.exp(-(np.maximum(dp, 0) / p.sigma_moving_m) ** 2))
@@ -493,8 +571,7 @@ class Mpepc:
             # limits) is off limits too, so it does not race past where they might step.
             reach = person.radius_m + math.hypot(person.vx_mps, person.vy_mps) * np.minimum(
                 t, p.react_s)
-            ds = (np.hypot(px - person.x_m, py - person.y_m).min(-1)
-                  - reach[None, :])
+            ds = to_here - reach[None, :]
             hit |= ds < 0.0
             pc = 1 - (1 - pc) * (1 - p.stay_weight * np.exp(
                 -(np.maximum(ds, 0) / p.sigma_moving_m) ** 2))
@@ -525,6 +602,28 @@ class Mpepc:
                       "in_lattice": in_lattice.astype(np.float64),
                       "hit": hit.any(1).astype(np.float64),
                       "x": xs, "y": ys, "yaw": yaws}
+
+    def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64
+                          ) -> tuple[F64, list[tuple[F64, F64]]]:
+        """At the predicted poses (N, T): the footprint's clearance (NavField.
+        footprint_clearance) and per person the least distance of its outline to their centre
+        predicted at constant velocity (at times `t`) and to where they stand now. In batches
+        of candidates (field.BATCH_POINTS: the temporaries stay in cache), the same numbers."""
+        fld = self.field
+        if not people:
+            return fld.footprint_clearance(xs, ys, yaws), []
+        d = np.empty(xs.shape)
+        near = [(np.empty(xs.shape), np.empty(xs.shape)) for _ in people]
+        rows = max(1, BATCH_POINTS // (xs.shape[1] * len(fld.outline)))
+        for i in range(0, xs.shape[0], rows):
+            b = slice(i, i + rows)
+            px, py = place_xy(fld.outline, xs[b], ys[b], yaws[b])  # (n, T, P)
+            for person, (to_path, to_here) in zip(people, near, strict=True):
+                cx, cy = person.x_m + person.vx_mps * t, person.y_m + person.vy_mps * t
+                to_path[b] = np.hypot(px - cx[:, None], py - cy[:, None]).min(-1)
+                to_here[b] = np.hypot(px - person.x_m, py - person.y_m).min(-1)
+            d[b] = fld.outline_clearance(px, py)  # (last: px, py are its scratch)
+        return d, near
 
     def lattice_active(self, hf: HeadingField, pose: tuple[float, float, float],
                        phi0: float) -> bool:

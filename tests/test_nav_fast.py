@@ -1,0 +1,140 @@
+"""The planner's fast paths against their plain definitions, bit for bit (pure, no processes):
+the outline sampled in batches and in place, people's distances in the same batches, both
+axes braked in one call. Each must give exactly the numbers of the plain formula (nav_eval's
+figures are compared to the plan cycle: any difference would show there as chaos)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from autochair.control.core import ControlConfig
+from autochair.nav import field as nav_field
+from autochair.nav.field import Footprint, GridMap, NavField, bilinear_xy, place_xy
+from autochair.nav.mpepc import Mpepc, MpepcParams, Person, move, scurve
+
+FP = Footprint()
+
+
+def room() -> NavField:
+    """A 6 × 4 m room with a post: points can lie inside, near the edges and off the map."""
+    segs = np.array([[0, 0, 6, 0], [6, 0, 6, 4], [6, 4, 0, 4], [0, 4, 0, 0]], dtype=float)
+    return NavField(GridMap.from_shapes(segs, np.array([[3.0, 2.0, 0.3]])), FP)
+
+
+def plain_place(points: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    x, y, yaw = x[..., None], y[..., None], yaw[..., None]
+    c, s = np.cos(yaw), np.sin(yaw)
+    px, py = points[:, 0], points[:, 1]
+    return x + c * px - s * py, y + s * px + c * py
+
+
+def plain_bilinear(grid: np.ndarray, gm: GridMap, x: np.ndarray, y: np.ndarray,
+                   outside: float) -> np.ndarray:
+    h, w = grid.shape
+    fx = (x - gm.origin_x_m) / gm.resolution_m - 0.5
+    fy = (y - gm.origin_y_m) / gm.resolution_m - 0.5
+    inside = (fx >= 0) & (fx <= w - 1) & (fy >= 0) & (fy <= h - 1)
+    fx = np.minimum(np.maximum(fx, 0), w - 1.0001)
+    fy = np.minimum(np.maximum(fy, 0), h - 1.0001)
+    x0, y0 = fx.astype(np.intp), fy.astype(np.intp)
+    ax, ay = fx - x0, fy - y0
+    g = grid
+    v = (g[y0, x0] * (1 - ax) * (1 - ay) + g[y0, x0 + 1] * ax * (1 - ay)
+         + g[y0 + 1, x0] * (1 - ax) * ay + g[y0 + 1, x0 + 1] * ax * ay)
+    return np.where(inside, v, outside)
+
+
+def poses(n: int, t: int, seed: int, off_map: bool) -> tuple[np.ndarray, ...]:
+    rng = np.random.default_rng(seed)
+    lo, hi = (-2.0, 8.0) if off_map else (1.0, 5.0)
+    return (rng.uniform(lo, hi, (n, t)), rng.uniform(lo * 0.5 + 0.5, hi * 0.5 + 0.5, (n, t)),
+            rng.uniform(-4.0, 4.0, (n, t)))
+
+
+def test_placing_and_sampling_the_outline_give_the_plain_numbers() -> None:
+    fld = room()
+    for off_map in (False, True):
+        x, y, yaw = poses(7, 5, 1, off_map)
+        px, py = place_xy(fld.outline, x, y, yaw)
+        qx, qy = plain_place(fld.outline, x, y, yaw)
+        assert np.array_equal(px, qx) and np.array_equal(py, qy)
+        # scalar poses broadcast as before
+        sx, sy = place_xy(fld.outline, 2.0, 1.5, yaw)
+        assert np.array_equal(sx, plain_place(fld.outline, np.full(yaw.shape, 2.0),
+                                              np.full(yaw.shape, 1.5), yaw)[0])
+        assert sy.shape == (*yaw.shape, len(fld.outline))
+        got = bilinear_xy(fld.clearance, fld.map, px, py, 0.0)
+        assert np.array_equal(got, plain_bilinear(fld.clearance, fld.map, qx, qy, 0.0))
+
+
+def test_the_batched_footprint_clearance_is_the_plain_one() -> None:
+    fld = room()
+    step = nav_field.BATCH_POINTS // len(fld.outline)
+    for off_map in (False, True):
+        # more poses than one batch holds, not a multiple of it: several batches and a rest
+        x, y, yaw = poses(3 * step // 25 + 7, 25, 2, off_map)
+        want = plain_bilinear(fld.clearance, fld.map, *plain_place(fld.outline, x, y, yaw),
+                              0.0).min(-1)
+        got = fld.footprint_clearance(x, y, yaw)
+        assert got.shape == x.shape and np.array_equal(got, want)
+        if off_map:  # (some outline points off the map: the clamped path, 0 there)
+            assert (got == 0.0).any() and (got > 0.0).any()
+        # the in-place sampling of given outline points (its scratch overwritten)
+        px, py = plain_place(fld.outline, x[:3], y[:3], yaw[:3])
+        assert np.array_equal(fld.outline_clearance(px.copy(), py.copy()), want[:3])
+    # a single pose and a sweep of yaws at one point (broadcast) as before
+    assert float(fld.footprint_clearance(2.0, 1.0, 0.3)) == float(plain_bilinear(
+        fld.clearance, fld.map, *plain_place(fld.outline, np.array(2.0), np.array(1.0),
+                                             np.array(0.3)), 0.0).min())
+    yaws = np.linspace(-3.0, 3.0, 2000)
+    want = plain_bilinear(fld.clearance, fld.map, *plain_place(
+        fld.outline, np.full(yaws.size, 1.5), np.full(yaws.size, 1.0), yaws), 0.0).min(-1)
+    assert np.array_equal(fld.footprint_clearance(1.5, 1.0, yaws), want)
+
+
+def test_people_distances_in_batches_are_the_plain_ones() -> None:
+    fld = room()
+    mp = Mpepc(fld, ControlConfig().law(0.025), MpepcParams())
+    x, y, yaw = poses(140, mp.steps, 3, True)
+    people = [Person(2.0, 1.0, 0.5, -0.2, 0.25), Person(4.5, 3.0, 0.0, 0.0, 0.3)]
+    t = np.asarray((np.arange(mp.steps) + 1) * mp.p.dt_s, dtype=np.float64)
+    d, near = mp.outline_distances(x, y, yaw, people, t)
+    px, py = plain_place(fld.outline, x, y, yaw)
+    assert np.array_equal(d, plain_bilinear(fld.clearance, fld.map, px, py, 0.0).min(-1))
+    for p, (to_path, to_here) in zip(people, near, strict=True):
+        cx, cy = p.x_m + p.vx_mps * t, p.y_m + p.vy_mps * t
+        assert np.array_equal(to_path, np.hypot(px - cx[:, None], py - cy[:, None]).min(-1))
+        assert np.array_equal(to_here, np.hypot(px - p.x_m, py - p.y_m).min(-1))
+    d0, none = mp.outline_distances(x, y, yaw, [], t)
+    assert none == [] and np.array_equal(d0, d)
+
+
+def test_braking_both_axes_in_one_call_is_braking_each() -> None:
+    law = ControlConfig().law(0.025)
+    mp = Mpepc(room(), law, MpepcParams())
+    rng = np.random.default_rng(4)
+    n = 50
+    st0 = np.stack([rng.uniform(-0.2, 1.2, n), rng.uniform(-1.0, 1.0, n),
+                    rng.uniform(-0.9, 0.9, n), rng.uniform(-2.0, 2.0, n)])
+    st0[:, :3] = 0.0  # some already at rest
+    x, y, yaw = rng.uniform(1, 5, n), rng.uniform(1, 3, n), rng.uniform(-3, 3, n)
+    got = mp.braking(x, y, yaw, st0.copy())
+    # the plain loop: each axis its own S-curve, every step kept every 0.1 s, until at rest
+    h, st, zero, kept = mp.p.exact_dt_s, st0.copy(), np.zeros(n), []
+    every = max(1, round(0.5 * mp.p.dt_s / h))
+    steps = int(np.ceil((law.vmax_mps / law.a_mps2 + 2 * law.a_mps2 / law.jerk_mps3) / h))
+    for k in range(steps):
+        v_old, w_old = st[0].copy(), st[2].copy()
+        st[0], st[1] = scurve(st[0], st[1], zero, law.vmax_mps, law.a_mps2, law.jerk_mps3, h)
+        st[2], st[3] = scurve(st[2], st[3], zero, law.omega_max_radps, law.omega_acc_radps2,
+                              law.omega_jerk_radps3, h)
+        x, y, yaw = move(x, y, yaw, v_old, w_old, st, h)
+        done = not st.any()
+        if (k + 1) % every == 0 or k == steps - 1 or done:
+            kept.append(np.stack([x, y, yaw]))
+        if done:
+            break
+    want = np.stack(kept, -1)
+    assert got.shape == want.shape and np.array_equal(got, want)
+    assert np.abs(np.diff(got[0], axis=1)).max() > 0.01  # (positive control: it moved)
