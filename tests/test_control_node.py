@@ -1,7 +1,7 @@
 """The control node's wiring under a busy core. A goal's route check (costs-to-go and the
-forward lattice: 0.05 s, up to 1.5 s on a loaded CPU, measured on the navigation suite's
+forward lattice: 0.1-0.2 s quiet, up to 1.6 s on a loaded CPU, measured on the navigation suite's
 office) runs without the core's lock: the 50 Hz loop and odometry go on meanwhile, odometry is
-not taken for stale (two CI runs aborted goals at the start with "stale odometry (0.30 s >
+not taken for stale (a CI run aborted a goal at the start with "stale odometry (0.30 s >
 0.3 s)" while the odometry service was publishing all along), and a goal whose asker gave up
 during the check is not taken (hazards H43)."""
 
