@@ -136,8 +136,8 @@ def test_a_goal_whose_asker_gave_up_during_the_route_check_is_not_taken(
         route.release.set()
         asking.join(5.0)
     if gives_up:
-        wait_for(lambda: control.node.health.counters.get("late_requests"), 5.0,
-                 "the late goal counted")
+        wait_for(lambda: control.node.health.counters.get(f"late_requests:{keys.GOAL_SET.key}"),
+                 5.0, "the late goal counted")
         assert not core.active and core.goal_id == 0, core.state
     else:  # positive control: the same goal, its asker still waiting, is taken
         assert reply and isinstance(reply[0], GoalReply) and reply[0].ok, reply

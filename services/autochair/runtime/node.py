@@ -318,7 +318,7 @@ class Node:
                 self.event("warning", f"{topic.key}: request not acted on: {late}")
                 query.reply_err(f"{topic.key}: not acted on: {late}".encode())
                 return
-            self._asked.attachment = attachment
+            self._asked.attachment, self._asked.key = attachment, topic.key
             try:
                 reply = handler(request)
                 if not isinstance(reply, reply_type):
@@ -338,8 +338,9 @@ class Node:
         late = client.too_late(getattr(self._asked, "attachment", None), time.time_ns(),
                                self.stale.clock_skew_s)
         if late:
-            self.health.count("late_requests")
-            self.event("warning", f"request not acted on: {late}")
+            key = getattr(self._asked, "key", "?")
+            self.health.count(f"late_requests:{key}")
+            self.event("warning", f"{key}: request not acted on: {late}")
         return late
 
     def queryable(self, topic: keys.Topic[Any], handler: Callable[[zenoh.Query], None]) -> None:
