@@ -702,29 +702,34 @@ def test_a_chair_stopped_short_beside_the_goal_drives_its_straight_final() -> No
     assert turned < math.radians(1) and math.hypot(pose[0] - 2.07, pose[1] - 0.035) <= 0.05
 
 
-def _straight_stage(wall_x: float | None, straight_m: float) -> tuple[ControlCore, list[float],
-                                                                        float]:
-    """The core at rest at (2, 0, 0) in a room (with a wall across the way at `wall_x`) given
-    MPEPC's plan "drive 0.12 m straight and stop" (Mpepc.stage_plan; `straight_m` 0: the same
-    target as a law target), re-sent every plan period for 3 s as the planner continues it;
-    the pose reached and the largest |ω| sent."""
+ROOM = [[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
+        [-1.0, 3.0, -1.0, -3.0]]  # walls x0 y0 x1 y1: a 7 × 6 m room
+
+
+def _drive_plan(plan_z: tuple[float, float, float, float],
+                target: tuple[float, float, float], goal: Pose2D, until_s: float,
+                start: tuple[float, float, float] = (2.0, 0.0, 0.0), v0: float = 0.0,
+                walls: list[list[float]] | None = None, straight_m: float = 0.0
+                ) -> tuple[ControlCore, list[float], float]:
+    """The core at `start` moving at `v0` towards `goal` (in a map of `walls`; None: no map),
+    given one MPEPC plan (z, its target, vmax z[3]) re-sent every plan period for `until_s`,
+    against a chair that follows at once (50 Hz); the core, the pose reached and the largest
+    |ω| sent."""
     from autochair.nav.field import GridMap, NavField
     from autochair.nav.mpepc import Plan
     from autochair.nav.planner import PlanResult
 
-    walls = [[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
-             [-1.0, 3.0, -1.0, -3.0]]
-    if wall_x is not None:
-        walls.append([wall_x, -0.8, wall_x, 0.8])
     core = fresh_core(INSTANT)
     core.inline_planning = False
-    core.on_field(NavField(GridMap.from_shapes(np.array(walls), np.zeros((0, 3))), Footprint()))
-    core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
-    assert core.set_goal(GoalRequest(waypoints=[Pose2D(4.0, 1.5, 0.0)]), 0.0).ok
-    plan = Plan((0.12, 0.0, 0.0, 0.15), (2.12, 0.0, 0.0), 0.15, 0.0, 0.0, 1.0, 1.0,
-                np.zeros((1, 3)), False, math.nan, 0.0, 1, straight_m=straight_m)
-    pose, t, spin = [2.0, 0.0, 0.0], 0.0, 0.0
-    while t < 3.0 and core.active:
+    if walls is not None:
+        core.on_field(NavField(GridMap.from_shapes(np.array(walls), np.zeros((0, 3))),
+                               Footprint()))
+    core.on_odom(OdomSample(*start, v0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[goal]), 0.0).ok
+    plan = Plan(plan_z, target, plan_z[3], 0.0, 0.0, 1.0, 1.0, np.zeros((1, 3)), False,
+                math.nan, 0.0, 1, straight_m=straight_m)
+    pose, t, spin = list(start), 0.0, 0.0
+    while t < until_s and core.active:
         core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
         for _ in range(25):
             out = core.step(t) or (0.0, 0.0)
@@ -735,6 +740,17 @@ def _straight_stage(wall_x: float | None, straight_m: float) -> tuple[ControlCor
             core.on_odom(OdomSample(pose[0], pose[1], pose[2], out[0], out[1], t))
             t += 0.02
     return core, pose, spin
+
+
+def _straight_stage(wall_x: float | None, straight_m: float) -> tuple[ControlCore, list[float],
+                                                                        float]:
+    """The core at rest at (2, 0, 0) in a room (with a wall across the way at `wall_x`) given
+    MPEPC's plan "drive 0.12 m straight and stop" (Mpepc.stage_plan; `straight_m` 0: the same
+    target as a law target), re-sent every plan period for 3 s as the planner continues it;
+    the pose reached and the largest |ω| sent."""
+    walls = ROOM + ([] if wall_x is None else [[wall_x, -0.8, wall_x, 0.8]])
+    return _drive_plan((0.12, 0.0, 0.0, 0.15), (2.12, 0.0, 0.0), Pose2D(4.0, 1.5, 0.0), 3.0,
+                       walls=walls, straight_m=straight_m)
 
 
 def test_a_straight_stage_is_driven_onto_its_point_without_steering() -> None:
@@ -767,33 +783,9 @@ def _rolled_past(wall_y: float | None) -> tuple[ControlCore, float]:
     given MPEPC's in-place plan "turn to 0° at (1.95, 0)": a point the chair has rolled 5 cm
     past (its pose predicted a few cm off), re-sent every plan period for 1.5 s; the largest
     |ω| sent."""
-    from autochair.nav.field import GridMap, NavField
-    from autochair.nav.mpepc import Plan
-    from autochair.nav.planner import PlanResult
-
-    walls = [[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
-             [-1.0, 3.0, -1.0, -3.0]]
-    if wall_y is not None:
-        walls.append([0.0, wall_y, 4.0, wall_y])
-    core = fresh_core(INSTANT)
-    core.inline_planning = False
-    core.on_field(NavField(GridMap.from_shapes(np.array(walls), np.zeros((0, 3))), Footprint()))
-    core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.2, 0.0, 0.0))
-    assert core.set_goal(GoalRequest(waypoints=[Pose2D(4.5, -1.5, 0.0)]), 0.0).ok
-    plan = Plan((0.0, 0.0, 0.0, 0.15), (1.95, 0.0, 0.0), 0.15, 0.0, 0.0, 1.0, 1.0,
-                np.zeros((1, 3)), False, math.nan, 0.0, 1)
-    pose, v, t, spin = [2.0, 0.0, 0.0], 0.2, 0.0, 0.0
-    while t < 1.5 and core.active:
-        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
-        for _ in range(25):
-            out = core.step(t) or (0.0, 0.0)
-            spin = max(spin, abs(out[1]))
-            pose[2] = wrap(pose[2] + out[1] * 0.02)
-            pose[0] += out[0] * math.cos(pose[2]) * 0.02
-            pose[1] += out[0] * math.sin(pose[2]) * 0.02
-            v = out[0]
-            core.on_odom(OdomSample(pose[0], pose[1], pose[2], v, out[1], t))
-            t += 0.02
+    walls = ROOM + ([] if wall_y is None else [[0.0, wall_y, 4.0, wall_y]])
+    core, _, spin = _drive_plan((0.0, 0.0, 0.0, 0.15), (1.95, 0.0, 0.0),
+                                Pose2D(4.5, -1.5, 0.0), 1.5, v0=0.2, walls=walls)
     return core, spin
 
 
@@ -832,23 +824,10 @@ def test_a_late_handover_does_not_carry_the_chair_past_its_goal() -> None:
     (the plan that hands the goal over comes late on a loaded CPU: a forward-only chair
     overshot a goal by 6 cm, which it cannot come back to), the law is capped to a stop on
     the goal at the limiter's full braking."""
-    from autochair.nav.mpepc import Plan
-    from autochair.nav.planner import PlanResult
-
-    core = fresh_core(INSTANT)
-    core.inline_planning = False
-    core.on_odom(OdomSample(0.0, 0.0, 0.0, 1.0, 0.0, 0.0))
-    assert core.set_goal(GoalRequest(waypoints=[Pose2D(1.0, 0.0, 0.0)]), 0.0).ok
-    plan = Plan((3.0, 0.0, 0.0, 1.2), (3.0, 0.0, 0.0), 1.2, 0.0, 0.0, 1.0, 1.0,
-                np.zeros((1, 3)), False, math.nan, 0.0, 1)
-    x, t, v = 0.0, 0.0, 1.0
-    while t < 4.0 and core.active:
-        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
-        for _ in range(25):
-            v = (core.step(t) or (0.0, 0.0))[0]
-            x += v * 0.02
-            core.on_odom(OdomSample(x, 0.0, 0.0, v, 0.0, t))
-            t += 0.02
+    core, pose, _ = _drive_plan((3.0, 0.0, 0.0, 1.2), (3.0, 0.0, 0.0), Pose2D(1.0, 0.0, 0.0),
+                                4.0, start=(0.0, 0.0, 0.0), v0=1.0)
+    assert core.odom is not None
+    x, v = pose[0], core.odom.v
     assert 0.95 < x <= 1.0 + 1e-6 and v < 0.1, (x, v)
 
 
