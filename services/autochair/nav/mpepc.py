@@ -467,6 +467,8 @@ class Mpepc:
         # capture radius of the target. A chair still rolling when it turned (or past the
         # target) gets the law towards a point behind it, which spins it round: predicted so
         # (a sticky "arrived" predicted a stop; the core's spin touched the bench, seed 1).
+        # The core brakes instead where that spin's sweep has no room (H44): a plan that did
+        # not happen, replanned from rest.
         arrived[:] = r < g.capture_m
         ae = np.abs(e)
         turning &= ae >= 2 * ALIGNED_RAD
