@@ -492,3 +492,19 @@ def test_at_a_corridors_closed_end_the_way_back_it_cannot_turn_onto_is_given_up(
     seen = NavField(dataclasses.replace(gm, unknown=None), FP)
     assert planner.give_up(seen, ctg, here, goal, min_clear_m=0.02) is None
     assert planner.give_up(seen, ctg, here, goal, min_clear_m=0.05) is not None
+
+
+def test_the_route_checks_reachability_search_finds_the_states_the_costs_do() -> None:
+    """`build(costs=False)` (a breadth-first search, for the route check) must mark as having
+    a way exactly the states the costs-to-go reach, here where some have none (the dead end,
+    facing out)."""
+    fld = dead_end()
+    hall = (-2.0, 0.0, 0.0)
+    for goal in ((2.0, 0.0, 0.0), (2.0, 0.0, math.pi)):
+        costs = lattice.build(fld, goal, start=hall)
+        reach = lattice.build(fld, goal, start=hall, costs=False)
+        assert costs is not None and reach is not None
+        has_way = costs.cost < costs.params.max_cost
+        assert 0 < int(has_way.sum()) < has_way.size  # (positive control: both kinds exist)
+        np.testing.assert_array_equal(reach.cost < reach.params.max_cost, has_way)
+        assert reach.way_in(*hall) == costs.way_in(*hall)

@@ -22,7 +22,7 @@ median offset between the two) elsewhere, and seeds candidates along the lattice
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -250,7 +250,7 @@ class HeadingField:
         return out
 
 
-_KERNELS: dict[tuple[object, ...], npt.NDArray[np.complex128]] = {}
+_KERNELS: dict[tuple[object, ...], npt.NDArray[np.complex64]] = {}
 
 
 def free_states(fld: NavField, box: tuple[int, int, int, int], f: int, n: int,
@@ -267,7 +267,9 @@ def free_states(fld: NavField, box: tuple[int, int, int, int], f: int, n: int,
         near = near | extra
     k = math.ceil((fld.footprint.reach_m + gm.resolution_m) / gm.resolution_m)
     rows, cols = i1 - i0 + 1 + 2 * k, j1 - j0 + 1 + 2 * k
-    win = np.ones((rows, cols), dtype=np.float64)
+    # Single precision: the correlation counts cells (≤ (2k+1)², ~2000), so its rounding error
+    # (~1e-3) cannot cross the 0.5 threshold; half the work of double (the same states).
+    win = np.ones((rows, cols), dtype=np.float32)
     mh, mw = near.shape
     a0, a1 = max(i0 - k, 0), min(i1 + k + 1, mh)
     b0, b1 = max(j0 - k, 0), min(j1 + k + 1, mw)
@@ -280,7 +282,7 @@ def free_states(fld: NavField, box: tuple[int, int, int, int], f: int, n: int,
         stack = []
         for j in range(2 * n):
             ker, _ = footprint_kernel(fld, j * math.pi / n, shift)
-            stack.append(sfft.rfft2(ker[::-1, ::-1], shape))
+            stack.append(sfft.rfft2(ker[::-1, ::-1].astype(np.float32), shape))
         kers = _KERNELS[key] = np.stack(stack)
         if len(_KERNELS) > 8:
             _KERNELS.pop(next(iter(_KERNELS)))
@@ -338,12 +340,42 @@ def legal_moves(full: Bool, half_steps: Bool, p: LatticeParams,
             yield k, int(k2), a, b, ok, float(length), bool(turn)
 
 
+def graph(shape: tuple[int, int, int], deg: int,
+          edges: Iterable[tuple[int, int, Slices, Slices, Bool, F64 | float]], reverse: bool,
+          virtual: I64, virtual_cost: F64 | float) -> csr_matrix:
+    """The lattice's motions (`edges`: per motion as `legal_moves` gives it, with its costs)
+    as a graph over the states (flat index) and one virtual node after them, joined to the
+    states `virtual`. Written straight into CSR form: every state's row holds its `deg` moves
+    (out of it, or with `reverse` into it), a move not legal there a loop onto the state
+    itself, which no search takes. (A COO matrix sorted into CSR cost more than the search.)"""
+    n, h, w = shape
+    nv = n * h * w
+    idx = np.arange(nv, dtype=np.int32).reshape(shape)
+    cols = np.empty(nv * deg + virtual.size, dtype=np.int32)
+    data = np.ones(cols.size)
+    cols_s = cols[:nv * deg].reshape(n, h, w, deg)
+    data_s = data[:nv * deg].reshape(n, h, w, deg)
+    cols_s[...] = idx[..., None]
+    slot = [0] * n
+    for k, k2, a, b, ok, c in edges:
+        (rk, ra), (ck, ca) = ((k2, b), (k, a)) if reverse else ((k, a), (k2, b))
+        into = (*ra, slot[rk])  # (a view: the masked writes land in cols, data)
+        cols_s[rk][into][ok] = idx[ck][ca][ok]
+        data_s[rk][into][ok] = c
+        slot[rk] += 1
+    cols[nv * deg:] = virtual
+    data[nv * deg:] = virtual_cost
+    indptr = np.append(np.arange(0, nv * deg + 1, deg), cols.size).astype(np.int32)
+    return csr_matrix((data, cols, indptr), shape=(nv + 1, nv + 1))
+
+
 def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None = None,
-          params: LatticeParams | None = None, start: tuple[float, float, float] | None = None
-          ) -> HeadingField | None:
+          params: LatticeParams | None = None, start: tuple[float, float, float] | None = None,
+          costs: bool = True) -> HeadingField | None:
     """The heading-aware costs-to-go to `goal` in a window round it (and towards `start`);
     None if no free state lies in the goal region. `ctg_phi`: the 2-D costs-to-go (map
-    grid) for the offset."""
+    grid) for the offset. Without `costs`, only which states have a way to the goal (cost 0,
+    else `max_cost`), by a breadth-first search: a fifth of the time (the route check)."""
     p = params or LatticeParams()
     gm = fld.map
     f = max(1, round(p.resolution_m / gm.resolution_m))
@@ -366,21 +398,6 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     speed = fld.speed[np.ix_(ii_map, jj_map)]
     ox = gm.origin_x_m + (j0 + 0.5) * gm.resolution_m
     oy = gm.origin_y_m + (i0 + 0.5) * gm.resolution_m
-    idx = np.arange(n * h * w).reshape(n, h, w)
-    src: list[I64] = []
-    dst: list[I64] = []
-    cost: list[F64] = []
-    for k, k2, a, b, ok, length, in_place in legal_moves(full, half_steps, p):
-        sp = np.minimum(speed[a], speed[b])
-        src.append(idx[k][a][ok])
-        dst.append(idx[k2][b][ok])
-        c = (length / sp)[ok] if not in_place else np.full(int(ok.sum()), length)
-        if tight:
-            room = roomy_full[k][a] & roomy_full[k2][b]
-            if in_place:
-                room &= roomy_half[k if k2 == (k + 1) % n else k2][a]
-            c = c * np.where(room[ok], 1.0, 1.0 + p.tight_factor)
-        cost.append(c)
     # The goal region: a virtual node joined to free states near the goal pose.
     gx, gy, gyaw = goal
     ii, jj = np.mgrid[0:h, 0:w]
@@ -389,6 +406,7 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     near_cells[(gi - i0) // f, (gj - j0) // f] = True  # the goal's own cell
     step = 2 * math.pi / n
     kb = math.floor(gyaw / step)
+    idx = np.arange(n * h * w).reshape(n, h, w)
     seeds_s: list[I64] = []
     seeds_c: list[F64] = []
     for kk in (kb % n, (kb + 1) % n):
@@ -399,15 +417,30 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     s_seed = np.concatenate(seeds_s)
     if s_seed.size == 0:
         return None
-    virtual = idx.size
-    s_all = np.concatenate([*dst, np.full(s_seed.size, virtual)])  # reversed graph
-    d_all = np.concatenate([*src, s_seed])
-    c_all = np.concatenate([*cost, np.concatenate(seeds_c) + 1e-6])
-    graph = csr_matrix((c_all, (s_all, d_all)), shape=(virtual + 1, virtual + 1))
-    d = np.asarray(dijkstra(graph, indices=virtual), dtype=np.float64)[:virtual]
-    d = np.where(np.isfinite(d), d, p.max_cost).reshape(n, h, w)
+
+    def edges() -> Iterator[tuple[int, int, Slices, Slices, Bool, F64]]:
+        for k, k2, a, b, ok, length, in_place in legal_moves(full, half_steps, p):
+            c = np.full(int(ok.sum()), length) if in_place else \
+                (length / np.minimum(speed[a], speed[b]))[ok]
+            if tight:
+                room = roomy_full[k][a] & roomy_full[k2][b]
+                if in_place:
+                    room &= roomy_half[k if k2 == (k + 1) % n else k2][a]
+                c = c * np.where(room[ok], 1.0, 1.0 + p.tight_factor)
+            yield k, k2, a, b, ok, c
+
+    virtual = idx.size  # the goal region, searched from over the reversed graph
+    lat = graph((n, h, w), len(moves(p)[0].k2), edges(), True, s_seed,
+                np.concatenate(seeds_c) + 1e-6)
+    if costs:
+        d = np.asarray(dijkstra(lat, indices=virtual), dtype=np.float64)[:virtual]
+        d = np.where(np.isfinite(d), d, p.max_cost).reshape(n, h, w)
+    else:
+        d = np.full(virtual + 1, p.max_cost)
+        d[breadth_first_order(lat, virtual, return_predecessors=False)] = 0.0
+        d = d[:virtual].reshape(n, h, w)
     offset = 0.0
-    if ctg_phi is not None:  # where MPEPC moves from the 2-D field onto this: the border
+    if ctg_phi is not None and costs:  # where MPEPC moves from the 2-D field onto this: the border
         best = d.min(0)
         ring = np.zeros((h, w), dtype=np.bool_)
         bw = max(1, round(0.3 / res))
@@ -481,16 +514,12 @@ def unreachable(fld: NavField, pose: tuple[float, float, float], half_m: float =
     starts = [int(idx[k, ci, cj]) for k in sorted(heads) if full[k, ci, cj]]
     if not starts:
         return None
-    src: list[I64] = []
-    dst: list[I64] = []
-    for k, k2, a, b, ok, _, _ in legal_moves(full, half_steps, p, turns):
-        src.append(idx[k][a][ok])
-        dst.append(idx[k2][b][ok])
     virtual = n * h * w  # the chair: joined to its start states
-    s_all = np.concatenate([*src, np.full(len(starts), virtual)])
-    d_all = np.concatenate([*dst, np.array(starts, dtype=np.intp)])
-    graph = csr_matrix((np.ones(s_all.size), (s_all, d_all)), shape=(virtual + 1, virtual + 1))
-    order = breadth_first_order(graph, virtual, directed=True, return_predecessors=False)
+    lat = graph((n, h, w), len(moves(p)[0].k2),
+                ((k, k2, a, b, ok, 1.0) for k, k2, a, b, ok, _, _ in
+                 legal_moves(full, half_steps, p, turns)), False,
+                np.array(starts, dtype=np.int32), 1.0)
+    order = breadth_first_order(lat, virtual, directed=True, return_predecessors=False)
     got = np.zeros(virtual + 1, dtype=np.bool_)
     got[order] = True
     reached = got[:virtual].reshape(n, h, w).any(0)

@@ -122,7 +122,7 @@ def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, fl
     if way_in:
         hf = lattice.build(fld, goal, None, lattice.LatticeParams(min_clear_m=REACH_CLEAR_M,
                                                                   tight_factor=0.0),
-                           start=pose)
+                           start=pose, costs=False)
         if hf is None or not hf.way_in(*pose):
             return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
                     f"{math.degrees(goal[2]):.0f}°): the chair cannot turn onto that heading "
