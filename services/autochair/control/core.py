@@ -204,8 +204,8 @@ class GoalCheck:
         """The route checked: a waypoint where the footprint does not fit — clear of
         obstacles by the position tolerance plus the planner's contact margin, so that
         wherever within the tolerance the chair stops it touches nothing — or no path to the
-        first one. Pure and slow (costs-to-go and the forward lattice: ~0.1 s quiet, 0.8 s on a
-        loaded CPU), so the node runs it without the core's lock."""
+        first one. Pure and slow (costs-to-go and the forward lattice's reachability: ~0.05 s
+        quiet, up to seconds on a loaded CPU), so the node runs it without the core's lock."""
         wps, o = self.req.waypoints, self.odom
         margin = MpepcParams().contact_m
         for i, p in enumerate(wps):
