@@ -5,8 +5,10 @@ loop on a thread of its own, watched like `every`) and the per-process Zenoh mod
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 import zenoh
@@ -130,3 +132,31 @@ def test_the_drive_chain_and_the_safety_path_stay_peers() -> None:
     for name in ("gateway", "odometry", "pid", "logger", "estop", "safety"):
         assert mode[name] == "peer", name
     assert mode["lidar-sim"] == "client"  # positive control: the list does make clients
+
+
+def test_sessions_use_no_shared_memory_and_large_samples_still_arrive(tmp_path: Path) -> None:
+    """Shared memory is off in every session we configure (zenoh's default is on: it copies
+    puts over 3 kB into a shared segment and runs watchdog threads in each process), also over
+    a config file; a map-sized sample still arrives whole, over the socket."""
+    def shm(cfg: zenoh.Config) -> bool:
+        return bool(json.loads(cfg.get_json("transport/shared_memory/enabled")))
+
+    assert shm(zenoh.Config())  # positive control: zenoh's own default
+    base = tmp_path / "zenoh.json5"
+    base.write_text('{ transport: { shared_memory: { enabled: true } } }')
+    for settings in (ZenohSettings(), ZenohSettings(mode="client", listen=[]),
+                     ZenohSettings(mode="router"), ZenohSettings(config_file=str(base))):
+        assert not shm(settings.to_zenoh()), settings
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    a = open_session(ZenohSettings(connect=[], listen=[endpoint]))
+    b = open_session(ZenohSettings(connect=[endpoint], listen=[]))
+    got: list[bytes] = []
+    sub = a.declare_subscriber("efftest/big", lambda s: got.append(s.payload.to_bytes()))
+    payload = bytes(range(256)) * 1000  # 256 kB, a whole map's size
+    try:
+        wait_for(lambda: b.put("efftest/big", payload) or got, 10, "a large sample")
+        assert got[0] == payload
+    finally:
+        sub.undeclare()
+        b.close()
+        a.close()

@@ -78,6 +78,11 @@ class ZenohSettings(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
         # session.close() for the default 5 s, so SIGTERM sometimes ended in SIGKILL.
         cfg.insert_json5("transport/link/tx/queue/congestion_control/block/wait_before_close",
                          "500000")
+        # No shared memory: zenoh 1.10 copies every put over 3 kB (scans, maps) into a shared
+        # segment for a peer on this host, and each process that touches one runs two watchdog
+        # threads (~30 wake-ups a second). Nothing here gains from it (10 Hz scans, 1 Hz maps;
+        # compose's containers share no /dev/shm). Measured in README, CPU and recording size.
+        cfg.insert_json5("transport/shared_memory/enabled", "false")
         if self.connect:
             cfg.insert_json5("connect/endpoints", json.dumps(self.connect))
             # Keep retrying the hub instead of failing at start: the launcher, supervisor or
