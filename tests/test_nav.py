@@ -116,6 +116,30 @@ def test_plan_through_the_opening_makes_progress_and_ends_on_the_goal_when_close
     assert close.is_goal and close.target == pytest.approx((6.0, 2.0, 0.0), abs=1e-6)
 
 
+def hall_with_pillar(pillar: bool = True) -> NavField:
+    """A 2 m corridor (y −1..1) narrowed to 1.5 m by a pillar at x = 4 on its right side."""
+    segs = np.array([[-1, -1, 9, -1], [-1, 1, 9, 1], [-1, -1, -1, 1], [9, -1, 9, 1]], dtype=float)
+    circles = np.array([[4.0, -0.75, 0.25]]) if pillar else np.zeros((0, 3))
+    return NavField(GridMap.from_shapes(segs, circles), FP)
+
+
+def test_the_goal_is_not_preferred_to_a_plan_that_keeps_clear_of_what_its_way_passes() -> None:
+    # At full speed on the corridor's centre line, the goal 4.5 m ahead on the same line: the
+    # law's way to it passes the pillar 0.15 m off (within the goal's slack of the best plan,
+    # which was taken on the old code); the best plan keeps 2σ (0.2 m) clear.
+    goal = (7.0, 0.0, 0.0)
+    fld = hall_with_pillar()
+    ctg = fld.cost_to_go(*goal[:2])
+    assert ctg is not None
+    plan = planner(fld).plan((2.5, 0.0, 0.0), 1.2, 0.0, goal, ctg, final=True)
+    assert not plan.is_goal and plan.min_clearance_m >= 0.2
+    # positive control: without the pillar the goal itself is the plan
+    free = hall_with_pillar(pillar=False)
+    ctg_free = free.cost_to_go(*goal[:2])
+    assert ctg_free is not None
+    assert planner(free).plan((2.5, 0.0, 0.0), 1.2, 0.0, goal, ctg_free, final=True).is_goal
+
+
 def test_a_person_in_the_way_blocks_and_says_so() -> None:
     fld = corridor_with_wall()
     ctg = fld.cost_to_go(6.0, 2.0)
