@@ -127,6 +127,14 @@ class MpepcParams:
     hit_cost: float = 10.0
     contact_m: float = 0.05  # a predicted clearance below this counts as a hit
     brake_clear_m: float = 0.05  # least clearance of the stop after `commit_s` (else a hit)
+    # ... from every start pose within this timing error of the one planned from. That pose
+    # is the core's chain prediction (where the chair stands once the commands sent have
+    # acted); a chain model off by δ puts the chair δ·(v, ω) further on, or back, along its
+    # present motion, and all it is committed to with it (the same commands from a moved
+    # start: the sweep moved rigidly). A fixed margin does not scale with that: at 1.15 m/s
+    # a 10 ms misfit is 1.2 cm, and nav_eval lost cases to ±10 ms (predict_s 0.66/0.68).
+    # 30 ms: three times that, ~5 % of the chain's 0.67 s mean lag (tests/test_nav_stop.py).
+    stop_timing_s: float = 0.03
     goal_blend_m: float = 1.0
     # Inside the heading-aware window, a state from which the lattice has no way to the goal
     # costs this much more than the 2-D field says (nav/lattice.py).
@@ -560,8 +568,8 @@ class Mpepc:
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
         # Both that motion and its stop as the core's limiter really drives them (committed).
-        d_brake = fld.footprint_clearance(brake[0], brake[1], brake[2])
-        hit[:, -1] |= d_brake.min(1) < min(p.brake_clear_m, d0 - 0.005)
+        need = min(p.brake_clear_m, d0 - 0.005)
+        hit[:, -1] |= self.stop_clearance(pose, v0, w0, brake, need) < need
         d_all = d_static
         for person, (to_path, to_here) in zip(people, to_people, strict=True):
             dp = to_path - person.radius_m
@@ -604,6 +612,32 @@ class Mpepc:
                       "in_lattice": in_lattice.astype(np.float64),
                       "hit": hit.any(1).astype(np.float64),
                       "x": xs, "y": ys, "yaw": yaws}
+
+    def stop_clearance(self, pose: tuple[float, float, float], v0: float, w0: float,
+                       sweep: F64, need: float) -> F64:
+        """Least clearance (N,) of the committed sweeps (3, N, B) (`simulate`) from every
+        start within `stop_timing_s` of `pose` along the present motion (v0, ω0): the sweep
+        as planned and moved rigidly with its start by ±δ·(v0, ω0). Only sweeps that could
+        fall below `need` are moved (the outline's points move by at most the bound)."""
+        fld, e = self.field, self.p.stop_timing_s
+        d = fld.footprint_clearance(sweep[0], sweep[1], sweep[2]).min(1)
+        if e <= 0.0 or (abs(v0) < 1e-3 and abs(w0) < 1e-3):
+            return np.asarray(d, dtype=np.float64)
+        x0, y0, t0 = pose
+        dx, dy = sweep[0] - x0, sweep[1] - y0
+        radius = np.sqrt((dx * dx + dy * dy).max(1)) + fld.footprint.reach_m
+        near = np.flatnonzero(d < need + e * (abs(v0) + abs(w0) * radius) + 0.005)
+        if near.size == 0:
+            return np.asarray(d, dtype=np.float64)
+        dx, dy, yaw = dx[near], dy[near], sweep[2][near]
+        for sign in (1.0, -1.0):
+            dth, ds = sign * e * w0, sign * e * v0
+            c, s = math.cos(dth), math.sin(dth)
+            sx, sy = x0 + ds * math.cos(t0 + 0.5 * dth), y0 + ds * math.sin(t0 + 0.5 * dth)
+            moved = fld.footprint_clearance(sx + c * dx - s * dy, sy + s * dx + c * dy,
+                                            yaw + dth)
+            d[near] = np.minimum(d[near], moved.min(1))
+        return np.asarray(d, dtype=np.float64)
 
     def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64
                           ) -> tuple[F64, list[tuple[F64, F64]]]:
