@@ -754,6 +754,23 @@ class Mpepc:
         i = int(np.argmax(robust))
         return yaw + float(offs[i]) if robust[i] >= contact else None
 
+    def landing(self, pose: tuple[float, float, float], goal: tuple[float, float, float]
+                ) -> tuple[float, float] | None:
+        """For a chair at rest just outside the goal's tolerance, nearer than `final_from`
+        of it (where neither the core's own turn nor final_heading's manoeuvre takes over,
+        and the law creeps: v ≤ vmax·r/r_thresh): a stage (ψ, d), turn in place onto ψ, then
+        d straight, that lands within the tolerance (its line within `final_line` of it, as
+        final_heading's), from where the core turns onto the goal's yaw itself. As a stage,
+        not final_heading's manoeuvre: a stage's turn is carried on to its end
+        (planner.compute), not handed over mid-swing as the goal's own turn (why
+        `final_from` is 1.5). The sweeps as final_heading checks them
+        (the turn onto ψ ± 2°, the straight, the last turn where the straight lands); any
+        turn, the goal may be beside or behind the chair. None: no such stage."""
+        psi = self.final_heading(pose, goal, turn=True, straight=True, max_deg=180.0)
+        if psi is None:
+            return None
+        return psi, along_lateral((pose[0], pose[1], psi), goal[0], goal[1])[0]
+
     def _pairs(self, pose: tuple[float, float, float], turn_m_per_rad: float,
                step_deg: float = 5.0, step_m: float = 0.02, spare_deg: float = 2.0,
                spare_m: float = 0.01) -> tuple[F64, F64, F64, F64, F64, F64, F64]:
@@ -925,14 +942,16 @@ class Mpepc:
                    ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                    rates: tuple[float, float] = (0.0, 0.0),
                    straight_to: tuple[float, float] | None = None,
-                   v0: float = 0.0, turn_to: float | None = None) -> Plan | None:
+                   v0: float = 0.0, turn_to: float | None = None, land: bool = False
+                   ) -> Plan | None:
         """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
         with `straight_to` (the landing of a straight stage under way, or of a stage's turn
         done), the rest of that straight if it still lies ahead on the chair's line and
         sweeps clear; or with `turn_to` as well (a stage's turn under way), the rest of that
-        turn if it sweeps clear. Each is also evaluated as MPEPC's candidates are (`_costs`:
-        people, the stop after the plan period) and dropped if that predicts a hit. None:
-        no stage."""
+        turn if it sweeps clear; or with `land`, the stage onto the goal of a chair at rest
+        just outside its tolerance (Mpepc.landing). Each is also evaluated as MPEPC's
+        candidates are (`_costs`: people, the stop after the plan period) and dropped if
+        that predicts a hit. None: no stage."""
         x, y, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
         if straight_to is not None and turn_to is not None:
@@ -953,10 +972,15 @@ class Mpepc:
                 return None
             psi, dist = yaw, along
         else:
-            if not self.p.stages or hf is None or not self.lattice_active(hf, pose, float(ctg.at(
+            if not self.p.stages:
+                return None
+            if land:
+                got = self.landing(pose, goal)
+            elif hf is None or not self.lattice_active(hf, pose, float(ctg.at(
                     self.field.map, np.array(pose[:2])))):
                 return None
-            got = self.stage(pose, goal, hf)
+            else:
+                got = self.stage(pose, goal, hf)
             if got is None:
                 return None
             psi, dist = got
