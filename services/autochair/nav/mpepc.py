@@ -127,14 +127,20 @@ class MpepcParams:
     hit_cost: float = 10.0
     contact_m: float = 0.05  # a predicted clearance below this counts as a hit
     brake_clear_m: float = 0.05  # least clearance of the stop after `commit_s` (else a hit)
-    # ... from every start pose within this timing error of the one planned from. That pose
+    # ... from every start pose within these timing errors of the one planned from. That pose
     # is the core's chain prediction (where the chair stands once the commands sent have
     # acted); a chain model off by δ puts the chair δ·(v, ω) further on, or back, along its
     # present motion, and all it is committed to with it (the same commands from a moved
     # start: the sweep moved rigidly). A fixed margin does not scale with that: at 1.15 m/s
     # a 10 ms misfit is 1.2 cm, and nav_eval lost cases to ±10 ms (predict_s 0.66/0.68).
-    # 30 ms: three times that, ~5 % of the chain's 0.67 s mean lag (tests/test_nav_stop.py).
+    # v's 30 ms: three times that, ~5 % of the chain's 0.67 s mean lag (tests/test_nav_stop.py).
+    # ω's 10 ms: a heading error turns the whole sweep about its start, so metres away it
+    # moves by cm (1.5° at 0.9 rad/s and 30 ms); 30 ms on ω cost the door cases 2–6 s and
+    # aborted one (nav_eval seed 7: MPEPC crept past the spin), 20 ms still 12 s on one, while
+    # ±10 ms of predict_omega_s changed no nav_eval case (docs/experiments/pid-planned-
+    # stream-v4.md).
     stop_timing_s: float = 0.03
+    stop_timing_omega_s: float = 0.01
     goal_blend_m: float = 1.0
     # Inside the heading-aware window, a state from which the lattice has no way to the goal
     # costs this much more than the 2-D field says (nav/lattice.py).
@@ -616,22 +622,23 @@ class Mpepc:
     def stop_clearance(self, pose: tuple[float, float, float], v0: float, w0: float,
                        sweep: F64, need: float) -> F64:
         """Least clearance (N,) of the committed sweeps (3, N, B) (`simulate`) from every
-        start within `stop_timing_s` of `pose` along the present motion (v0, ω0): the sweep
-        as planned and moved rigidly with its start by ±δ·(v0, ω0). Only sweeps that could
-        fall below `need` are moved (the outline's points move by at most the bound)."""
-        fld, e = self.field, self.p.stop_timing_s
+        start within the timing errors (`stop_timing_s`, `stop_timing_omega_s`) of `pose`
+        along the present motion (v0, ω0): the sweep as planned and moved rigidly with its
+        start by ±(δv·v0, δω·ω0). Only sweeps that could fall below `need` are moved (the
+        outline's points move by at most the bound)."""
+        fld, e, eq = self.field, self.p.stop_timing_s, self.p.stop_timing_omega_s
         d = fld.footprint_clearance(sweep[0], sweep[1], sweep[2]).min(1)
-        if e <= 0.0 or (abs(v0) < 1e-3 and abs(w0) < 1e-3):
+        if (e <= 0.0 and eq <= 0.0) or (abs(v0) < 1e-3 and abs(w0) < 1e-3):
             return np.asarray(d, dtype=np.float64)
         x0, y0, t0 = pose
         dx, dy = sweep[0] - x0, sweep[1] - y0
         radius = np.sqrt((dx * dx + dy * dy).max(1)) + fld.footprint.reach_m
-        near = np.flatnonzero(d < need + e * (abs(v0) + abs(w0) * radius) + 0.005)
+        near = np.flatnonzero(d < need + e * abs(v0) + eq * abs(w0) * radius + 0.005)
         if near.size == 0:
             return np.asarray(d, dtype=np.float64)
         dx, dy, yaw = dx[near], dy[near], sweep[2][near]
         for sign in (1.0, -1.0):
-            dth, ds = sign * e * w0, sign * e * v0
+            dth, ds = sign * eq * w0, sign * e * v0
             c, s = math.cos(dth), math.sin(dth)
             sx, sy = x0 + ds * math.cos(t0 + 0.5 * dth), y0 + ds * math.sin(t0 + 0.5 * dth)
             moved = fld.footprint_clearance(sx + c * dx - s * dy, sy + s * dx + c * dy,
