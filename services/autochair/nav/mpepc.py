@@ -134,13 +134,13 @@ class MpepcParams:
     # start: the sweep moved rigidly). A fixed margin does not scale with that: at 1.15 m/s
     # a 10 ms misfit is 1.2 cm, and nav_eval lost cases to ±10 ms (predict_s 0.66/0.68).
     # v's 30 ms: three times that, ~5 % of the chain's 0.67 s mean lag (tests/test_nav_stop.py).
-    # ω's 10 ms: a heading error turns the whole sweep about its start, so metres away it
-    # moves by cm (1.5° at 0.9 rad/s and 30 ms); 30 ms on ω cost the door cases 2–6 s and
-    # aborted one (nav_eval seed 7: MPEPC crept past the spin), 20 ms still 12 s on one, while
-    # ±10 ms of predict_omega_s changed no nav_eval case (docs/experiments/pid-planned-
-    # stream-v4.md).
+    # ω's: off. A heading error turns the whole sweep about its start, so metres away it
+    # moves by cm (1.5° at 0.9 rad/s and 30 ms): 30 ms on ω cost nav_eval's door cases 2–6 s
+    # and aborted one (seed 7, office A's far corner: MPEPC crept after a spin), 20 ms still
+    # 12 s on it, 10 ms 2.2 s on room B's corner, while ±10 ms of predict_omega_s changed no
+    # nav_eval case (docs/experiments/pid-planned-stream-v4.md). Not covered, then.
     stop_timing_s: float = 0.03
-    stop_timing_omega_s: float = 0.01
+    stop_timing_omega_s: float = 0.0
     goal_blend_m: float = 1.0
     # Inside the heading-aware window, a state from which the lattice has no way to the goal
     # costs this much more than the 2-D field says (nav/lattice.py).
