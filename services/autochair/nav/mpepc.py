@@ -137,7 +137,7 @@ class MpepcParams:
     # ω's: off. A heading error turns the whole sweep about its start, so metres away it
     # moves by cm (1.5° at 0.9 rad/s and 30 ms): 30 ms on ω cost nav_eval's door cases 2–6 s
     # and aborted one (seed 7, office A's far corner: MPEPC crept after a spin), 20 ms still
-    # 12 s on it, 10 ms 2.2 s on room B's corner, while ±10 ms of predict_omega_s changed no
+    # 12 s on it, 10 ms 2.2–3 s on room B's corner, while ±10 ms of predict_omega_s changed no
     # nav_eval case (docs/experiments/pid-planned-stream-v4.md). Not covered, then.
     stop_timing_s: float = 0.03
     stop_timing_omega_s: float = 0.0
