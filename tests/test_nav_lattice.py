@@ -508,3 +508,40 @@ def test_the_route_checks_reachability_search_finds_the_states_the_costs_do() ->
         assert 0 < int(has_way.sum()) < has_way.size  # (positive control: both kinds exist)
         np.testing.assert_array_equal(reach.cost < reach.params.max_cost, has_way)
         assert reach.way_in(*hall) == costs.way_in(*hall)
+
+
+def test_a_chair_at_rest_just_outside_the_tolerance_is_handed_a_stage_onto_the_goal() -> None:
+    # Office B's desk: the chair stood at rest 6 cm from the goal, 77° off, "blocked" until
+    # aborted (planned stream v4, every seed). Between the tolerance (5 cm, the core's own
+    # turn) and `final_from` (7.5 cm, Mpepc.final_heading) nothing handed it its last
+    # manoeuvre. Now a stage: turn onto ψ, drive straight into the tolerance, where the goal
+    # is handed to the core's own (checked) turn.
+    from autochair.nav.planner import PlanRequest, compute
+
+    fld = _hallway()
+    goal, here = (12.0, 2.6, 0.0), (11.94, 2.6, math.radians(77))
+    tol = LAW.tolerance_m
+    assert tol < math.hypot(goal[0] - here[0], goal[1] - here[1]) \
+        <= MpepcParams().final_from * tol
+    # Positive control: on the core's own final approach (or before: the old planner) the
+    # plan from here is "blocked".
+    res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, fld, None, None, LAW,
+                              approaching=True))
+    assert res.blocked_by
+    res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, fld, None, None, LAW))
+    p = res.plan
+    assert p is not None and not res.blocked_by and p.final_turn and p.then is not None
+    psi, land = p.target[2], p.then
+    assert math.hypot(land[0] - goal[0], land[1] - goal[1]) < tol
+    assert _stage_sweeps_clear(fld, here, psi, math.hypot(land[0] - here[0],
+                                                          land[1] - here[1]))
+    prev = (*p.target, p.vmax_mps)
+    # turned (a degree short) and at rest: the straight onto the landing
+    done = psi - math.copysign(math.radians(1.0), psi - here[2])
+    res = compute(PlanRequest(1, 0, (here[0], here[1], done), 0.0, 0.0, goal, fld, None, prev,
+                              LAW, then=land))
+    assert res.plan is not None and not res.blocked_by and res.plan.straight_m > 0.0
+    # landed, at rest: the goal is handed over (its turn is the core's)
+    at = (*res.plan.target[:2], done)
+    res = compute(PlanRequest(1, 0, at, 0.0, 0.0, goal, fld, None, None, LAW))
+    assert res.plan is not None and res.plan.is_goal and not res.blocked_by

@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 
-from autochair.control.core import ControlConfig, ControlCore, OdomSample
+from autochair.control.core import ChainAxis, ControlConfig, ControlCore, OdomSample
 from autochair.control.limits import ComfortLimiter
 from autochair.nav import planner
-from autochair.nav.field import Footprint, place
+from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import Mpepc, MpepcParams
 from autochair.nav.planner import free_field
 
@@ -130,3 +130,75 @@ def test_no_contact_past_the_bench_where_a_braked_turn_swung_into_it() -> None:
     assert r["collisions"] == 0
     assert r["min_clearance_m"] > 0.05
     assert r["arrived"], r["reason"]
+
+
+class MisfitChair(LaggedChair):
+    """A LaggedChair whose real drive chain lags `real_s` (mean, v) while the core predicts
+    with its configured `predict_s`: the pose MPEPC plans from is then off by ~δ·v."""
+
+    def __init__(self, cfg: ControlConfig, real_s: float) -> None:
+        super().__init__(cfg)
+        self.real = (ChainAxis(real_s, cfg.predict_lag_s),
+                     ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
+
+    def drive(self, v: float, w: float, seconds: float) -> None:
+        cv, cw = self.core._chain
+        rv, rw = self.real
+        for _ in range(round(seconds / self.h)):
+            sent = self.lim.step(v, w, self.h)
+            cv.push(self.h, sent[0])
+            cw.push(self.h, sent[1])
+            rv.push(self.h, sent[0])
+            rw.push(self.h, sent[1])
+            mid = self.yaw + 0.5 * rw.x2 * self.h
+            self.x += rv.x2 * math.cos(mid) * self.h
+            self.y += rv.x2 * math.sin(mid) * self.h
+            self.yaw += rw.x2 * self.h
+            self.true.append((self.x, self.y, self.yaw))
+
+
+def test_the_committed_stop_is_checked_from_every_pose_a_chain_misfit_allows() -> None:
+    # A chair at 1.0 m/s towards a wall whose chain lags 30 ms more than the core's model:
+    # the pose MPEPC plans from is 3 cm short of where the chair really is, and the braked
+    # stop ends 3 cm nearer the wall than predicted (nav_eval lost cases to ±10 ms of
+    # predict_s; seed 1 once braked onto office B's door frame at 0.000 m). The stop must be
+    # checked from the band of start poses that misfit allows, not from the one prediction.
+    cfg = ControlConfig()
+    chair = MisfitChair(cfg, cfg.predict_s + 0.03)
+    chair.drive(1.0, 0.0, 3.0)
+    p = chair.predicted()
+    pose = (p.x, p.y, p.yaw)
+    st = chair.state()
+    v0, w0 = float(st[0, 0]), float(st[2, 0])
+    assert v0 > 0.95
+    chair.drive(0.0, 0.0, 4.0)
+    end = chair.true[-1]
+
+    def wall_at(x: float) -> Mpepc:
+        segs = np.array([[x, -2.0, x, 2.0], [x - 8.0, -2.0, x - 8.0, 2.0]])
+        gm = GridMap.from_shapes(segs, np.zeros((0, 3)), resolution_m=0.02)
+        return Mpepc(NavField(gm, FP), cfg.law(0.025))
+
+    mp = wall_at(0.0)
+    got = stop_of(mp, pose, st)
+    # The misfit is real: the chair rests ~3 cm further on than the stop predicted.
+    assert 0.02 < end[0] - got[0] < 0.04
+    sweep = mp.braking(np.array([pose[0]]), np.array([pose[1]]), np.array([pose[2]]),
+                       st.copy())
+    need = mp.p.brake_clear_m
+    # The wall where the predicted stop ends 6 cm from it: the real rest is inside the margin.
+    mp = wall_at(got[0] + FP.front_m + 0.065)
+    nominal = float(mp.field.footprint_clearance(*got))
+    real = float(mp.field.footprint_clearance(*end))
+    assert nominal >= need > real
+    old = Mpepc(mp.field, mp.law, MpepcParams(stop_timing_s=0.0, stop_timing_omega_s=0.0))
+    assert float(old.stop_clearance(pose, v0, w0, sweep, need)[0]) >= need  # (passed before)
+    assert float(mp.stop_clearance(pose, v0, w0, sweep, need)[0]) < need
+    # Positive control: 5 cm further the stop passes the band, and the real rest is clear.
+    mp = wall_at(got[0] + FP.front_m + 0.115)
+    assert float(mp.stop_clearance(pose, v0, w0, sweep, need)[0]) >= need
+    assert float(mp.field.footprint_clearance(*end)) >= need
+    # At rest there is no motion to misplace: the band is the pose itself.
+    old = Mpepc(mp.field, mp.law, MpepcParams(stop_timing_s=0.0, stop_timing_omega_s=0.0))
+    assert float(mp.stop_clearance(pose, 0.0, 0.0, sweep, need)[0]) == float(
+        old.stop_clearance(pose, 0.0, 0.0, sweep, need)[0])

@@ -614,7 +614,8 @@ class ControlCore:
                            (self.limiter.v.rate, self.limiter.w.rate),
                            self.index == len(self.waypoints) - 1,
                            self.plan is not None and self.plan.straight_m > 0.0,
-                           None if self.plan is None else self.plan.then, self.given_up)
+                           None if self.plan is None else self.plan.then, self.given_up,
+                           self.final)
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""

@@ -127,6 +127,20 @@ class MpepcParams:
     hit_cost: float = 10.0
     contact_m: float = 0.05  # a predicted clearance below this counts as a hit
     brake_clear_m: float = 0.05  # least clearance of the stop after `commit_s` (else a hit)
+    # ... from every start pose within these timing errors of the one planned from. That pose
+    # is the core's chain prediction (where the chair stands once the commands sent have
+    # acted); a chain model off by δ puts the chair δ·(v, ω) further on, or back, along its
+    # present motion, and all it is committed to with it (the same commands from a moved
+    # start: the sweep moved rigidly). A fixed margin does not scale with that: at 1.15 m/s
+    # a 10 ms misfit is 1.2 cm, and nav_eval lost cases to ±10 ms (predict_s 0.66/0.68).
+    # v's 30 ms: three times that, ~5 % of the chain's 0.67 s mean lag (tests/test_nav_stop.py).
+    # ω's: off. A heading error turns the whole sweep about its start, so metres away it
+    # moves by cm (1.5° at 0.9 rad/s and 30 ms): 30 ms on ω cost nav_eval's door cases 2–6 s
+    # and aborted one (seed 7, office A's far corner: MPEPC crept after a spin), 20 ms still
+    # 12 s on it, 10 ms 2.2–3 s on room B's corner, while ±10 ms of predict_omega_s changed no
+    # nav_eval case (docs/experiments/pid-planned-stream-v4.md). Not covered, then.
+    stop_timing_s: float = 0.03
+    stop_timing_omega_s: float = 0.0
     goal_blend_m: float = 1.0
     # Inside the heading-aware window, a state from which the lattice has no way to the goal
     # costs this much more than the 2-D field says (nav/lattice.py).
@@ -560,8 +574,8 @@ class Mpepc:
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
         # Both that motion and its stop as the core's limiter really drives them (committed).
-        d_brake = fld.footprint_clearance(brake[0], brake[1], brake[2])
-        hit[:, -1] |= d_brake.min(1) < min(p.brake_clear_m, d0 - 0.005)
+        need = min(p.brake_clear_m, d0 - 0.005)
+        hit[:, -1] |= self.stop_clearance(pose, v0, w0, brake, need) < need
         d_all = d_static
         for person, (to_path, to_here) in zip(people, to_people, strict=True):
             dp = to_path - person.radius_m
@@ -604,6 +618,34 @@ class Mpepc:
                       "in_lattice": in_lattice.astype(np.float64),
                       "hit": hit.any(1).astype(np.float64),
                       "x": xs, "y": ys, "yaw": yaws}
+
+    def stop_clearance(self, pose: tuple[float, float, float], v0: float, w0: float,
+                       sweep: F64, need: float) -> F64:
+        """Least clearance (N,) of the committed sweeps (3, N, B) (`simulate`) from every
+        start within the timing errors (`stop_timing_s`, `stop_timing_omega_s`) of `pose`
+        along the present motion (v0, ω0): the sweep as planned and moved rigidly with its
+        start by ±(δv·v0, δω·ω0). Exact against `need`; above it, a lower bound of what the
+        band would give. Only poses that could fall below `need` are moved: an outline
+        point r from the start moves by at most δv·|v0| + δω·|ω0|·r (the doorway's few, not
+        every pose: the band cost 30 % more planning time moving whole sweeps)."""
+        fld, e, eq = self.field, self.p.stop_timing_s, self.p.stop_timing_omega_s
+        d = fld.footprint_clearance(sweep[0], sweep[1], sweep[2])  # (N, B)
+        if (e <= 0.0 and eq <= 0.0) or (abs(v0) < 1e-3 and abs(w0) < 1e-3):
+            return np.asarray(d.min(1), dtype=np.float64)
+        x0, y0, t0 = pose
+        dx, dy = sweep[0] - x0, sweep[1] - y0
+        reach = np.sqrt(dx * dx + dy * dy) + fld.footprint.reach_m
+        near = d < need + e * abs(v0) + eq * abs(w0) * reach + 0.005
+        if near.any():
+            dx, dy, yaw = dx[near], dy[near], sweep[2][near]
+            for sign in (1.0, -1.0):
+                dth, ds = sign * eq * w0, sign * e * v0
+                c, s = math.cos(dth), math.sin(dth)
+                sx = x0 + ds * math.cos(t0 + 0.5 * dth)
+                sy = y0 + ds * math.sin(t0 + 0.5 * dth)
+                d[near] = np.minimum(d[near], fld.footprint_clearance(
+                    sx + c * dx - s * dy, sy + s * dx + c * dy, yaw + dth))
+        return np.asarray(d.min(1), dtype=np.float64)
 
     def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64
                           ) -> tuple[F64, list[tuple[F64, F64]]]:
@@ -719,6 +761,23 @@ class Mpepc:
         robust[offs == 0.0] = -math.inf  # (no turn: see above)
         i = int(np.argmax(robust))
         return yaw + float(offs[i]) if robust[i] >= contact else None
+
+    def landing(self, pose: tuple[float, float, float], goal: tuple[float, float, float]
+                ) -> tuple[float, float] | None:
+        """For a chair at rest just outside the goal's tolerance, nearer than `final_from`
+        of it (where neither the core's own turn nor final_heading's manoeuvre takes over,
+        and the law creeps: v ≤ vmax·r/r_thresh): a stage (ψ, d), turn in place onto ψ, then
+        d straight, that lands within the tolerance (its line within `final_line` of it, as
+        final_heading's), from where the core turns onto the goal's yaw itself. As a stage,
+        not final_heading's manoeuvre: a stage's turn is carried on to its end
+        (planner.compute), not handed over mid-swing as the goal's own turn (why
+        `final_from` is 1.5). The sweeps as final_heading checks them
+        (the turn onto ψ ± 2°, the straight, the last turn where the straight lands); any
+        turn, the goal may be beside or behind the chair. None: no such stage."""
+        psi = self.final_heading(pose, goal, turn=True, straight=True, max_deg=180.0)
+        if psi is None:
+            return None
+        return psi, along_lateral((pose[0], pose[1], psi), goal[0], goal[1])[0]
 
     def _pairs(self, pose: tuple[float, float, float], turn_m_per_rad: float,
                step_deg: float = 5.0, step_m: float = 0.02, spare_deg: float = 2.0,
@@ -891,14 +950,16 @@ class Mpepc:
                    ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                    rates: tuple[float, float] = (0.0, 0.0),
                    straight_to: tuple[float, float] | None = None,
-                   v0: float = 0.0, turn_to: float | None = None) -> Plan | None:
+                   v0: float = 0.0, turn_to: float | None = None, land: bool = False
+                   ) -> Plan | None:
         """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
         with `straight_to` (the landing of a straight stage under way, or of a stage's turn
         done), the rest of that straight if it still lies ahead on the chair's line and
         sweeps clear; or with `turn_to` as well (a stage's turn under way), the rest of that
-        turn if it sweeps clear. Each is also evaluated as MPEPC's candidates are (`_costs`:
-        people, the stop after the plan period) and dropped if that predicts a hit. None:
-        no stage."""
+        turn if it sweeps clear; or with `land`, the stage onto the goal of a chair at rest
+        just outside its tolerance (Mpepc.landing). Each is also evaluated as MPEPC's
+        candidates are (`_costs`: people, the stop after the plan period) and dropped if
+        that predicts a hit. None: no stage."""
         x, y, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
         if straight_to is not None and turn_to is not None:
@@ -919,10 +980,15 @@ class Mpepc:
                 return None
             psi, dist = yaw, along
         else:
-            if not self.p.stages or hf is None or not self.lattice_active(hf, pose, float(ctg.at(
+            if not self.p.stages:
+                return None
+            if land:
+                got = self.landing(pose, goal)
+            elif hf is None or not self.lattice_active(hf, pose, float(ctg.at(
                     self.field.map, np.array(pose[:2])))):
                 return None
-            got = self.stage(pose, goal, hf)
+            else:
+                got = self.stage(pose, goal, hf)
             if got is None:
                 return None
             psi, dist = got

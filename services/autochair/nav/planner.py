@@ -38,6 +38,7 @@ class PlanRequest:
     # the core turned (or turns) in place as a stage whose straight lands here (Plan.then)
     then: tuple[float, float] | None = None
     given_up: GridMap | None = None  # cells given up for this waypoint (PlanResult.given_up)
+    approaching: bool = False  # the core is on its own final approach (ControlCore.final)
 
 
 @dataclass(frozen=True)
@@ -233,6 +234,15 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
                     req.rates, req.final, hf)
     blocked = blocker(fld, ctg, req.pose, req.people) if stuck(plan) else ""
     at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
+    r_goal = math.hypot(req.goal[0] - req.pose[0], req.goal[1] - req.pose[1])
+    if at_rest and req.final and not req.approaching and not plan.is_goal \
+            and not plan.final_turn \
+            and req.law.tolerance_m < r_goal <= mp.final_from * req.law.tolerance_m:
+        # At rest just outside the tolerance, the goal not handed over: the stage onto it
+        # (Mpepc.landing; the law only creeps there, and the chair stood 5–7.5 cm off).
+        landed = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates, land=True)
+        if landed is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, landed, given_up=given_up)
     if blocked and hf is not None and at_rest:
         # At rest and blocked where the lattice has a way: its next stage, driven exactly.
         staged = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates)
