@@ -73,8 +73,7 @@ class Endpoint:
 
     def pump(self, rfd: int, wfd: int, stop: threading.Event) -> None:
         """Serve one connection: requests in, replies and scans out, until EOF/unplug/stop."""
-        dev, boot = self.new_device()
-        inbuf, out = b"", b""
+        (dev, boot), inbuf, out = self.new_device(), b"", b""
         h = self.node.health
         while not (stop.is_set() or self.unplug.is_set()):
             due = dev.next_due_s()
