@@ -16,7 +16,7 @@ from autochair.runtime.client import request
 from autochair.sim.world import DEFAULT_WORLD
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, keys
 from tests.helpers import Recorder, client_session, wait_for
-from tests.test_nav_system import L_WORLD, drive_to, map_ready, story, world_config
+from tests.test_nav_system import L_WORLD, drive_to, held, map_ready, story, world_config
 from tests.test_nav_system import STACK as NAV_STACK
 
 pytestmark = pytest.mark.slow
@@ -80,11 +80,12 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
     session = client_session(hub)
     try:
         people = Recorder(session, keys.PEOPLE)
+        pid = Recorder(session, keys.PID_STATUS)  # (for a failure: what held the chair)
         map_ready(session)
         # Round the corner (this test is about what the tracker reports on the way, not the
         # goal's end: near the outer wall a goal may also end blocked, see test_nav_system).
         states = drive_to(session, Pose2D(8.0, 3.0, 1.5708), 90)
-        assert "driving" in {s.state for s in states}, story(states)
+        assert "driving" in {s.state for s in states}, f"{story(states)}; {held(pid)}"
 
         def walker() -> bool:
             return any(abs(q.y_m - 8.3) < 0.4 and 7.0 < q.x_m < 9.0
@@ -94,7 +95,8 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
             seen = [(round(q.x_m, 1), round(q.y_m, 1)) for m in people.messages()
                     for q in m.people]
             return (f"the walker at the far end reported; the goal: {story(states)}; "
-                    f"{len(people.messages())} reports, the last people {seen[-6:]}")
+                    f"{len(people.messages())} reports, the last people {seen[-6:]}; "
+                    f"{held(pid)}")
 
         wait_for(walker, 10, instead)
         wrong = [(round(q.x_m, 2), round(q.y_m, 2)) for m in people.messages()
