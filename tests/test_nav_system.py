@@ -50,10 +50,11 @@ def drive_to(session: zenoh.Session, goal: Pose2D, timeout_s: float) -> list[Goa
     return [s for s in status.messages() if s.goal_id == reply.goal_id]
 
 
-def held(pid_status: Recorder) -> str:
-    """Why the velocity PID held the chair (its status's `inhibit`, in order of first sight),
-    for a failure where a goal ended because the chair did not follow."""
-    seen = list(dict.fromkeys(m.inhibit for m in pid_status.messages() if m.inhibit))
+def held(pid_status: Recorder, since_ns: int = 0) -> str:
+    """Why the velocity PID held the chair since `since_ns` (its status's `inhibit`, in order
+    of first sight), for a failure where a goal ended because the chair did not follow."""
+    seen = list(dict.fromkeys(m.inhibit for m in pid_status.messages()
+                              if m.inhibit and m.stamp_ns >= since_ns))
     last = pid_status.latest()
     return (f"the PID held for {seen[:6]}; its last status "
             f"{'none' if last is None else (last.active, last.inhibit or 'driving')}")

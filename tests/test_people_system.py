@@ -6,6 +6,7 @@ is the person's line and speed, not the phase along it.)"""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -84,8 +85,9 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
         map_ready(session)
         # Round the corner (this test is about what the tracker reports on the way, not the
         # goal's end: near the outer wall a goal may also end blocked, see test_nav_system).
+        sent_ns = time.time_ns()
         states = drive_to(session, Pose2D(8.0, 3.0, 1.5708), 90)
-        assert "driving" in {s.state for s in states}, f"{story(states)}; {held(pid)}"
+        assert "driving" in {s.state for s in states}, f"{story(states)}; {held(pid, sent_ns)}"
 
         def walker() -> bool:
             return any(abs(q.y_m - 8.3) < 0.4 and 7.0 < q.x_m < 9.0
@@ -96,7 +98,7 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
                     for q in m.people]
             return (f"the walker at the far end reported; the goal: {story(states)}; "
                     f"{len(people.messages())} reports, the last people {seen[-6:]}; "
-                    f"{held(pid)}")
+                    f"{held(pid, sent_ns)}")
 
         wait_for(walker, 10, instead)
         wrong = [(round(q.x_m, 2), round(q.y_m, 2)) for m in people.messages()
