@@ -191,7 +191,7 @@ def test_the_committed_stop_is_checked_from_every_pose_a_chain_misfit_allows() -
     nominal = float(mp.field.footprint_clearance(*got))
     real = float(mp.field.footprint_clearance(*end))
     assert nominal >= need > real
-    old = Mpepc(mp.field, mp.law, MpepcParams(stop_timing_s=0.0, stop_timing_omega_s=0.0))
+    old = Mpepc(mp.field, mp.law, MpepcParams(stop_timing_s=0.0))
     assert float(old.stop_clearance(pose, v0, w0, sweep, need)[0]) >= need  # (passed before)
     assert float(mp.stop_clearance(pose, v0, w0, sweep, need)[0]) < need
     # Positive control: 5 cm further the stop passes the band, and the real rest is clear.
@@ -199,6 +199,6 @@ def test_the_committed_stop_is_checked_from_every_pose_a_chain_misfit_allows() -
     assert float(mp.stop_clearance(pose, v0, w0, sweep, need)[0]) >= need
     assert float(mp.field.footprint_clearance(*end)) >= need
     # At rest there is no motion to misplace: the band is the pose itself.
-    old = Mpepc(mp.field, mp.law, MpepcParams(stop_timing_s=0.0, stop_timing_omega_s=0.0))
+    old = Mpepc(mp.field, mp.law, MpepcParams(stop_timing_s=0.0))
     assert float(mp.stop_clearance(pose, 0.0, 0.0, sweep, need)[0]) == float(
         old.stop_clearance(pose, 0.0, 0.0, sweep, need)[0])

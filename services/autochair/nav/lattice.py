@@ -406,13 +406,12 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     near_cells[(gi - i0) // f, (gj - j0) // f] = True  # the goal's own cell
     step = 2 * math.pi / n
     kb = math.floor(gyaw / step)
-    idx = np.arange(n * h * w).reshape(n, h, w)
     seeds_s: list[I64] = []
     seeds_c: list[F64] = []
     for kk in (kb % n, (kb + 1) % n):
         turn = abs(float(np.remainder(kk * step - gyaw + math.pi, 2 * math.pi) - math.pi))
         ok = near_cells & full[kk]
-        seeds_s.append(idx[kk][ok])
+        seeds_s.append(kk * h * w + np.flatnonzero(ok))  # (flat state index, as graph's)
         seeds_c.append(dist[ok] + p.turn_m_per_rad * turn)
     s_seed = np.concatenate(seeds_s)
     if s_seed.size == 0:
@@ -429,7 +428,7 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
                 c = c * np.where(room[ok], 1.0, 1.0 + p.tight_factor)
             yield k, k2, a, b, ok, c
 
-    virtual = idx.size  # the goal region, searched from over the reversed graph
+    virtual = n * h * w  # the goal region, searched from over the reversed graph
     lat = graph((n, h, w), len(moves(p)[0].k2), edges(), True, s_seed,
                 np.concatenate(seeds_c) + 1e-6)
     if costs:
@@ -510,8 +509,7 @@ def unreachable(fld: NavField, pose: tuple[float, float, float], half_m: float =
         upto = float(angles[-1]) if clear.all() else float(angles[int(np.argmin(clear))])
         heads |= {k for k in range(n)
                   if np.remainder(sign * (k * step - pose[2]), 2 * math.pi) < upto}
-    idx = np.arange(n * h * w).reshape(n, h, w)
-    starts = [int(idx[k, ci, cj]) for k in sorted(heads) if full[k, ci, cj]]
+    starts = [(k * h + ci) * w + cj for k in sorted(heads) if full[k, ci, cj]]  # flat
     if not starts:
         return None
     virtual = n * h * w  # the chair: joined to its start states

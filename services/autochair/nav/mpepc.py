@@ -127,20 +127,19 @@ class MpepcParams:
     hit_cost: float = 10.0
     contact_m: float = 0.05  # a predicted clearance below this counts as a hit
     brake_clear_m: float = 0.05  # least clearance of the stop after `commit_s` (else a hit)
-    # ... from every start pose within these timing errors of the one planned from. That pose
+    # ... from every start pose within this timing error of the one planned from. That pose
     # is the core's chain prediction (where the chair stands once the commands sent have
-    # acted); a chain model off by δ puts the chair δ·(v, ω) further on, or back, along its
+    # acted); a chain model off by δ puts the chair δ·v further on, or back, along its
     # present motion, and all it is committed to with it (the same commands from a moved
     # start: the sweep moved rigidly). A fixed margin does not scale with that: at 1.15 m/s
     # a 10 ms misfit is 1.2 cm, and nav_eval lost cases to ±10 ms (predict_s 0.66/0.68).
-    # v's 30 ms: three times that, ~5 % of the chain's 0.67 s mean lag (tests/test_nav_stop.py).
-    # ω's: off. A heading error turns the whole sweep about its start, so metres away it
-    # moves by cm (1.5° at 0.9 rad/s and 30 ms): 30 ms on ω cost nav_eval's door cases 2–6 s
-    # and aborted one (seed 7, office A's far corner: MPEPC crept after a spin), 20 ms still
-    # 12 s on it, 10 ms 2.2–3 s on room B's corner, while ±10 ms of predict_omega_s changed no
-    # nav_eval case (docs/experiments/pid-planned-stream-v4.md). Not covered, then.
+    # 30 ms: three times that, ~5 % of the chain's 0.67 s mean lag (tests/test_nav_stop.py).
+    # Heading errors are not covered. One turns the whole sweep about its start, so metres
+    # away it moves by cm (1.5° at 0.9 rad/s and 30 ms): a band of 30 ms on ω cost nav_eval's
+    # door cases 2–6 s and aborted one (seed 7, office A's far corner: MPEPC crept after a
+    # spin), 20 ms still 12 s on it, 10 ms 2.2–3 s on room B's corner, while ±10 ms of
+    # predict_omega_s changed no nav_eval case (docs/experiments/pid-planned-stream-v4.md).
     stop_timing_s: float = 0.03
-    stop_timing_omega_s: float = 0.0
     goal_blend_m: float = 1.0
     # Inside the heading-aware window, a state from which the lattice has no way to the goal
     # costs this much more than the 2-D field says (nav/lattice.py).
@@ -622,29 +621,23 @@ class Mpepc:
     def stop_clearance(self, pose: tuple[float, float, float], v0: float, w0: float,
                        sweep: F64, need: float) -> F64:
         """Least clearance (N,) of the committed sweeps (3, N, B) (`simulate`) from every
-        start within the timing errors (`stop_timing_s`, `stop_timing_omega_s`) of `pose`
-        along the present motion (v0, ω0): the sweep as planned and moved rigidly with its
-        start by ±(δv·v0, δω·ω0). Exact against `need`; above it, a lower bound of what the
-        band would give. Only poses that could fall below `need` are moved: an outline
-        point r from the start moves by at most δv·|v0| + δω·|ω0|·r (the doorway's few, not
-        every pose: the band cost 30 % more planning time moving whole sweeps)."""
-        fld, e, eq = self.field, self.p.stop_timing_s, self.p.stop_timing_omega_s
+        start within `stop_timing_s` of `pose` along the present motion: the sweep as planned
+        and moved with its start by ±δ·v0 along the heading. Exact against `need`; above it,
+        a lower bound of what the band would give. Only poses that could fall below `need`
+        are moved (each moves by δ·|v0|: the doorway's few, not every pose; the band cost
+        30 % more planning time moving whole sweeps). At rest (v0 and ω0 ~0) the sweep as
+        planned."""
+        fld, e = self.field, self.p.stop_timing_s
         d = fld.footprint_clearance(sweep[0], sweep[1], sweep[2])  # (N, B)
-        if (e <= 0.0 and eq <= 0.0) or (abs(v0) < 1e-3 and abs(w0) < 1e-3):
+        if e <= 0.0 or (abs(v0) < 1e-3 and abs(w0) < 1e-3):
             return np.asarray(d.min(1), dtype=np.float64)
         x0, y0, t0 = pose
-        dx, dy = sweep[0] - x0, sweep[1] - y0
-        reach = np.sqrt(dx * dx + dy * dy) + fld.footprint.reach_m
-        near = d < need + e * abs(v0) + eq * abs(w0) * reach + 0.005
+        near = d < need + e * abs(v0) + 0.005
         if near.any():
-            dx, dy, yaw = dx[near], dy[near], sweep[2][near]
-            for sign in (1.0, -1.0):
-                dth, ds = sign * eq * w0, sign * e * v0
-                c, s = math.cos(dth), math.sin(dth)
-                sx = x0 + ds * math.cos(t0 + 0.5 * dth)
-                sy = y0 + ds * math.sin(t0 + 0.5 * dth)
+            dx, dy, yaw = sweep[0][near] - x0, sweep[1][near] - y0, sweep[2][near]
+            for ds in (e * v0, -e * v0):
                 d[near] = np.minimum(d[near], fld.footprint_clearance(
-                    sx + c * dx - s * dy, sy + s * dx + c * dy, yaw + dth))
+                    x0 + ds * math.cos(t0) + dx, y0 + ds * math.sin(t0) + dy, yaw))
         return np.asarray(d.min(1), dtype=np.float64)
 
     def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64
