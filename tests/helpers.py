@@ -95,6 +95,22 @@ def pid_ready(session: zenoh.Session, timeout: float = 15) -> None:
         status.close()
 
 
+def goal_ready(session: zenoh.Session, timeout: float = 20) -> None:
+    """Wait until a goal sent now would be taken and obeyed: the velocity PID ready
+    (`pid_ready`) and the control service hearing the same (its health says "ready for
+    goals", not why a goal would be refused)."""
+    from autochair_msgs import keys
+
+    pid_ready(session, timeout)
+    health = Recorder(session, keys.HEALTH, keys.HEALTH.for_service("control"))
+    try:
+        wait_for(lambda: (lambda h: h is not None and h.detail == "ready for goals")(
+            health.latest()), timeout, lambda: "the control service ready for goals, not "
+                                               f"{getattr(health.latest(), 'detail', None)!r}")
+    finally:
+        health.close()
+
+
 class Stream:
     """One command stream (a deliberate act): every command carries the time it began, so the
     velocity PID obeys it only if it began after the PID's last stop."""

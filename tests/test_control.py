@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from autochair.control.core import ControlConfig, ControlCore, OdomSample
+from autochair.control.core import ControlConfig, ControlCore, DriveGates, OdomSample
 from autochair.control.law import Gains, braking_speed, egocentric, park_kuipers
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
 from autochair.geometry import compose, inverse
@@ -424,6 +424,48 @@ def test_a_chair_that_does_not_follow_aborts_the_goal() -> None:
     assert 2.0 < t < 3.0
 
 
+def test_a_goal_the_drive_chain_would_not_obey_is_refused_at_once_naming_why() -> None:
+    """The PID refuses a stream begun while the e-stop is silent or the safety monitor's limit
+    (required while it runs) is missing, stale or says stop, and never takes it back: such a
+    goal is refused at once with the cause, not taken to end "does not follow" 2 s later."""
+    goal = GoalRequest(waypoints=[Pose2D(5, 0, 0)])
+
+    def core_at(t: float) -> ControlCore:
+        core = fresh_core()
+        core.gates = DriveGates(estop_s=0.5, limit_s=0.5)
+        core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))
+        return core
+
+    core = core_at(10.0)
+    assert "e-stop is silent" in core.set_goal(goal, 10.0).error  # never heard
+    core.on_estop(False, 10.0)
+    assert core.set_goal(goal, 10.0).ok  # positive control: no monitor in this stack
+    core = core_at(10.0)
+    core.on_estop(False, 9.4)
+    assert "e-stop is silent" in core.set_goal(goal, 10.0).error  # heard 0.6 s ago
+    core.on_estop(False, 10.0)
+    core.gates.monitor_up = True  # the monitor runs: its limit is required
+    assert "no fresh limit" in core.set_goal(goal, 10.0).error
+    core.on_limit(0.0, 0.0, "no scan yet", 10.0)
+    assert "says stop (no scan yet)" in core.set_goal(goal, 10.0).error
+    core.on_limit(0.0, 0.5, "close ahead", 10.0)  # a turn is allowed: the PID takes a stream
+    assert core.set_goal(goal, 10.0).ok
+    core = core_at(10.0)
+    core.on_estop(False, 10.0)
+    core.on_limit(1.0, 1.0, "", 9.0)  # the monitor was seen, then fell silent
+    assert "no fresh limit" in core.set_goal(goal, 10.0).error
+    # A goal taken, whose drive chain then stops obeying: the abort says what held it.
+    core = core_at(0.0)
+    core.on_estop(False, 0.0)
+    assert core.set_goal(goal, 0.0).ok
+    t = 0.0
+    while core.active and t < 10:
+        core.step(t)
+        core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))  # at rest: the e-stop heartbeat stopped
+        t += 0.02
+    assert "does not follow" in core.reason and "e-stop is silent" in core.reason, core.reason
+
+
 def test_a_goal_without_progress_aborts() -> None:
     core = fresh_core(ControlConfig(no_progress_s=3.0, lead=False))
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
@@ -461,7 +503,7 @@ def test_turns_are_planned_within_the_monitors_turn_rate_bound() -> None:
     def peak_omega(cap: float | None) -> float:
         core = fresh_core()
         if cap is not None:
-            core.on_limit(cap)
+            core.on_limit(1.0, cap, "", 0.0)
         assert core.set_goal(GoalRequest(waypoints=[Pose2D(0, 0, math.pi / 2)]), 0.0).ok
         peak = 0.0
         for k in range(200):

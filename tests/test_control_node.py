@@ -19,7 +19,7 @@ from autochair.control.node import ControlNode
 from autochair.runtime import Node
 from autochair.runtime.client import RequestError, request
 from autochair.runtime.config import ZenohSettings
-from autochair_msgs import GoalReply, GoalRequest, Odometry, Pose2D, keys
+from autochair_msgs import EStopState, GoalReply, GoalRequest, Odometry, Pose2D, keys
 from tests.helpers import wait_for
 
 GOAL = GoalRequest(waypoints=[Pose2D(2.0, 0.0, 0.0)])
@@ -38,7 +38,8 @@ def control() -> Iterator[ControlNode]:
 
 @pytest.fixture
 def odometry(control: ControlNode) -> Iterator[threading.Event]:
-    """The odometry service's 50 Hz stream (at rest) while the event is set."""
+    """The odometry service's 50 Hz stream (at rest), and the e-stop's heartbeat without which
+    no goal is taken, while the event is set."""
     feeding, fed = threading.Event(), threading.Event()
     feeding.set()
 
@@ -46,6 +47,7 @@ def odometry(control: ControlNode) -> Iterator[threading.Event]:
         while feeding.is_set():
             control.on_odom(Odometry(stamp_ns=time.time_ns(), x_m=0.0, y_m=0.0, yaw_rad=0.0,
                                      v_mps=0.0, omega_radps=0.0))
+            control.on_estop(EStopState(stamp_ns=time.time_ns(), latched=False))
             fed.set()
             time.sleep(0.02)
 

@@ -25,7 +25,7 @@ from autochair_msgs import (
     Pose2D,
     keys,
 )
-from tests.helpers import Recorder, Stream, client_session, pid_ready, wait_for
+from tests.helpers import Recorder, Stream, client_session, goal_ready, pid_ready, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -50,7 +50,7 @@ def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
         truth = Recorder(session, keys.SIM_TRUTH)
         out = Recorder(session, keys.JOYSTICK_OUT)
         status = Recorder(session, keys.GOAL_STATUS)
-        pid_ready(session)
+        goal_ready(session)
         wait_for(truth.latest, 10, "ground truth")  # (10 Hz while the chair is parked)
         goal = GoalRequest(waypoints=[Pose2D(8.0, 0.0, 0.0)])
         assert request(session, keys.GOAL_SET, goal, GoalReply).ok
@@ -147,7 +147,7 @@ def test_the_hub_dies_under_a_goal_the_chair_stops_and_does_not_resume_when_it_i
     try:
         truth = Recorder(session, keys.SIM_TRUTH)
         status = Recorder(session, keys.GOAL_STATUS)
-        pid_ready(session)
+        goal_ready(session)
         wait_for(truth.latest, 10, "ground truth")
         assert request(session, keys.GOAL_SET, GoalRequest(waypoints=[Pose2D(8.0, 0.0, 0.0)]),
                        GoalReply).ok

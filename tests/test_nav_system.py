@@ -16,7 +16,7 @@ from autochair.launcher import Launcher
 from autochair.runtime.client import request
 from autochair.sim.world import DEFAULT_WORLD
 from autochair_msgs import GoalReply, GoalRequest, GoalStatus, Pose2D, keys
-from tests.helpers import Recorder, client_session, wait_for
+from tests.helpers import Recorder, client_session, goal_ready, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -42,6 +42,7 @@ def map_ready(session: zenoh.Session) -> Recorder:
 
 
 def drive_to(session: zenoh.Session, goal: Pose2D, timeout_s: float) -> list[GoalStatus]:
+    goal_ready(session)  # (a goal sent while the safety monitor awaits its first scan is refused)
     status = Recorder(session, keys.GOAL_STATUS)
     reply = request(session, keys.GOAL_SET, GoalRequest(waypoints=[goal]), GoalReply)
     assert reply.ok, reply.error
@@ -76,6 +77,7 @@ def test_unreachable_goal_is_refused_at_once(stack_factory: Callable[..., Launch
     session = client_session(hub)
     try:
         map_ready(session)
+        goal_ready(session)
         # The README's old example: at 90° the chair's front would be inside the wall.
         t0 = time.monotonic()
         bad = request(session, keys.GOAL_SET, GoalRequest(
@@ -121,11 +123,13 @@ def test_around_a_corner(stack_factory: Callable[..., Launcher], hub: str, tmp_p
     session = client_session(hub)
     try:
         truth = Recorder(session, keys.SIM_TRUTH)
+        pid = Recorder(session, keys.PID_STATUS)  # (for a failure: what held the chair)
         map_ready(session)
         # Round the corner into the second leg, 1.5 m short of the pillar: a goal whose final
         # turn in place would sweep the pillar (e.g. 5, 4 here) ends blocked, a known shortfall.
+        sent_ns = time.time_ns()
         states = drive_to(session, Pose2D(5.0, 3.0, math.radians(90)), 90)
-        assert states[-1].state == "arrived", story(states)
+        assert states[-1].state == "arrived", f"{story(states)}; {held(pid, sent_ns)}"
         assert "driving" in {s.state for s in states}
         t = truth.latest()
         assert math.hypot(t.x_m - 5.0, t.y_m - 3.0) < 0.10, t

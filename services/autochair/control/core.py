@@ -188,6 +188,38 @@ class OdomSample:
     age_s: float = 0.0
 
 
+@dataclass
+class DriveGates:
+    """What the velocity PID obeys a new stream under, as this service last heard it.
+
+    The PID refuses a stream begun while the e-stop is silent, or while the safety monitor's
+    limit (required whenever the monitor runs) is missing, stale or says stop; and it never
+    takes that stream back once the cause clears (no unexpected start-up). A goal taken then
+    would stand still and end "does not follow" 2 s later, so it is refused at once, naming
+    the cause. A timeout of None: not watched (the lockstep benches have no such services).
+    """
+
+    estop_s: float | None = None  # [stale] estop_s
+    limit_s: float | None = None  # [stale] safety_limit_s
+    estop_t: float = -math.inf  # when the last e-stop state came (monotonic s)
+    limit_t: float = -math.inf  # when the last safety limit came
+    limit_stop: str | None = None  # the monitor's reason while its limit says stop
+    monitor_up: bool = False  # the monitor's token is alive: the PID requires its limit
+
+    def why_not(self, now: float) -> str:
+        """Why the PID would refuse a stream begun now ('' if it would obey one)."""
+        if self.estop_s is not None and now - self.estop_t > self.estop_s:
+            return ("the e-stop is silent: is the e-stop service up? (the drive chain obeys "
+                    "nothing without its heartbeat)")
+        if self.limit_s is None or not (self.monitor_up or self.limit_t > -math.inf):
+            return ""  # no monitor in this stack: the PID does not require its limit
+        if now - self.limit_t > self.limit_s:
+            return "no fresh limit from the safety monitor: is it up and seeing scans?"
+        if self.limit_stop is not None:
+            return f"the safety monitor says stop ({self.limit_stop or 'no reason given'})"
+        return ""
+
+
 @dataclass(frozen=True)
 class GoalCheck:
     """A goal past the quick checks, in `odom`, and once `routed` its route check's result."""
@@ -345,9 +377,10 @@ class LeadAxis:
 
 class ControlCore:
     def __init__(self, cfg: ControlConfig | None = None, odom_timeout_s: float = 0.3,
-                 footprint: Footprint | None = None) -> None:
+                 footprint: Footprint | None = None, gates: DriveGates | None = None) -> None:
         """`odom_timeout_s`: older odometry aborts the goal ([stale] odometry_s in the node);
-        `footprint`: the chair's body ([chair] section)."""
+        `footprint`: the chair's body ([chair] section); `gates`: the PID's, watched (the
+        node's, with [stale]'s timeouts)."""
         self.cfg = cfg or ControlConfig()  # (checked on construction: __post_init__)
         if not odom_timeout_s > 0:
             raise ValueError(f"odom_timeout_s must be > 0, not {odom_timeout_s}")
@@ -368,6 +401,7 @@ class ControlCore:
         # What the node learns from the rest of the stack (see the on_* methods).
         self.estop_latched = False
         self.owner = "autonomy"
+        self.gates = gates or DriveGates()
         # Navigation (nav/): the map's field (None: free space around the goal), the costs-to-go
         # to the waypoint planned to, MPEPC's last plan, moving people.
         self.footprint = footprint or Footprint()
@@ -426,7 +460,7 @@ class ControlCore:
         self.odom = odom
 
     def on_estop(self, latched: bool, now: float) -> None:
-        self.estop_latched = latched
+        self.estop_latched, self.gates.estop_t = latched, now
         if latched and self.active:
             self._stopped(ABORTED, "e-stop latched", now)
 
@@ -435,11 +469,14 @@ class ControlCore:
         if owner != "autonomy" and self.active:
             self._stopped(ABORTED, f"drive handed to {owner}", now)
 
-    def on_limit(self, omega_max: float) -> None:
+    def on_limit(self, v_fwd: float, omega_max: float, reason: str, now: float) -> None:
         """The safety monitor's bound: turns planned within its |ω| bound (the unseen swing of
         the footprint, obstacles): the limiter then keeps the path and slows v with ω. (MPEPC
         drives forward only, so the monitor's reverse bound needs no handling here.)"""
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
+        self.gates.limit_t = now
+        # (the PID's own test for "says stop": neither forward nor turning allowed)
+        self.gates.limit_stop = reason if v_fwd == 0.0 and omega_max == 0.0 else None
 
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
         """Check a goal and take it, in one step (the node runs the slow route check between
@@ -461,12 +498,18 @@ class ControlCore:
                 Pose2D(*self.frames.to_odom((p.x_m, p.y_m, p.yaw_rad))) for p in req.waypoints])
         o = self.odom
         error = validate(req, self.cfg, *((o.x, o.y) if o is not None else (0.0, 0.0)))
-        error = error or self._why_not_now(now)
+        error = error or self.why_not_ready(now)
         if error:
             self._count("rejected_goals")
             return GoalReply(ok=False, error=error)
         assert o is not None
         return GoalCheck(req, map_waypoints, o, self._field_for(o, req.waypoints))
+
+    def why_not_ready(self, now: float) -> str:
+        """Why a goal asked for now would be refused before its route is checked ('' if it
+        would not). (The drive chain's gates only here, at the request: after the route check
+        the PID judges alone; a heartbeat late here must not refuse a goal it would obey.)"""
+        return self._why_not_now(now) or self.gates.why_not(now)
 
     def _why_not_now(self, now: float) -> str:
         """Why no goal may start now ('' if one may)."""
@@ -714,9 +757,10 @@ class ControlCore:
         elif self._still_since is None:
             self._still_since = now
         elif now - self._still_since > cfg.follow_timeout_s:
+            why = self.gates.why_not(now) or ("a safety stop, a stopped drive chain or a "
+                                               "blocked wheel?")
             self._stopped(ABORTED, f"the chair does not follow: commanded to move, at rest for "
-                                   f"{cfg.follow_timeout_s:g} s (a safety stop, a stopped "
-                                   "drive chain or a blocked wheel?)", now)
+                                   f"{cfg.follow_timeout_s:g} s ({why})", now)
             return
         goal = self.waypoints[-1]
         left = self.status().distance_left_m + 0.5 * abs(wrap(goal.yaw_rad - o.yaw))

@@ -22,11 +22,13 @@ from contextlib import contextmanager
 import numpy as np
 
 from autochair.geometry import quaternion_yaw
+from autochair.nav import gil
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import Person
 from autochair.nav.planner import PlanRequest, PlanResult, compute
 from autochair.people.core import ScanPeople, StaticMap
 from autochair.runtime import ConfigError, Node, service_main
+from autochair.runtime.helper import HelperProcess
 from autochair_msgs import (
     CommandOwner,
     EStopState,
@@ -45,7 +47,15 @@ from autochair_msgs import (
     keys,
 )
 
-from .core import ABORTED, CANCELLED, ControlConfig, ControlCore, GoalCheck, OdomSample
+from .core import (
+    ABORTED,
+    CANCELLED,
+    ControlConfig,
+    ControlCore,
+    DriveGates,
+    GoalCheck,
+    OdomSample,
+)
 
 
 class ControlNode:
@@ -53,10 +63,19 @@ class ControlNode:
         chair = node.chair
         fp = Footprint(chair.front_m, chair.rear_m, chair.half_width_m)
         try:  # the odometry watchdog is one of the chain's thresholds, set in [stale] only
-            self.core = ControlCore(cfg, odom_timeout_s=node.stale.odometry_s, footprint=fp)
+            self.core = ControlCore(cfg, odom_timeout_s=node.stale.odometry_s, footprint=fp,
+                                    gates=DriveGates(node.stale.estop_s,
+                                                     node.stale.safety_limit_s))
         except ValueError as e:
             raise ConfigError(f"[control] {e}") from None
         self.core.inline_planning = False  # planned on its own thread (plan_tick)
+        # The planner's searches hold the interpreter lock for up to 0.3 s (nav/gil.py): made
+        # in a helper process, they no longer stall the command stream.
+        helper = HelperProcess(("autochair.nav.lattice",),
+                               on_restart=lambda: node.health.count("helper_restarts"))
+        gil.install(helper)
+        node.on_close(helper.close)
+        node.on_close(lambda: gil.install(None))  # (run first: last registered)
         self._due: float | None = None  # the last tick's schedule (Node.due)
         self.node, self.cfg = node, cfg
         self.lock = threading.Lock()
@@ -128,7 +147,12 @@ class ControlNode:
 
     def on_limit(self, msg: SafetyLimit) -> None:
         with self.held():  # plan within the monitor's bounds instead of being clamped by the PID
-            self.core.on_limit(msg.omega_max_radps)
+            self.core.on_limit(msg.v_max_fwd_mps, msg.omega_max_radps, msg.reason,
+                               time.monotonic())
+
+    def on_monitor_alive(self, alive: bool) -> None:
+        with self.held():
+            self.core.gates.monitor_up = alive
 
     def on_tf(self, msg: FrameTransform) -> None:
         if msg.parent_frame_id != "map" or msg.child_frame_id != "odom":
@@ -241,6 +265,13 @@ class ControlNode:
                           distance_left_m=round(s.distance_left_m, 4), eta_s=round(s.eta_s, 2),
                           reason=s.reason)
 
+    def status_tick(self) -> None:
+        with self.held():
+            why = self.core.why_not_ready(time.monotonic())
+        # (`autochair status` shows it: why a goal would be refused now)
+        self.node.health.detail = f"goals refused: {why}" if why else "ready for goals"
+        self.status_pub.put(self.status_msg())
+
     def on_set(self, req: GoalRequest) -> GoalReply:
         with self.held():
             check = self.core.check_goal(req, time.monotonic())
@@ -281,6 +312,7 @@ def start(node: Node, cfg: ControlConfig) -> None:
     node.subscribe(keys.ESTOP_STATE, c.on_estop)
     node.subscribe(keys.CMD_OWNER, c.on_owner)
     node.subscribe(keys.SAFETY_LIMIT, c.on_limit)
+    node.watch_alive("safety", c.on_monitor_alive)  # its limit is required while it runs
     node.subscribe(keys.MAP_GRID, c.on_grid)
     node.subscribe(keys.TF, c.on_tf)  # map → odom, for goals in map
     node.subscribe(keys.LOC_POSE, c.on_loc)
@@ -291,7 +323,7 @@ def start(node: Node, cfg: ControlConfig) -> None:
     node.every(1.0 / cfg.rate_hz, c.tick, "control")
     node.every(0.5 / cfg.plan_rate_hz, c.plan_tick, "plan")
     node.every(0.5, c.map_tick, "map")
-    node.every(1.0 / cfg.status_rate_hz, lambda: c.status_pub.put(c.status_msg()), "status")
+    node.every(1.0 / cfg.status_rate_hz, c.status_tick, "status")
 
 
 def main(argv: list[str] | None = None) -> int:

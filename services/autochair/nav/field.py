@@ -26,6 +26,8 @@ import numpy.typing as npt
 import scipy.ndimage as ndi
 import skfmm
 
+from . import gil
+
 F64 = npt.NDArray[np.float64]
 Bool = npt.NDArray[np.bool_]
 
@@ -357,7 +359,7 @@ class NavField:
         res = self.map.resolution_m
         phi0 = np.ones(passable.shape)
         phi0[c] = -1.0  # the zero contour surrounds the goal cell
-        t = skfmm.travel_time(np.ma.MaskedArray(phi0, ~passable), self.speed, dx=res)
+        t = gil.run(skfmm.travel_time, np.ma.MaskedArray(phi0, ~passable), self.speed, dx=res)
         reach = ~np.ma.getmaskarray(t) & passable
         phi = np.where(reach, np.ma.getdata(t), np.inf)
         phi[c] = 0.0

@@ -32,6 +32,7 @@ import scipy.ndimage as ndi
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
+from . import gil
 from .field import NavField, place_xy
 
 F64 = npt.NDArray[np.float64]
@@ -432,11 +433,11 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     lat = graph((n, h, w), len(moves(p)[0].k2), edges(), True, s_seed,
                 np.concatenate(seeds_c) + 1e-6)
     if costs:
-        d = np.asarray(dijkstra(lat, indices=virtual), dtype=np.float64)[:virtual]
+        d = np.asarray(gil.run(dijkstra, lat, indices=virtual), dtype=np.float64)[:virtual]
         d = np.where(np.isfinite(d), d, p.max_cost).reshape(n, h, w)
     else:
         d = np.full(virtual + 1, p.max_cost)
-        d[breadth_first_order(lat, virtual, return_predecessors=False)] = 0.0
+        d[gil.run(breadth_first_order, lat, virtual, return_predecessors=False)] = 0.0
         d = d[:virtual].reshape(n, h, w)
     offset = 0.0
     if ctg_phi is not None and costs:  # where MPEPC moves from the 2-D field onto this: the border
@@ -517,7 +518,8 @@ def unreachable(fld: NavField, pose: tuple[float, float, float], half_m: float =
                 ((k, k2, a, b, ok, 1.0) for k, k2, a, b, ok, _, _ in
                  legal_moves(full, half_steps, p, turns)), False,
                 np.array(starts, dtype=np.int32), 1.0)
-    order = breadth_first_order(lat, virtual, directed=True, return_predecessors=False)
+    order = gil.run(breadth_first_order, lat, virtual, directed=True,
+                    return_predecessors=False)
     got = np.zeros(virtual + 1, dtype=np.bool_)
     got[order] = True
     reached = got[:virtual].reshape(n, h, w).any(0)
