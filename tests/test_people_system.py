@@ -85,9 +85,15 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
         map_ready(session)
         # Round the corner (this test is about what the tracker reports on the way, not the
         # goal's end: near the outer wall a goal may also end blocked, see test_nav_system).
+        # From the leg's closed end the chair may also be blocked at the wall the cabinet hid
+        # before it reaches the corner (README, navigation: a known shortfall; once at load
+        # ~10): then it is asked once more, from where it stands, a new deliberate act.
         sent_ns = time.time_ns()
         states = drive_to(session, Pose2D(8.0, 3.0, 1.5708), 90)
         assert "driving" in {s.state for s in states}, f"{story(states)}; {held(pid, sent_ns)}"
+        if states[-1].state != "arrived":
+            print(f"\nasked again after: {story(states)}")
+            states = drive_to(session, Pose2D(8.0, 3.0, 1.5708), 90)
 
         def walker() -> bool:
             return any(abs(q.y_m - 8.3) < 0.4 and 7.0 < q.x_m < 9.0
