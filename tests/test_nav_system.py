@@ -9,6 +9,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import psutil
 import pytest
 import zenoh
 
@@ -119,9 +120,13 @@ def test_around_a_corner(stack_factory: Callable[..., Launcher], hub: str, tmp_p
     # has not seen, was blocked at the inner wall the cabinet hid in 2 of 43 runs (README,
     # navigation: a known shortfall).
     world_config(tmp_path, monkeypatch, shifted(L_WORLD, -3.0))
-    stack_factory(STACK)
+    stack = stack_factory(STACK)
     session = client_session(hub)
     try:
+        # The planner's searches are made in control's helper process (H46, nav/gil.py).
+        control = psutil.Process(stack.pid("control"))
+        assert any("autochair.runtime.helper" in " ".join(c.cmdline())
+                   for c in control.children()), control.children()
         truth = Recorder(session, keys.SIM_TRUTH)
         pid = Recorder(session, keys.PID_STATUS)  # (for a failure: what held the chair)
         map_ready(session)

@@ -69,13 +69,6 @@ class ControlNode:
         except ValueError as e:
             raise ConfigError(f"[control] {e}") from None
         self.core.inline_planning = False  # planned on its own thread (plan_tick)
-        # The planner's searches hold the interpreter lock for up to 0.3 s (nav/gil.py): made
-        # in a helper process, they no longer stall the command stream.
-        helper = HelperProcess(("autochair.nav.lattice",),
-                               on_restart=lambda: node.health.count("helper_restarts"))
-        gil.install(helper)
-        node.on_close(helper.close)
-        node.on_close(lambda: gil.install(None))  # (run first: last registered)
         self._due: float | None = None  # the last tick's schedule (Node.due)
         self.node, self.cfg = node, cfg
         self.lock = threading.Lock()
@@ -307,6 +300,13 @@ class ControlNode:
 
 def start(node: Node, cfg: ControlConfig) -> None:
     c = ControlNode(node, cfg)
+    # The planner's searches hold the interpreter lock for up to 0.3 s (nav/gil.py): made in a
+    # helper process, they no longer stall the command stream.
+    helper = HelperProcess(("autochair.nav.lattice",),
+                           on_restart=lambda: node.health.count("helper_restarts"))
+    gil.install(helper)
+    node.on_close(helper.close)
+    node.on_close(lambda: gil.install(None))  # (run first: last registered)
     node.health.thresholds.update(odometry_s=node.stale.odometry_s, rate_hz=cfg.rate_hz)
     node.subscribe(keys.ODOM_SLOW, c.on_odom)  # 50 Hz: the law runs at 50 Hz too
     node.subscribe(keys.ESTOP_STATE, c.on_estop)
