@@ -164,9 +164,9 @@ class LineField(DistanceField):
         self.frame, self.max_dist_m, self.res, self.h, self.w = frame, max_dist_m, res, h, w
         self.occupied = occ
         if cells.size:  # one feature transform: the distances and the nearest cells
-            d, (self._ny, self._nx) = ndimage.distance_transform_edt(~occ, return_indices=True)
+            d, (near_y, near_x) = ndimage.distance_transform_edt(~occ, return_indices=True)
         else:
-            d, self._ny, self._nx = np.full((h, w), np.inf), np.zeros((h, w), np.int32), \
+            d, near_y, near_x = np.full((h, w), np.inf), np.zeros((h, w), np.int32), \
                 np.zeros((h, w), np.int32)
         self.dist = np.minimum(np.asarray(d, dtype=np.float64) * res, max_dist_m)
         # Sums per occupied cell, then over its 3 × 3 neighbourhood (sparse: the grid of a
@@ -188,8 +188,12 @@ class LineField(DistanceField):
         # corridor past the ends of the submap's walls. They count for the fit, not the pose.
         self._pull = mom[:, 3] >= 1
         self._line = self._pull & (half - dev <= line_ratio * (half + dev))  # else a corner
-        self._lut = np.zeros(h * w, dtype=np.int64)  # flat cell → occupied cell number
-        self._lut[cells] = np.arange(k)
+        lut = np.zeros(h * w, dtype=np.int64)  # flat cell → occupied cell number
+        lut[cells] = np.arange(k)
+        # Per cell, the occupied cell nearest to it (its number) and whether it is near enough
+        # to count: looked up once per query point, not composed from the EDT's indices there.
+        self._nearest = lut[near_y.astype(np.int64) * w + near_x]
+        self._near = self.dist < max_dist_m * 0.9
 
     def sample(self, pts: F64) -> tuple[F64, F64, F64]:
         fr = self.frame
@@ -197,11 +201,11 @@ class LineField(DistanceField):
         ix, iy = np.floor(lx / self.res).astype(np.int64), np.floor(ly / self.res).astype(np.int64)
         inside = (ix >= 0) & (iy >= 0) & (ix < self.w) & (iy < self.h)
         ix, iy = np.where(inside, ix, 0), np.where(inside, iy, 0)
-        ok = inside & (self.dist[iy, ix] < self.max_dist_m * 0.9)
+        ok = inside & self._near[iy, ix]
         far = self.max_dist_m
         if not self._line.size:
             return np.full(len(pts), far), np.zeros(len(pts)), np.zeros(len(pts))
-        c = self._lut[self._ny[iy, ix].astype(np.int64) * self.w + self._nx[iy, ix]]
+        c = self._nearest[iy, ix]
         rx, ry = lx - self._cx[c], ly - self._cy[c]
         nx, ny = self._nrm_x[c], self._nrm_y[c]
         signed = nx * rx + ny * ry
@@ -214,6 +218,11 @@ class LineField(DistanceField):
         gy = np.where(line, sgn * ny, ry / safe)
         pull = ok & self._pull[c]
         return np.where(ok, d, far), np.where(pull, gx, 0.0), np.where(pull, gy, 0.0)
+
+
+def _clip(v: float, limit: float) -> float:
+    """np.clip(v, −limit, limit) of a scalar, without numpy's per-call cost."""
+    return min(max(v, -limit), limit)
 
 
 @dataclass(frozen=True)
@@ -235,6 +244,7 @@ def refine(field: DistanceField, pts: F64, init: F64, *, iterations: int = 12,
     20–50 cm along it."""
     pose = np.array(init, dtype=np.float64)
     prior = 0.0 if prior_m is None else (sigma_floor_m / prior_m) ** 2  # in the steps' units
+    prior_h, damp = np.diag([prior, prior, 0.0]), np.eye(3) * 1e-6
     px, py = pts[:, 0], pts[:, 1]
     info = np.zeros((3, 3))
     it = 0
@@ -249,14 +259,15 @@ def refine(field: DistanceField, pts: F64, init: F64, *, iterations: int = 12,
         h = jw.T @ jac
         g = jw.T @ d
         info = h
-        hp = h + np.diag([prior, prior, 0.0])
+        hp = h + prior_h
         gp = g + prior * np.array([pose[0] - init[0], pose[1] - init[1], 0.0])
         try:
-            step = -np.linalg.solve(hp + np.eye(3) * 1e-6 * (np.trace(h) + 1e-9), gp)
+            step = -np.linalg.solve(hp + damp * (np.trace(h) + 1e-9), gp)
         except np.linalg.LinAlgError:
             break
-        step[:2] = np.clip(step[:2], -0.2, 0.2)  # trust region: a cell-sized field is local
-        step[2] = float(np.clip(step[2], -0.1, 0.1))
+        # trust region: a cell-sized field is local
+        step[0], step[1] = _clip(step[0], 0.2), _clip(step[1], 0.2)
+        step[2] = _clip(step[2], 0.1)
         pose += step
         if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4:
             break
