@@ -1,18 +1,26 @@
 """Issue 11 (CPU, pure): the per-scan shortcuts of mapping mode give the same numbers, bit for
 bit, as the computations they replace: LineField's precomputed nearest-cell lookup, Slam's
-kept per-keyframe beam arrays (`_seen`), refine's scalar clip."""
+kept per-keyframe beam arrays (`_seen`), refine's scalar clip, score_grid's separable grid."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pytest
 from bench import loc_eval
 from scipy import ndimage
 
-from autochair.localization.matching import LineField, _clip
+from autochair.localization.matching import (
+    BoolGrid,
+    DistanceField,
+    LineField,
+    _clip,
+    score_grid,
+)
+from autochair.localization.node import localizer_for
 from autochair.localization.slam import Slam
 
 F64 = np.ndarray
@@ -118,3 +126,67 @@ def test_scalar_clip_is_numpys(v: float) -> None:
         got, want = _clip(np.float64(v), limit), float(np.clip(np.float64(v), -limit, limit))
         assert (math.isnan(got) and math.isnan(want)) or (
             got == want and math.copysign(1.0, got) == math.copysign(1.0, want))
+
+
+def _old_score_grid(field: DistanceField, pts: F64, centre: F64, *, half_xy_m: float,
+                    half_yaw: float, step_xy_m: float, step_yaw: float, inlier_m: float,
+                    max_points: int = 80, free: BoolGrid | None = None) -> tuple[F64, F64]:
+    """score_grid as it was: every candidate's cells computed for every point."""
+    if len(pts) > max_points:
+        pts = pts[np.linspace(0, len(pts) - 1, max_points).astype(np.int64)]
+    near = field.dist < inlier_m
+    res, fr = field.res, field.frame
+    n_xy = round(half_xy_m / step_xy_m)
+    offs = np.arange(-n_xy, n_xy + 1) * step_xy_m
+    cx, cy = np.meshgrid(centre[0] + offs, centre[1] + offs)
+    cx, cy = cx.ravel(), cy.ravel()
+    if free is not None:
+        ix = np.floor((cx - fr.origin_x_m) / res).astype(np.int64)
+        iy = np.floor((cy - fr.origin_y_m) / res).astype(np.int64)
+        ok = (ix >= 0) & (iy >= 0) & (ix < field.w) & (iy < field.h)
+        ok[ok] = free[iy[ok], ix[ok]]
+        cx, cy = cx[ok], cy[ok]
+    n_yaw = round(half_yaw / step_yaw)
+    poses, scores = [], []
+    for k in range(-n_yaw, n_yaw + 1):
+        yaw = centre[2] + k * step_yaw
+        c, s = math.cos(yaw), math.sin(yaw)
+        rx, ry = c * pts[:, 0] - s * pts[:, 1], s * pts[:, 0] + c * pts[:, 1]
+        ix = np.floor((cx[:, None] + rx[None, :] - fr.origin_x_m) / res).astype(np.int64)
+        iy = np.floor((cy[:, None] + ry[None, :] - fr.origin_y_m) / res).astype(np.int64)
+        ok = (ix >= 0) & (iy >= 0) & (ix < field.w) & (iy < field.h)
+        hit = np.zeros(ix.shape, dtype=np.bool_)
+        hit[ok] = near[iy[ok], ix[ok]]
+        scores.append(hit.mean(axis=1) if len(pts) else np.zeros(len(cx)))
+        poses.append(np.column_stack((cx, cy, np.full(len(cx), math.atan2(s, c)))))
+    return np.vstack(poses), np.concatenate(scores)
+
+
+def test_score_grid_equals_scoring_every_candidate_alone() -> None:
+    """A loop closure's search on a submap (windows off its edge too), and a localizer's
+    whole-map search kept on free cells."""
+    slam = Slam()
+    for _ in _mapped(slam, 0.3):
+        pass
+    sub = slam._submap_of(range(0, 8), crop=False)
+    pts = slam.kfs[-1].pts
+    win = dict(half_xy_m=1.0, half_yaw=0.2, step_xy_m=0.05, step_yaw=math.radians(1.5),
+               inlier_m=0.05)
+    off = dict(half_xy_m=3.0, half_yaw=0.1, step_xy_m=0.1, step_yaw=0.05, inlier_m=0.1)
+    cases: list[tuple[DistanceField, F64, F64, dict[str, Any]]] = [
+        (sub, pts, slam.pose, win),
+        (sub, pts, slam.pose + np.array([9.0, 0.0, 0.0]), off),  # part off the grid
+        (sub, pts[:0], slam.pose, win)]  # no points
+    loc = localizer_for(loc_eval.surveyed_map("hallway"))
+    f = loc.field.frame
+    centre = np.array([f.origin_x_m + loc.field.w * loc.field.res / 2,
+                       f.origin_y_m + loc.field.h * loc.field.res / 2, 0.0])
+    cases.append((loc.field, pts, centre, dict(
+        half_xy_m=max(loc.field.w, loc.field.h) * loc.field.res / 2, half_yaw=math.pi,
+        step_xy_m=0.2, step_yaw=math.radians(5), inlier_m=0.1, max_points=40,
+        free=loc.free)))
+    for field, p, c, kw in cases:
+        new, old = score_grid(field, p, c, **kw), _old_score_grid(field, p, c, **kw)
+        assert new[0].shape == old[0].shape and new[0].shape[0] > 0
+        assert np.array_equal(new[0], old[0]) and np.array_equal(new[1], old[1])
+    assert new[1].max() > 0.5 and new[1].min() == 0.0  # the last (whole map): fits and misses

@@ -305,25 +305,29 @@ def score_grid(field: DistanceField, pts: F64, centre: F64, *, half_xy_m: float,
     res, fr = field.res, field.frame
     n_xy = round(half_xy_m / step_xy_m)
     offs = np.arange(-n_xy, n_xy + 1) * step_xy_m
-    cx, cy = np.meshgrid(centre[0] + offs, centre[1] + offs)
-    cx, cy = cx.ravel(), cy.ravel()
+    xs, ys = centre[0] + offs, centre[1] + offs
+    # Candidate p is (xs[col[p]], ys[row[p]]): the grid is separable, so each point's cell
+    # column is computed once per x and its row once per y, not once per candidate.
+    row, col = np.divmod(np.arange(xs.size * ys.size), xs.size)
+    cx, cy = xs[col], ys[row]
     if free is not None:
         ix = np.floor((cx - fr.origin_x_m) / res).astype(np.int64)
         iy = np.floor((cy - fr.origin_y_m) / res).astype(np.int64)
         ok = (ix >= 0) & (iy >= 0) & (ix < field.w) & (iy < field.h)
         ok[ok] = free[iy[ok], ix[ok]]
-        cx, cy = cx[ok], cy[ok]
+        cx, cy, row, col = cx[ok], cy[ok], row[ok], col[ok]
     n_yaw = round(half_yaw / step_yaw)
     poses, scores = [], []
     for k in range(-n_yaw, n_yaw + 1):
         yaw = centre[2] + k * step_yaw
         c, s = math.cos(yaw), math.sin(yaw)
         rx, ry = c * pts[:, 0] - s * pts[:, 1], s * pts[:, 0] + c * pts[:, 1]
-        ix = np.floor((cx[:, None] + rx[None, :] - fr.origin_x_m) / res).astype(np.int64)
-        iy = np.floor((cy[:, None] + ry[None, :] - fr.origin_y_m) / res).astype(np.int64)
-        ok = (ix >= 0) & (iy >= 0) & (ix < field.w) & (iy < field.h)
-        hit = np.zeros(ix.shape, dtype=np.bool_)
-        hit[ok] = near[iy[ok], ix[ok]]
+        ix = np.floor((xs[:, None] + rx[None, :] - fr.origin_x_m) / res).astype(np.int64)
+        iy = np.floor((ys[:, None] + ry[None, :] - fr.origin_y_m) / res).astype(np.int64)
+        in_x, in_y = (ix >= 0) & (ix < field.w), (iy >= 0) & (iy < field.h)
+        hit = near[np.where(in_y, iy, 0)[row], np.where(in_x, ix, 0)[col]]
+        hit &= in_y[row]
+        hit &= in_x[col]
         scores.append(hit.mean(axis=1) if len(pts) else np.zeros(len(cx)))
         poses.append(np.column_stack((cx, cy, np.full(len(cx), math.atan2(s, c)))))
     return np.vstack(poses), np.concatenate(scores)
