@@ -175,7 +175,7 @@ def test_score_grid_equals_scoring_every_candidate_alone() -> None:
     off = dict(half_xy_m=3.0, half_yaw=0.1, step_xy_m=0.1, step_yaw=0.05, inlier_m=0.1)
     cases: list[tuple[DistanceField, F64, F64, dict[str, Any]]] = [
         (sub, pts, slam.pose, win),
-        (sub, pts, slam.pose + np.array([9.0, 0.0, 0.0]), off),  # part off the grid
+        (sub, pts, slam.pose + np.array([5.0, 0.0, 0.0]), off),  # part off the grid
         (sub, pts[:0], slam.pose, win)]  # no points
     loc = localizer_for(loc_eval.surveyed_map("hallway"))
     f = loc.field.frame
@@ -185,6 +185,10 @@ def test_score_grid_equals_scoring_every_candidate_alone() -> None:
         half_xy_m=max(loc.field.w, loc.field.h) * loc.field.res / 2, half_yaw=math.pi,
         step_xy_m=0.2, step_yaw=math.radians(5), inlier_m=0.1, max_points=40,
         free=loc.free)))
+    fr = sub.frame
+    edge = fr.origin_x_m + sub.w * sub.res
+    assert (slam.pose[0] + 5.0 - 3.0 + pts[:, 0].min() < edge
+            < slam.pose[0] + 5.0 + 3.0 + pts[:, 0].max())  # the second case straddles it
     for field, p, c, kw in cases:
         new, old = score_grid(field, p, c, **kw), _old_score_grid(field, p, c, **kw)
         assert new[0].shape == old[0].shape and new[0].shape[0] > 0
