@@ -164,9 +164,9 @@ class LineField(DistanceField):
         self.frame, self.max_dist_m, self.res, self.h, self.w = frame, max_dist_m, res, h, w
         self.occupied = occ
         if cells.size:  # one feature transform: the distances and the nearest cells
-            d, (self._ny, self._nx) = ndimage.distance_transform_edt(~occ, return_indices=True)
+            d, (near_y, near_x) = ndimage.distance_transform_edt(~occ, return_indices=True)
         else:
-            d, self._ny, self._nx = np.full((h, w), np.inf), np.zeros((h, w), np.int32), \
+            d, near_y, near_x = np.full((h, w), np.inf), np.zeros((h, w), np.int32), \
                 np.zeros((h, w), np.int32)
         self.dist = np.minimum(np.asarray(d, dtype=np.float64) * res, max_dist_m)
         # Sums per occupied cell, then over its 3 × 3 neighbourhood (sparse: the grid of a
@@ -188,8 +188,12 @@ class LineField(DistanceField):
         # corridor past the ends of the submap's walls. They count for the fit, not the pose.
         self._pull = mom[:, 3] >= 1
         self._line = self._pull & (half - dev <= line_ratio * (half + dev))  # else a corner
-        self._lut = np.zeros(h * w, dtype=np.int64)  # flat cell → occupied cell number
-        self._lut[cells] = np.arange(k)
+        lut = np.zeros(h * w, dtype=np.int64)  # flat cell → occupied cell number
+        lut[cells] = np.arange(k)
+        # Per cell, the occupied cell nearest to it (its number) and whether it is near enough
+        # to count: looked up once per query point, not composed from the EDT's indices there.
+        self._nearest = lut[near_y.astype(np.int64) * w + near_x]
+        self._near = self.dist < max_dist_m * 0.9
 
     def sample(self, pts: F64) -> tuple[F64, F64, F64]:
         fr = self.frame
@@ -197,11 +201,11 @@ class LineField(DistanceField):
         ix, iy = np.floor(lx / self.res).astype(np.int64), np.floor(ly / self.res).astype(np.int64)
         inside = (ix >= 0) & (iy >= 0) & (ix < self.w) & (iy < self.h)
         ix, iy = np.where(inside, ix, 0), np.where(inside, iy, 0)
-        ok = inside & (self.dist[iy, ix] < self.max_dist_m * 0.9)
+        ok = inside & self._near[iy, ix]
         far = self.max_dist_m
         if not self._line.size:
             return np.full(len(pts), far), np.zeros(len(pts)), np.zeros(len(pts))
-        c = self._lut[self._ny[iy, ix].astype(np.int64) * self.w + self._nx[iy, ix]]
+        c = self._nearest[iy, ix]
         rx, ry = lx - self._cx[c], ly - self._cy[c]
         nx, ny = self._nrm_x[c], self._nrm_y[c]
         signed = nx * rx + ny * ry
@@ -214,6 +218,11 @@ class LineField(DistanceField):
         gy = np.where(line, sgn * ny, ry / safe)
         pull = ok & self._pull[c]
         return np.where(ok, d, far), np.where(pull, gx, 0.0), np.where(pull, gy, 0.0)
+
+
+def _clip(v: float, limit: float) -> float:
+    """np.clip(v, −limit, limit) of a scalar, without numpy's per-call cost."""
+    return min(max(v, -limit), limit)
 
 
 @dataclass(frozen=True)
@@ -235,6 +244,7 @@ def refine(field: DistanceField, pts: F64, init: F64, *, iterations: int = 12,
     20–50 cm along it."""
     pose = np.array(init, dtype=np.float64)
     prior = 0.0 if prior_m is None else (sigma_floor_m / prior_m) ** 2  # in the steps' units
+    prior_h, damp = np.diag([prior, prior, 0.0]), np.eye(3) * 1e-6
     px, py = pts[:, 0], pts[:, 1]
     info = np.zeros((3, 3))
     it = 0
@@ -249,14 +259,15 @@ def refine(field: DistanceField, pts: F64, init: F64, *, iterations: int = 12,
         h = jw.T @ jac
         g = jw.T @ d
         info = h
-        hp = h + np.diag([prior, prior, 0.0])
+        hp = h + prior_h
         gp = g + prior * np.array([pose[0] - init[0], pose[1] - init[1], 0.0])
         try:
-            step = -np.linalg.solve(hp + np.eye(3) * 1e-6 * (np.trace(h) + 1e-9), gp)
+            step = -np.linalg.solve(hp + damp * (np.trace(h) + 1e-9), gp)
         except np.linalg.LinAlgError:
             break
-        step[:2] = np.clip(step[:2], -0.2, 0.2)  # trust region: a cell-sized field is local
-        step[2] = float(np.clip(step[2], -0.1, 0.1))
+        # trust region: a cell-sized field is local
+        step[0], step[1] = _clip(step[0], 0.2), _clip(step[1], 0.2)
+        step[2] = _clip(step[2], 0.1)
         pose += step
         if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4:
             break
@@ -294,25 +305,29 @@ def score_grid(field: DistanceField, pts: F64, centre: F64, *, half_xy_m: float,
     res, fr = field.res, field.frame
     n_xy = round(half_xy_m / step_xy_m)
     offs = np.arange(-n_xy, n_xy + 1) * step_xy_m
-    cx, cy = np.meshgrid(centre[0] + offs, centre[1] + offs)
-    cx, cy = cx.ravel(), cy.ravel()
+    xs, ys = centre[0] + offs, centre[1] + offs
+    # Candidate p is (xs[col[p]], ys[row[p]]): the grid is separable, so each point's cell
+    # column is computed once per x and its row once per y, not once per candidate.
+    row, col = np.divmod(np.arange(xs.size * ys.size), xs.size)
+    cx, cy = xs[col], ys[row]
     if free is not None:
         ix = np.floor((cx - fr.origin_x_m) / res).astype(np.int64)
         iy = np.floor((cy - fr.origin_y_m) / res).astype(np.int64)
         ok = (ix >= 0) & (iy >= 0) & (ix < field.w) & (iy < field.h)
         ok[ok] = free[iy[ok], ix[ok]]
-        cx, cy = cx[ok], cy[ok]
+        cx, cy, row, col = cx[ok], cy[ok], row[ok], col[ok]
     n_yaw = round(half_yaw / step_yaw)
     poses, scores = [], []
     for k in range(-n_yaw, n_yaw + 1):
         yaw = centre[2] + k * step_yaw
         c, s = math.cos(yaw), math.sin(yaw)
         rx, ry = c * pts[:, 0] - s * pts[:, 1], s * pts[:, 0] + c * pts[:, 1]
-        ix = np.floor((cx[:, None] + rx[None, :] - fr.origin_x_m) / res).astype(np.int64)
-        iy = np.floor((cy[:, None] + ry[None, :] - fr.origin_y_m) / res).astype(np.int64)
-        ok = (ix >= 0) & (iy >= 0) & (ix < field.w) & (iy < field.h)
-        hit = np.zeros(ix.shape, dtype=np.bool_)
-        hit[ok] = near[iy[ok], ix[ok]]
+        ix = np.floor((xs[:, None] + rx[None, :] - fr.origin_x_m) / res).astype(np.int64)
+        iy = np.floor((ys[:, None] + ry[None, :] - fr.origin_y_m) / res).astype(np.int64)
+        in_x, in_y = (ix >= 0) & (ix < field.w), (iy >= 0) & (iy < field.h)
+        hit = near[np.where(in_y, iy, 0)[row], np.where(in_x, ix, 0)[col]]
+        hit &= in_y[row]
+        hit &= in_x[col]
         scores.append(hit.mean(axis=1) if len(pts) else np.zeros(len(cx)))
         poses.append(np.column_stack((cx, cy, np.full(len(cx), math.atan2(s, c)))))
     return np.vstack(poses), np.concatenate(scores)

@@ -179,6 +179,7 @@ class Slam:
         self._submap_ids = range(0)
         self._loop_travel = -math.inf  # travel when a loop last closed
         self._try_travel = -math.inf  # travel when a loop was last tried
+        self._beams: tuple[range, F64, tuple[F64, F64, F64, F64, F64, F64]] | None = None
 
     def _submap_of(self, idx: range, crop: bool = True) -> DistanceField:
         """Distance field of keyframes `idx`, cropped to `submap_radius_m` round the chair:
@@ -217,19 +218,9 @@ class Slam:
         points seen beyond it back onto its end, and the chair would slide along a corridor.
         Such points are left out."""
         world = transform(pose, pts)
-        kfs = [self.kfs[i] for i in ids]
-        if not kfs or not len(pts):
+        if not len(ids) or not len(pts):
             return np.ones(len(pts), dtype=np.bool_)
-        # All keyframes at once (row per keyframe, column per point): the same arithmetic
-        # element by element as one keyframe at a time, without a dozen numpy calls each.
-        laser = np.array([compose(self.graph.nodes[i], np.array(kf.scan.mount))
-                          for i, kf in zip(ids, kfs, strict=True)])
-        col = np.array([(kf.scan.angle_min, kf.scan.angle_inc, kf.scan.ranges.size,
-                         kf.reach_m) for kf in kfs])
-        amin, ainc, size, reach = (col[:, j, None] for j in range(4))
-        ranges = np.full((len(kfs), int(size.max())), np.nan)
-        for row, kf in zip(ranges, kfs, strict=True):
-            row[:kf.scan.ranges.size] = kf.scan.ranges
+        laser, amin, ainc, size, reach, ranges = self._beams_of(ids)
         dx, dy = world[None, :, 0] - laser[:, 0, None], world[None, :, 1] - laser[:, 1, None]
         r = np.hypot(dx, dy)
         rel = np.mod(np.arctan2(dy, dx) - laser[:, 2, None] + np.pi, 2 * np.pi) - np.pi
@@ -238,8 +229,30 @@ class Slam:
         beam = np.take_along_axis(ranges, np.clip(k, 0, size - 1).astype(np.int64), axis=1)
         # no return: free up to its reach, but keep clear of where its walls ended
         beam = np.where(np.isfinite(beam), beam + 0.05, reach - 0.3)
-        ok = (inside & (r <= beam)).any(axis=0)
+        ok: npt.NDArray[np.bool_] = np.asarray((inside & (r <= beam)).any(axis=0))
         return ok if ok.sum() >= 10 else np.ones(len(pts), dtype=np.bool_)
+
+    def _beams_of(self, ids: range) -> tuple[F64, F64, F64, F64, F64, F64]:
+        """`_seen`'s per-keyframe arrays (all keyframes at once: row per keyframe): the lasers'
+        poses, each scan's angle_min, angle_inc, beam count and reach (columns), its ranges
+        (NaN-padded rows). Kept while the keyframes and their poses are unchanged: every
+        tracked scan asks for the same submap's until a keyframe is added or a loop moves it."""
+        nodes = np.array([self.graph.nodes[i] for i in ids])
+        hit = self._beams
+        if hit is not None and hit[0] == ids and np.array_equal(hit[1], nodes):
+            return hit[2]
+        kfs = [self.kfs[i] for i in ids]
+        laser = np.array([compose(node, np.array(kf.scan.mount))
+                          for node, kf in zip(nodes, kfs, strict=True)])
+        col = np.array([(kf.scan.angle_min, kf.scan.angle_inc, kf.scan.ranges.size,
+                         kf.reach_m) for kf in kfs])
+        amin, ainc, size, reach = (col[:, j, None] for j in range(4))
+        ranges = np.full((len(kfs), int(size.max())), np.nan)
+        for row, kf in zip(ranges, kfs, strict=True):
+            row[:kf.scan.ranges.size] = kf.scan.ranges
+        out = (laser, amin, ainc, size, reach, ranges)
+        self._beams = (ids, nodes, out)
+        return out
 
     def _moved(self, last: F64) -> bool:
         d = between(last, self.pose)
