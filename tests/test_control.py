@@ -744,6 +744,39 @@ def test_a_chair_stopped_short_beside_the_goal_drives_its_straight_final() -> No
     assert turned < math.radians(1) and math.hypot(pose[0] - 2.07, pose[1] - 0.035) <= 0.05
 
 
+def test_the_straight_final_is_driven_off_the_wide_line_while_a_turn_only_creeps_out() -> None:
+    """As above, but the turn that lined the chair up is still creeping out (|ω| < 0.01
+    rad/s, its move not ended) when MPEPC hands the goal over: MPEPC counts that as at rest
+    (Mpepc.final_heading's straight), the core did not (capture radius, not final_line) and
+    ran the law or refused it, and at office B's desk the two alternated till "no progress"
+    (nav_eval seed 7). Now the core drives the straight final too (its swing: lateral_stop)."""
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    goal = (2.07, 0.035, 0.0)
+    post = np.array([[2.0 + 0.78 * math.cos(0.87), 0.78 * math.sin(0.87), 0.04]])
+
+    def handed_over(creep: float) -> ControlCore:
+        core = fresh_core(INSTANT)
+        core.inline_planning = False
+        core.on_field(_post_field(post))  # type: ignore[arg-type]
+        core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+        if creep:
+            core.limiter.w.move(creep, 0.02)  # the turn's last creep
+            assert core.limiter.w.moving and 0.0 < abs(core.limiter.w.value) < 0.01
+        plan = Plan((0.078, 0.46, 0.0, 0.15), goal, 0.15, 0.0, 0.0, 1.0, 1.0,
+                    np.zeros((1, 3)), True, 0.1, 0.0, 1)
+        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), 0.0)  # type: ignore[arg-type]
+        core.step(0.0)
+        return core
+
+    at_rest = handed_over(0.0)
+    assert at_rest.final and at_rest.straight  # positive control: from rest
+    creeping = handed_over(0.0005)
+    assert creeping.final and creeping.straight
+    assert "approaches_refused" not in creeping.counters
+
 ROOM = [[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
         [-1.0, 3.0, -1.0, -3.0]]  # walls x0 y0 x1 y1: a 7 × 6 m room
 

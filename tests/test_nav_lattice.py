@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from autochair.control.core import ControlConfig
+from autochair.geometry import along_lateral
 from autochair.nav import lattice, planner
 from autochair.nav.field import Footprint, GridMap, NavField
 from autochair.nav.mpepc import Mpepc, MpepcParams
@@ -545,3 +546,82 @@ def test_a_chair_at_rest_just_outside_the_tolerance_is_handed_a_stage_onto_the_g
     at = (*res.plan.target[:2], done)
     res = compute(PlanRequest(1, 0, at, 0.0, 0.0, goal, fld, None, None, LAW))
     assert res.plan is not None and res.plan.is_goal and not res.blocked_by
+
+
+def _goal_turn_sweep(fld: NavField, at: tuple[float, float], yaw: float, goal_yaw: float
+                     ) -> float:
+    """Least clearance of the in-place turn from `yaw` onto `goal_yaw` at `at`, every 0.2°."""
+    e = float(np.remainder(goal_yaw - yaw + math.pi, 2 * math.pi) - math.pi)
+    yaws = yaw + np.linspace(0.0, e, max(2, math.ceil(abs(math.degrees(e)) / 0.2) + 1))
+    return float(fld.footprint_clearance(np.full(yaws.size, at[0]), np.full(yaws.size, at[1]),
+                                         yaws).min())
+
+
+def test_the_goal_is_not_handed_over_where_the_cores_turn_onto_its_yaw_would_not_keep_contact_m(
+        ) -> None:
+    # Office B's desk, seeds 1 and 2: MPEPC handed the goal over 9 cm off, lined up at 35°;
+    # the core's straight final landed on it and turned 35° → 0° in place, checked only by
+    # TURN_CLEARANCE_M (2 cm): its far corner passed the desk's at 0.022 m (truth), under
+    # the doorway goal (issue 12: 0.05 m). Now the turn is checked before the handover
+    # (Mpepc.goal_turn_clearance, finely sampled) and the chair gets a manoeuvre instead.
+    fld = _hallway()
+    goal, here = (12.0, 2.6, 0.0), (11.924, 2.544, math.radians(35.4))
+    along, left = along_lateral(here, goal[0], goal[1])
+    assert abs(left) < LAW.capture_m < along  # lined up: the core's straight final lands on it
+    land = (here[0] + along * math.cos(here[2]), here[1] + along * math.sin(here[2]))
+    contact = MpepcParams().contact_m
+    assert _goal_turn_sweep(fld, land, here[2], goal[2]) < contact  # the core's turn there
+    m = Mpepc(fld, LAW, MpepcParams())
+    assert m.goal_turn_clearance(here, goal) < contact
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    assert ctg is not None
+    hf = planner.lattice_for(fld, goal, ctg, here)
+    # Positive control: without the check (the old planner) the goal is handed over here.
+    old = m.plan(here, 0.0, 0.0, goal, ctg, heading=hf, goal_turn=False)
+    assert old.is_goal
+    res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, fld, None, None, LAW))
+    p = res.plan
+    assert p is not None and not res.blocked_by and not p.is_goal
+    # ... but a stage whose sweeps keep contact_m, ending where the goal's turn does too
+    assert p.final_turn and p.then is not None
+    assert _stage_sweeps_clear(fld, here, p.target[2], math.hypot(p.then[0] - here[0],
+                                                                  p.then[1] - here[1]))
+    assert _goal_turn_sweep(fld, p.then, p.target[2], goal[2]) >= contact - 0.005
+
+
+def test_a_goal_whose_turn_is_tight_and_no_stage_helps_is_still_handed_over() -> None:
+    # The check must not make a goal unreachable: where no stage helps (here: stages off), the
+    # goal withheld for its turn is handed over after all, as before (its turn is the core's,
+    # H40), rather than leave the chair blocked.
+    fld = _hallway()
+    goal, here = (12.0, 2.6, 0.0), (11.924, 2.544, math.radians(35.4))
+    params = MpepcParams(stages=False)
+    assert Mpepc(fld, LAW, params).goal_turn_clearance(here, goal) < params.contact_m
+    res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, fld, None, None, LAW), params)
+    assert res.plan is not None and res.plan.is_goal and not res.blocked_by
+
+
+def test_the_goal_region_holds_no_state_whose_turn_onto_the_goals_yaw_is_tight() -> None:
+    # Office B's desk (yaw 0): the goal region also holds the states at the next lattice
+    # heading (22.5°), counted with their turn onto the yaw, which was not swept: a way ended
+    # 31° off at the goal, where the turn (0.033 m) was neither handed over (contact_m) nor
+    # had a stage, and the chair stood "blocked" (nav_eval seed 2). Now such a state counts
+    # only if that turn keeps goal_turn_clear_m (finely sampled).
+    fld = _hallway()
+    goal = (12.0, 2.6, 0.0)
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    assert ctg is not None
+    at = (12.03, 2.59, math.radians(22.5))
+    p = lattice.LatticeParams()
+    assert _goal_turn_sweep(fld, at[:2], at[2], goal[2]) < p.goal_turn_clear_m
+    new = lattice.build(fld, goal, ctg.phi, p)
+    old = lattice.build(fld, goal, ctg.phi, dataclasses.replace(p, goal_turn_clear_m=-math.inf))
+    assert new is not None and old is not None
+    c_old = float(old.at(*(np.array(v) for v in at))[0])
+    c_new, ok = (float(q) for q in new.at(*(np.array(v) for v in at)))
+    # positive control: before, this state was the goal (its distance and its turn)
+    assert c_old == pytest.approx(0.03 + p.turn_m_per_rad * at[2], abs=0.03)
+    assert c_new > c_old + 0.2 or not ok
+    # ... while the goal keeps a way in (the check only drops states)
+    start = (12.5, 1.0, math.pi / 2)
+    assert bool(new.at(*(np.array(v) for v in start))[1])

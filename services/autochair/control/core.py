@@ -861,8 +861,12 @@ class ControlCore:
         lateral_stop = abs(r * math.sin(out.delta_rad + swing))
         # (from rest near the goal, MPEPC's final manoeuvre lines the chair up within
         # FINAL_LINE of the tolerance: Mpepc.final_heading)
+        # (a turn's last creep, |ω| < 0.01 rad/s, counts as at rest, as MPEPC judges it: its
+        # swing is in lateral_stop; waiting for the move's end, the core ran the law while
+        # MPEPC handed the straight over, which spun the chair off the line at office B's
+        # desk and back, till "no progress"; nav_eval seed 7)
         line = FINAL_LINE * self.tol_m if r <= FINAL_MOVE_M and not self.limiter.v.moving \
-            and not lw.moving else capture
+            and abs(lw.value) < 0.01 else capture
         lined_up = r <= cfg.straight_radius_m and along > 0.0 \
             and max(lateral, lateral_stop) <= line \
             and (lateral <= capture or self._room_to_go(o, along))

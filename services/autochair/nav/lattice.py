@@ -69,6 +69,13 @@ class LatticeParams:
     # tolerance) seed the search. 0.1 m made a chair 10 cm beside the goal "there" (the
     # lateral step a forward-only chair makes by turning, driving and turning back).
     goal_radius_m: float = 0.05
+    # A goal-region state off the goal's yaw counts only if its turn onto that yaw keeps this
+    # (MPEPC's contact_m, which the goal's hand-over checks: Mpepc.goal_turn_clearance),
+    # sampled every `goal_turn_step_m` at the far corners: else the way ended 31° off at
+    # office B's desk, where the turn (0.033 m) was neither handed over nor had a stage
+    # (nav_eval seed 2; measured).
+    goal_turn_clear_m: float = 0.05
+    goal_turn_step_m: float = 0.01
     turn_m_per_rad: float = 1.33  # an in-place turn's cost: vmax / ω max
     max_cost: float = 1e3  # the window's "no way" (finite, so interpolation stays defined)
 
@@ -409,11 +416,26 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     kb = math.floor(gyaw / step)
     seeds_s: list[I64] = []
     seeds_c: list[F64] = []
+    unchecked_s: list[I64] = []
+    unchecked_c: list[F64] = []
     for kk in (kb % n, (kb + 1) % n):
         turn = abs(float(np.remainder(kk * step - gyaw + math.pi, 2 * math.pi) - math.pi))
         ok = near_cells & full[kk]
+        unchecked_s.append(kk * h * w + np.flatnonzero(ok))
+        unchecked_c.append(dist[ok] + p.turn_m_per_rad * turn)
+        if turn > 1e-9 and ok.any():
+            e = float(np.remainder(gyaw - kk * step + math.pi, 2 * math.pi) - math.pi)
+            m = max(2, math.ceil(abs(e) * fld.footprint.reach_m / p.goal_turn_step_m) + 1)
+            ii_ok, jj_ok = np.nonzero(ok)
+            yaws = kk * step + np.linspace(0.0, e, m)
+            cx = (ox + jj_ok * res).astype(np.float64)[:, None]
+            cy = (oy + ii_ok * res).astype(np.float64)[:, None]
+            clear = fld.footprint_clearance(cx, cy, yaws[None, :])
+            ok[ii_ok, jj_ok] = clear.min(-1) >= p.goal_turn_clear_m
         seeds_s.append(kk * h * w + np.flatnonzero(ok))  # (flat state index, as graph's)
         seeds_c.append(dist[ok] + p.turn_m_per_rad * turn)
+    if not any(sd.size for sd in seeds_s):  # (the check never leaves a goal without a way)
+        seeds_s, seeds_c = unchecked_s, unchecked_c
     s_seed = np.concatenate(seeds_s)
     if s_seed.size == 0:
         return None

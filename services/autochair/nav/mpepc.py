@@ -172,6 +172,12 @@ class MpepcParams:
     # The last turn is checked this far past the point the straight lands on too (a margin;
     # 2 cm left no heading behind the cabinet).
     final_overshoot_m: float = 0.01
+    # The in-place turn the core makes onto the goal's yaw once it has the goal is checked
+    # before it is handed over (Mpepc.goal_turn_clearance), its sweep sampled this finely at
+    # the body's far corners: at 5 cm steps a corner passing an obstacle's corner between two
+    # samples is missed by up to 1.3 cm (office B's desk: the 28° turn at the goal sampled
+    # at 0.045 m, 0.032 m at 1°; truth 0.017 m; measured).
+    goal_turn_step_m: float = 0.01
     # A chair stopped, blocked, where the lattice still has a way (a tight goal's multi-stage
     # way in: "turn to 113°, drive 0.1 m, turn to 45°, drive 0.14 m, turn to 0°"; the law
     # creeps towards targets that close and MPEPC's predictions of it end a cm or two off
@@ -219,6 +225,10 @@ class Plan:
     # (the planner continues the stage rather than look again from the turned chair, where
     # MPEPC's small turns towards the lattice's heading undid it: nav_eval seed 1).
     then: tuple[float, float] | None = None
+    # The goal was not handed over only because the core's turn onto its yaw would not keep
+    # `contact_m` (Mpepc.goal_turn_clearance); planner.compute hands it over after all where
+    # the chair is otherwise blocked (the check must not make a goal unreachable).
+    goal_withheld: bool = False
 
 
 def wrap(a: F64) -> F64:
@@ -695,6 +705,34 @@ class Mpepc:
         return self.field.straight_clearance(pose, np.linspace(0.0, 1.0, 5) * along) \
             >= self.p.contact_m
 
+    def goal_turn_clearance(self, pose: tuple[float, float, float],
+                            goal: tuple[float, float, float]) -> float:
+        """Least clearance of the in-place turn onto the goal's yaw that the core makes once
+        it has the goal (control/core.py, H40 checks it only by TURN_CLEARANCE_M): where the
+        chair stands if it is within the tolerance, else where its straight final lands (the
+        goal's along-track point, from the last capture radius before it on, as
+        final_heading checks it) if the goal's line passes within `final_line` of the
+        tolerance; inf where the core's approach is the law (its arrival heading is the
+        law's, predicted by row 0)."""
+        x, y, yaw = pose
+        tol, cap = self.law.tolerance_m, self.law.capture_m
+        r = math.hypot(goal[0] - x, goal[1] - y)
+        if r <= tol:
+            ls = np.zeros(1)
+        else:
+            along, left = along_lateral(pose, goal[0], goal[1])
+            if r > self.p.final_move_m or along <= 0.0 \
+                    or abs(left) > self.p.final_line * tol:
+                return math.inf
+            ls = np.linspace(max(along - cap, 0.0), along + self.p.final_overshoot_m, 5)
+        e = float(wrap(np.array(goal[2] - yaw)))
+        n = max(2, math.ceil(abs(e) * self.field.footprint.reach_m / self.p.goal_turn_step_m)
+                + 1)
+        turn = yaw + np.linspace(0.0, e, n)
+        c, s = math.cos(yaw), math.sin(yaw)
+        return float(self.field.footprint_clearance(
+            np.repeat(x + ls * c, n), np.repeat(y + ls * s, n), np.tile(turn, ls.size)).min())
+
     def final_heading(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                       turn: bool, straight: bool, step_deg: float = 1.0, max_deg: float = 90.0,
                       spare_deg: float = 2.0) -> float | None:
@@ -1148,13 +1186,15 @@ class Mpepc:
              goal: tuple[float, float, float], ctg: CostToGo, people: list[Person] | None = None,
              previous_target: tuple[float, float, float, float] | None = None,
              rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
-             heading: HeadingField | None = None) -> Plan:
+             heading: HeadingField | None = None, goal_turn: bool = True) -> Plan:
         """The best z from the chair at `pose` (v0, ω0: the command it is tracking; `rates`:
         the limiter's dv/dt and dω/dt; `final`: `goal` is the last waypoint, which the core
         approaches on its braking curve once it is the target; an intermediate one it passes).
         `previous_target`: the last plan's world target + vmax, re-expressed as a seed.
         The goal itself wins over a slightly cheaper target near it when its prediction is
-        clear and ends on it (the final approach is then the control law's own)."""
+        clear and ends on it (the final approach is then the control law's own), and, with
+        `goal_turn`, the core's turn onto the goal's yaw keeps `contact_m`
+        (goal_turn_clearance)."""
         people = people or []
         lo, hi = self.bounds()
         prev = None
@@ -1180,8 +1220,10 @@ class Mpepc:
                 best_z, best_c, best = cand[j].copy(), float(c2[j]), {k: v[j]
                                                                      for k, v in inf2.items()}
             scale *= 0.5
-        is_goal, goal_clear = False, math.nan
+        is_goal, goal_clear, withheld = False, math.nan, False
         r_goal = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+        turn_ok = not (final and goal_turn) or \
+            self.goal_turn_clearance(pose, goal) >= self.p.contact_m
         if has_goal:
             # What the core's own final approach relies on (it drops the goal and stands when
             # this is < 2 cm): the way to the goal, and braking from the chair's present
@@ -1213,15 +1255,19 @@ class Mpepc:
                     and self.lined_up(pose, ctg, heading) \
                     and (not final or (self.handover(pose, v0, goal)
                                        and self.wide_line_clear(pose, v0, w0, goal))):
-                best_z, best_c, best = z[0].copy(), float(cost[0]), {k: v[0]
-                                                                     for k, v in info.items()}
-                is_goal = True
+                if turn_ok:
+                    best_z, best_c, best = z[0].copy(), float(cost[0]), {
+                        k: v[0] for k, v in info.items()}
+                    is_goal = True
+                else:
+                    withheld = True
         final_turn = False
         if has_goal and final and not is_goal \
                 and self.p.final_from * self.law.tolerance_m < r_goal <= self.p.final_move_m:
             # (a turn only from rest or on from a turn under way; the straight final not
             # during a turn: its swing as it brakes would put the chair off the line)
-            psi = self.final_heading(pose, goal, turn=abs(v0) < 0.01, straight=abs(w0) < 0.01)
+            psi = self.final_heading(pose, goal, turn=abs(v0) < 0.01,
+                                     straight=abs(w0) < 0.01 and turn_ok)
             if psi is not None:  # lined up: the core's straight final, else turn onto ψ
                 # (checked for people and the stop as the law along the line: the straight)
                 along = along_lateral((pose[0], pose[1], psi), goal[0], goal[1])[0]
@@ -1243,7 +1289,8 @@ class Mpepc:
                     (float(tgt[0]), float(tgt[1]), float(tgt[2])), float(best_z[3]),
                     best_c, float(best["phi0"] - best["phi_end"]), float(best["survival"]),
                     float(best["clearance"]), path, is_goal, goal_clear,
-                    float(cost[int(has_goal)]), evals, final_turn)
+                    float(cost[int(has_goal)]), evals, final_turn,
+                    goal_withheld=withheld and not is_goal and not final_turn)
 
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],
