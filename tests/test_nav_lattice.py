@@ -450,10 +450,10 @@ L_START_GRID = Path(__file__).parent / "data" / "l-corridor-start-grid.msgpack.g
 
 def _l_corridor_start() -> NavField:
     """The live map (coarsened to 0.1 m, as the control service built its field until session
-    13: on its own 0.05 m cells the chair drives forward here without giving anything up) of a run where the chair,
-    at the L corridor's closed end (0, 0) facing along it, stood "blocked" at the start: the
-    walls are seen only from ~0.4 m ahead of its axle, the back wall and the inner wall's end
-    lie in the laser's blind sector (unknown, so free)."""
+    13: on its own 0.05 m cells the chair drives forward here without giving anything up) of
+    a run where the chair, at the L corridor's closed end (0, 0) facing along it, stood
+    "blocked" at the start: the walls are seen only from ~0.4 m ahead of its axle, the back
+    wall and the inner wall's end lie in the laser's blind sector (unknown, so free)."""
     msg = msgspec.msgpack.decode(gzip.decompress(L_START_GRID.read_bytes()), type=OccupancyGrid)
     return NavField(GridMap.from_msg(msg).coarsened(2), FP)
 
