@@ -17,7 +17,15 @@ from autochair.runtime.client import request
 from autochair.sim.world import DEFAULT_WORLD
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, keys
 from tests.helpers import Recorder, client_session, wait_for
-from tests.test_nav_system import L_WORLD, drive_to, held, map_ready, story, world_config
+from tests.test_nav_system import (
+    L_WORLD,
+    drive_to,
+    held,
+    map_ready,
+    shifted,
+    story,
+    world_config,
+)
 from tests.test_nav_system import STACK as NAV_STACK
 
 pytestmark = pytest.mark.slow
@@ -75,8 +83,12 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """New walls come into view at a corner before the live map has them: they must not be
     reported as people. Positive control: someone walking across the far end of the second
-    leg (x 7.3 … 8.7 at y = 8.3) is."""
-    world_config(tmp_path, monkeypatch, L_WORLD + "person 7.3 8.3 8.7 8.3 0.6\n")
+    leg (x 4.3 … 5.7 at y = 8.3) is. The world is moved 3 m as in test_around_a_corner: from
+    the first leg's closed end the chair was blocked at the inner wall the cabinet hid (a
+    known navigation shortfall) in about 1 of 4 runs, twice over when asked again. Judged
+    from the goal on: before its first map the tracker takes every point for a candidate
+    (fail safe), and the cabinet beside the parked chair was one for ~0.7 s."""
+    world_config(tmp_path, monkeypatch, shifted(L_WORLD + "person 7.3 8.3 8.7 8.3 0.6\n", -3.0))
     stack_factory(NAV_STACK)
     session = client_session(hub)
     try:
@@ -85,18 +97,12 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
         map_ready(session)
         # Round the corner (this test is about what the tracker reports on the way, not the
         # goal's end: near the outer wall a goal may also end blocked, see test_nav_system).
-        # From the leg's closed end the chair may also be blocked at the wall the cabinet hid
-        # before it reaches the corner (README, navigation: a known shortfall; once at load
-        # ~10): then it is asked once more, from where it stands, a new deliberate act.
         sent_ns = time.time_ns()
-        states = drive_to(session, Pose2D(8.0, 3.0, 1.5708), 90)
+        states = drive_to(session, Pose2D(5.0, 3.0, 1.5708), 90)
         assert "driving" in {s.state for s in states}, f"{story(states)}; {held(pid, sent_ns)}"
-        if states[-1].state != "arrived":
-            print(f"\nasked again after: {story(states)}")
-            states = drive_to(session, Pose2D(8.0, 3.0, 1.5708), 90)
 
         def walker() -> bool:
-            return any(abs(q.y_m - 8.3) < 0.4 and 7.0 < q.x_m < 9.0
+            return any(abs(q.y_m - 8.3) < 0.4 and 4.0 < q.x_m < 6.0
                        for m in people.messages() for q in m.people)
 
         def instead() -> str:  # for a failure: how the drive ended, what was reported
@@ -108,7 +114,8 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
 
         wait_for(walker, 10, instead)
         wrong = [(round(q.x_m, 2), round(q.y_m, 2)) for m in people.messages()
-                 for q in m.people if not (abs(q.y_m - 8.3) < 0.6 and 6.8 < q.x_m < 9.2)]
+                 if m.stamp_ns >= sent_ns
+                 for q in m.people if not (abs(q.y_m - 8.3) < 0.6 and 3.8 < q.x_m < 6.2)]
         assert not wrong, f"walls reported as people: {wrong[:8]}"
         request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
     finally:
