@@ -1005,7 +1005,7 @@ class ControlCore:
         fld = self.field
         if fld is None:
             return True  # no map: nothing known to hit (the safety monitor still guards)
-        steps = max(2, math.ceil(abs(e - lo) * self.footprint.reach_m / 0.05) + 1)
+        steps = self.footprint.turn_samples(e - lo)
         clear = fld.footprint_clearance(o.x, o.y, o.yaw + np.linspace(lo, e, steps))
         return bool(clear.min() > TURN_CLEARANCE_M + grow_m)
 

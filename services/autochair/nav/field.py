@@ -49,6 +49,11 @@ class Footprint:
         """Radius of the disc the body sweeps turning in place round the axle."""
         return math.hypot(max(self.front_m, self.rear_m), self.half_width_m)
 
+    def turn_samples(self, angle_rad: float, step_m: float = 0.05) -> int:
+        """Poses to check an in-place turn through `angle_rad` at: the body's far corners
+        move at most `step_m` between two (both ends included)."""
+        return max(2, math.ceil(abs(angle_rad) * self.reach_m / step_m) + 1)
+
     def outline(self, spacing_m: float = 0.1) -> F64:
         """(P, 2) points on the rectangle's outline, in the chair frame."""
         xs = np.linspace(-self.rear_m, self.front_m,

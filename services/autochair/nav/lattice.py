@@ -425,7 +425,7 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
         unchecked_c.append(dist[ok] + p.turn_m_per_rad * turn)
         if turn > 1e-9 and ok.any():
             e = float(np.remainder(gyaw - kk * step + math.pi, 2 * math.pi) - math.pi)
-            m = max(2, math.ceil(abs(e) * fld.footprint.reach_m / p.goal_turn_step_m) + 1)
+            m = fld.footprint.turn_samples(e, p.goal_turn_step_m)
             ii_ok, jj_ok = np.nonzero(ok)
             yaws = kk * step + np.linspace(0.0, e, m)
             cx = (ox + jj_ok * res).astype(np.float64)[:, None]

@@ -726,8 +726,7 @@ class Mpepc:
                 return math.inf
             ls = np.linspace(max(along - cap, 0.0), along + self.p.final_overshoot_m, 5)
         e = float(wrap(np.array(goal[2] - yaw)))
-        n = max(2, math.ceil(abs(e) * self.field.footprint.reach_m / self.p.goal_turn_step_m)
-                + 1)
+        n = self.field.footprint.turn_samples(e, self.p.goal_turn_step_m)
         turn = yaw + np.linspace(0.0, e, n)
         c, s = math.cos(yaw), math.sin(yaw)
         return float(self.field.footprint_clearance(
@@ -997,7 +996,7 @@ class Mpepc:
             # (onto ψ and 2° past: the spare Mpepc.stage checked the turn with)
             e = float(wrap(np.array(turn_to - yaw)))
             spare = math.copysign(math.radians(2.0), e)
-            n = max(2, math.ceil(abs(e + spare) * self.field.footprint.reach_m / 0.05) + 1)
+            n = self.field.footprint.turn_samples(e + spare)
             if float(self.field.footprint_clearance(np.full(n, x), np.full(n, y), yaw
                      + np.linspace(0.0, e + spare, n)).min()) < self.p.contact_m:
                 return None
