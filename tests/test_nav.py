@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
+from autochair.nav import field as nav_field
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import LawParams, Mpepc, MpepcParams, Person
 from autochair.nav.planner import PlanRequest, blocker, compute, free_field
@@ -57,6 +58,41 @@ def test_the_clearance_reads_over_an_obstacles_corner_by_at_most_its_known_bound
     assert abs(float(exact(pts[:, 0], pts[:, 1]).min()) - 0.035) < 1e-9
     assert 0.045 < float(fld.footprint_clearance(1.5 - c - FP.front_m,
                                                  1.5 - c - FP.half_width_m, 0.0)) < 0.046
+
+
+def test_a_thin_pole_between_the_outlines_points_is_not_read_as_clear(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """H48: the footprint was read at outline points 0.14–0.15 m apart. A pole (a table or
+    IV-stand leg, 4 cm) head-on between two front points touched the front edge while the
+    check read ~5 cm, so a plan could drive up to it. Now poses that read under
+    REFINE_BELOW_M on the coarse outline are read on the 5 cm one as well."""
+    r, contact = 0.02, MpepcParams().contact_m
+
+    def reading(gap: float, off: float, phase: float) -> tuple[float, float]:
+        """(the check's reading, the truth) for the front edge `gap` from a pole `off`
+        sideways of the chair's centre line, the grid shifted by `phase`."""
+        fld = NavField(GridMap.from_shapes(np.zeros((0, 4)), np.array([[phase, off + phase, r]]),
+                                           margin_m=2.0), FP)
+        x = phase - r - gap - FP.front_m
+        pts = place(FP.outline(0.002), x, phase, 0.0)
+        truth = float((np.hypot(pts[:, 0] - phase, pts[:, 1] - off - phase) - r).min())
+        return float(fld.footprint_clearance(x, phase, 0.0)), truth
+
+    # Positive control: on the coarse outline alone a pole 5 mm from the front edge, midway
+    # between two points, reads clear of the contact margin.
+    monkeypatch.setattr(nav_field, "REFINE_BELOW_M", 0.0)
+    coarse, truth = reading(0.005, 0.0, 0.0)
+    assert truth == pytest.approx(0.005, abs=1e-3) and coarse >= contact
+    monkeypatch.undo()
+    fine, _ = reading(0.005, 0.0, 0.0)
+    assert fine < contact - 0.02
+    # Everywhere across the gap between two points and the grid's phase: a reading of
+    # contact_m means at least 2.5 cm in truth (the fine outline's spacing and the grid's own
+    # corner bias, test above).
+    worst = max(read - truth for gap in (0.0, 0.02, 0.04) for off in np.arange(0.0, 0.08, 0.01)
+                for phase in np.arange(0.0, 0.05, 0.01)
+                for read, truth in [reading(gap, off, phase)])
+    assert worst <= 0.025
 
 
 def test_costs_to_go_grow_with_path_length_and_go_round_the_wall() -> None:

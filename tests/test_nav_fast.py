@@ -74,23 +74,34 @@ def test_the_batched_footprint_clearance_is_the_plain_one() -> None:
     for off_map in (False, True):
         # more poses than one batch holds, not a multiple of it: several batches and a rest
         x, y, yaw = poses(3 * step // 25 + 7, 25, 2, off_map)
-        want = plain_bilinear(fld.clearance, fld.map, *plain_place(fld.outline, x, y, yaw),
-                              0.0).min(-1)
+        want = plain_clearance(fld, x, y, yaw)
+        assert (want < nav_field.REFINE_BELOW_M).any() and (want > 0.3).any()  # both tiers
         got = fld.footprint_clearance(x, y, yaw)
         assert got.shape == x.shape and np.array_equal(got, want)
         if off_map:  # (some outline points off the map: the clamped path, 0 there)
             assert (got == 0.0).any() and (got > 0.0).any()
         # the in-place sampling of given outline points (its scratch overwritten)
         px, py = plain_place(fld.outline, x[:3], y[:3], yaw[:3])
-        assert np.array_equal(fld.outline_clearance(px.copy(), py.copy()), want[:3])
+        assert np.array_equal(fld.outline_clearance(px.copy(), py.copy()), plain_bilinear(
+            fld.clearance, fld.map, px, py, 0.0).min(-1))
     # a single pose and a sweep of yaws at one point (broadcast) as before
-    assert float(fld.footprint_clearance(2.0, 1.0, 0.3)) == float(plain_bilinear(
-        fld.clearance, fld.map, *plain_place(fld.outline, np.array(2.0), np.array(1.0),
-                                             np.array(0.3)), 0.0).min())
+    assert float(fld.footprint_clearance(2.0, 1.0, 0.3)) == float(plain_clearance(
+        fld, np.array([2.0]), np.array([1.0]), np.array([0.3]))[0])
     yaws = np.linspace(-3.0, 3.0, 2000)
-    want = plain_bilinear(fld.clearance, fld.map, *plain_place(
-        fld.outline, np.full(yaws.size, 1.5), np.full(yaws.size, 1.0), yaws), 0.0).min(-1)
+    want = plain_clearance(fld, np.full(yaws.size, 1.5), np.full(yaws.size, 1.0), yaws)
     assert np.array_equal(fld.footprint_clearance(1.5, 1.0, yaws), want)
+
+
+def plain_clearance(fld: NavField, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
+                    ) -> np.ndarray:
+    """The two-tier outline clearance, written plainly: the coarse outline everywhere, the
+    fine one too where the coarse reads under REFINE_BELOW_M."""
+    coarse = plain_bilinear(fld.clearance, fld.map, *plain_place(fld.outline, x, y, yaw),
+                            0.0).min(-1)
+    fine = plain_bilinear(fld.clearance, fld.map, *plain_place(fld.outline_fine, x, y, yaw),
+                          0.0).min(-1)
+    return np.asarray(np.where(coarse < nav_field.REFINE_BELOW_M, np.minimum(coarse, fine),
+                               coarse))
 
 
 def test_people_distances_in_batches_are_the_plain_ones() -> None:
@@ -101,7 +112,9 @@ def test_people_distances_in_batches_are_the_plain_ones() -> None:
     t = np.asarray((np.arange(mp.steps) + 1) * mp.p.dt_s, dtype=np.float64)
     d, near = mp.outline_distances(x, y, yaw, people, t)
     px, py = plain_place(fld.outline, x, y, yaw)
+    # (the prediction's clearance: the coarse outline, NavField.footprint_clearance(fine=False))
     assert np.array_equal(d, plain_bilinear(fld.clearance, fld.map, px, py, 0.0).min(-1))
+    assert np.array_equal(d, fld.footprint_clearance(x, y, yaw, fine=False))
     for p, (to_path, to_here) in zip(people, near, strict=True):
         cx, cy = p.x_m + p.vx_mps * t, p.y_m + p.vy_mps * t
         assert np.array_equal(to_path, np.hypot(px - cx[:, None], py - cy[:, None]).min(-1))

@@ -577,8 +577,10 @@ class Mpepc:
         pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
         # Already closer than `contact_m` (a noisy live map, a chair nudged to a wall): only
         # getting closer still counts as a hit, so the chair can move away instead of freezing.
+        # (each read as what it is compared with: the prediction coarse, the committed fine)
+        hit = d_static < min(p.contact_m, float(fld.footprint_clearance(*pose, fine=False))
+                             - 0.005)
         d0 = float(fld.footprint_clearance(*pose))
-        hit = d_static < min(p.contact_m, d0 - 0.005)
         # A motion is only as safe as the stop after it: the next plan can brake the chair
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
@@ -652,13 +654,15 @@ class Mpepc:
 
     def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64
                           ) -> tuple[F64, list[tuple[F64, F64]]]:
-        """At the predicted poses (N, T): the footprint's clearance (NavField.
-        footprint_clearance) and per person the least distance of its outline to their centre
-        predicted at constant velocity (at times `t`) and to where they stand now. In batches
-        of candidates (field.BATCH_POINTS: the temporaries stay in cache), the same numbers."""
+        """At the predicted poses (N, T): the footprint's clearance on the coarse outline
+        (NavField.footprint_clearance: the prediction's cost, replanned every cycle; what the
+        chair is committed to, `stop_clearance`, is read on the fine one too) and per person
+        the least distance of its outline to their centre predicted at constant velocity (at
+        times `t`) and to where they stand now. In batches of candidates (field.BATCH_POINTS:
+        the temporaries stay in cache), the same numbers."""
         fld = self.field
         if not people:
-            return fld.footprint_clearance(xs, ys, yaws), []
+            return fld.footprint_clearance(xs, ys, yaws, fine=False), []
         d = np.empty(xs.shape)
         near = [(np.empty(xs.shape), np.empty(xs.shape)) for _ in people]
         rows = max(1, BATCH_POINTS // (xs.shape[1] * len(fld.outline)))
