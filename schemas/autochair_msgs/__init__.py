@@ -29,6 +29,7 @@ from .safety import (
     EStopReply,
     EStopState,
     SafetyLimit,
+    says_stop,
 )
 
 __all__ = [
@@ -69,4 +70,5 @@ __all__ = [
     "TrackedPerson",
     "Vector3",
     "VelocityCommand",
+    "says_stop",
 ]

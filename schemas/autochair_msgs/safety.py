@@ -42,6 +42,12 @@ class EStopReply(msgspec.Struct, kw_only=True, frozen=True):
     error: str = ""
 
 
+def says_stop(v_max_fwd_mps: float, omega_max_radps: float) -> bool:
+    """A SafetyLimit's bounds that allow neither forward motion nor turning: the monitor's
+    stop (the velocity PID and the control service's goal gate judge it alike)."""
+    return v_max_fwd_mps == 0.0 and omega_max_radps == 0.0
+
+
 class SafetyLimit(msgspec.Struct, kw_only=True, frozen=True):
     """Speed bounds from the safety monitor; the velocity PID clamps any desired velocity."""
 

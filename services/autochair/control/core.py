@@ -29,7 +29,7 @@ from autochair.nav.field import CostToGo, Footprint, GridMap, NavField
 from autochair.nav.frames import MapFrame
 from autochair.nav.mpepc import ALIGNED_RAD, LawParams, MpepcParams, Person, Plan
 from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error
-from autochair_msgs import GoalReply, GoalRequest, Pose2D
+from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, park_kuipers
 from .limits import ComfortLimiter, ComfortLimits
@@ -475,8 +475,7 @@ class ControlCore:
         drives forward only, so the monitor's reverse bound needs no handling here.)"""
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
         self.gates.limit_t = now
-        # (the PID's own test for "says stop": neither forward nor turning allowed)
-        self.gates.limit_stop = reason if v_fwd == 0.0 and omega_max == 0.0 else None
+        self.gates.limit_stop = reason if says_stop(v_fwd, omega_max) else None
 
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
         """Check a goal and take it, in one step (the node runs the slow route check between

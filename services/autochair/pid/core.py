@@ -21,6 +21,7 @@ from typing import Annotated
 import msgspec
 
 from autochair.tune.core import ChainModel, Probe, ProbeState
+from autochair_msgs import says_stop
 from autochair_msgs.keys import DRIVE_RATE_HZ
 
 NEUTRAL_V = 2.5
@@ -328,7 +329,7 @@ class VelocityPidCore:
         if self.require_limit and now_s - self._limit_t > self.limit_stale_s:
             return "no fresh safety limit"
         if self._limit is not None and now_s - self._limit_t <= self.limit_stale_s \
-                and self._limit[0] == 0.0 and self._limit[2] == 0.0:
+                and says_stop(self._limit[0], self._limit[2]):
             return "the safety monitor says stop"
         if self.obeying:
             return ""
