@@ -27,6 +27,7 @@ and the skid in turns cannot be told apart.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import statistics
@@ -39,9 +40,10 @@ from typing import Any
 import numpy as np
 
 from autochair.localization.calibration import calibrate
-from autochair.localization.core import Localizer, LocState, chair_cells
-from autochair.localization.matching import F64, DistanceField, GridFrame
+from autochair.localization.core import Estimate, Localizer, LocState, chair_cells
+from autochair.localization.matching import F64, DistanceField, GridFrame, compose
 from autochair.localization.slam import MapRenderer, Scan, Slam
+from autochair.mapping.core import MoveGate
 from autochair.mapping.mapfile import MapFile
 from autochair.odometry.core import OdometryCore
 from autochair.sim.chair.model import ChairModel, ChairParams, volts
@@ -229,12 +231,28 @@ def simulate(world_name: str, minutes: float, seed: int = 1,
     loc = Localizer(DistanceField(m.occupied, frame),
                     chair_cells(m.occupied, m.free, m.resolution_m))
     loc.set_pose(np.array(ROUTES[world_name][0]), 0.05, 0.05)
+    gate, last = MoveGate(), None
     for tick in drive(world_name, minutes, seed, kidnap_at_s, params, omega_caps):
+        if (held := passed_over(gate, last, tick)) is not None:
+            yield held
+            continue
         pts = tick.scan.points()
         c0 = time.process_time()
-        est = loc.update(tick.odom, pts)
+        est = last = loc.update(tick.odom, pts)
         cpu = time.process_time() - c0
         yield Sample(tick.t, tick.truth, tick.odom, est.pose, est.state, cpu, tick.counts)
+
+
+def passed_over(gate: MoveGate, last: Estimate | None, tick: Tick) -> Sample | None:
+    """As the localization node: a scan the move gate passes over while tracking is not
+    matched; the pose meanwhile is the last correction applied to the odometry (what the
+    stack's `map` → `odom` → `chair` gives). None: the scan is matched."""
+    o = tick.odom
+    if gate.take((float(o[0]), float(o[1]), float(o[2])), round(tick.t * 1e9)) \
+            or last is None or last.state is not LocState.TRACKING:
+        return None
+    return Sample(tick.t, tick.truth, o, compose(last.correction, o), last.state, 0.0,
+                  tick.counts)
 
 
 def mapping_run(world_name: str, minutes: float, seed: int = 7
@@ -246,14 +264,20 @@ def mapping_run(world_name: str, minutes: float, seed: int = 7
     renderer = MapRenderer(slam.p)
     out: list[Sample] = []
     kf_truth: list[tuple[float, float, float]] = []
+    gate, last = MoveGate(), None
     for k, tick in enumerate(drive(world_name, minutes, seed)):
         n = slam.stats.keyframes
+        redraw = k % 50 == 49  # the node redraws the published map every 5 s
+        if (held := passed_over(gate, last, tick)) is not None and not redraw:
+            out.append(held)
+            continue
         c0 = time.process_time()
-        est = slam.update(tick.odom, tick.scan)
-        if k % 50 == 49:  # the node redraws the published map every 5 s
+        if held is None:
+            last = slam.update(tick.odom, tick.scan)
+            held = Sample(tick.t, tick.truth, tick.odom, last.pose, last.state, 0.0, tick.counts)
+        if redraw:
             renderer.update(*slam.snapshot())
-        cpu = time.process_time() - c0
-        out.append(Sample(tick.t, tick.truth, tick.odom, est.pose, est.state, cpu, tick.counts))
+        out.append(dataclasses.replace(held, cpu_s=time.process_time() - c0))
         if slam.stats.keyframes > n:
             kf_truth.append(tick.truth)
     nodes, truth = np.array(slam.graph.nodes), np.array(kf_truth)

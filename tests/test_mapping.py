@@ -113,3 +113,19 @@ def test_a_parked_chairs_scans_are_integrated_once_a_second() -> None:
     assert gate.take((1.03, 2.0, 0.5), 3000 * ms)
     assert gate.take((1.03, 2.0, 0.53), 3100 * ms)
     assert not gate.take((1.035, 2.0, 0.53), 3200 * ms)
+
+
+def test_a_driving_chairs_scans_are_taken_every_10_cm_or_6_degrees() -> None:
+    """The defaults the mapping and localization nodes use: a scan once the chair has moved
+    10 cm or turned 0.1 rad since the last one taken (at the soak's 0.5 m/s and 0.6 rad/s,
+    about every other scan); at 1.2 m/s every scan."""
+    from autochair.mapping.core import MoveGate
+
+    ms = 1_000_000
+    for step, turn in ((0.05, 0.0), (0.0, 0.06), (0.12, 0.0)):
+        gate = MoveGate()
+        taken = [k for k in range(40) if gate.take((k * step, 0.0, k * turn), k * 100 * ms)]
+        gaps = np.diff(taken)
+        moved = gaps * max(step, turn)
+        assert (moved >= 0.1 - 1e-9).all() and (moved <= 0.1 + max(step, turn) + 1e-9).all()
+        assert len(taken) >= (40 if step > 0.1 else 13)

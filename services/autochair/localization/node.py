@@ -167,8 +167,8 @@ class LocalizationService:
         if pose is None:
             health.count("scans_no_odom")
             return
-        # Tracking a parked chair: one scan a second is enough (a kidnap is still caught
-        # within a second); lost or initializing, every scan counts.
+        # Tracking: one scan per 10 cm or 0.1 rad driven, or a second parked (MoveGate; a
+        # kidnap is still caught within a second); lost or initializing, every scan counts.
         if not self.gate.take(pose, msg.stamp_ns) and self.last_state == LocState.TRACKING.value:
             health.count("scans_still")
             return

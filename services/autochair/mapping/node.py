@@ -2,7 +2,8 @@
 scans (keys.SCAN) placed by odometry (keys.ODOM_SLOW, interpolated) and the chair→laser mount
 of the [chair] section (`node.chair`). A chair→laser transform on keys.TF_STATIC that
 disagrees with it is counted (`tf_mount_mismatch`) and reported, not followed: the mount is
-defined once. A parked chair's scans are integrated once a second (`MoveGate`)."""
+defined once. Scans are integrated one per 10 cm or 0.1 rad driven, once a second parked
+(`MoveGate`)."""
 
 from __future__ import annotations
 
@@ -47,7 +48,7 @@ class MappingConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     publish_period_s: Positive = 1.0
     frame_id: str = "odom"  # REP-105: placed by odometry alone (localization maps in `map`)
     laser_frame: str = "laser"
-    # A parked chair's scans are integrated once a second, not at the scan rate (MoveGate).
+    # Scans are integrated one per 10 cm or 0.1 rad driven, or once a second parked (MoveGate).
     still_period_s: Annotated[float, msgspec.Meta(ge=0)] = 1.0
     # Keep-out zones (a mask map, as [safety] keepout_map) painted into the published grid
     # while localization places them, so navigation plans round them and refuses goals in them.
