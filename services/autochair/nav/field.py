@@ -326,7 +326,7 @@ class NavField:
         return (self.refined(d, xs, ys, yaws) if fine else d).reshape(shape)
 
     def refined(self, d: F64, x: F64, y: F64, yaw: F64) -> F64:
-        """`d`, coarse outline clearances at poses (...), with those under `REFINE_BELOW_M`
+        """`d`, coarse outline clearances at poses (N,), with those under `REFINE_BELOW_M`
         read on the fine outline (in place). Past it the coarse reading cannot hide a fine one
         under 0.074 m, more than any margin checked (0.02–0.05): one obstacle cell midway
         between two points 0.15 m apart reads √((c + h)² + 0.075²) − h for c on the fine
