@@ -40,7 +40,14 @@ from typing import Any
 import numpy as np
 
 from autochair.localization.calibration import calibrate
-from autochair.localization.core import Estimate, Localizer, LocState, chair_cells
+from autochair.localization.core import (
+    TRACK_MOVE_M,
+    TRACK_TURN_RAD,
+    Estimate,
+    Localizer,
+    LocState,
+    chair_cells,
+)
 from autochair.localization.matching import F64, DistanceField, GridFrame, compose
 from autochair.localization.slam import MapRenderer, Scan, Slam
 from autochair.mapping.core import MoveGate
@@ -232,7 +239,7 @@ def simulate(world_name: str, minutes: float, seed: int = 1,
     loc = Localizer(DistanceField(m.occupied, frame),
                     chair_cells(m.occupied, m.free, m.resolution_m))
     loc.set_pose(np.array(ROUTES[world_name][0]), 0.05, 0.05)
-    gate, last = MoveGate(), None
+    gate, last = MoveGate(TRACK_MOVE_M, TRACK_TURN_RAD), None
     for tick in drive(world_name, minutes, seed, kidnap_at_s, params, omega_caps):
         if (held := passed_over(gate, last, tick)) is not None:
             yield held
@@ -265,7 +272,7 @@ def mapping_run(world_name: str, minutes: float, seed: int = 7
     renderer = MapRenderer(slam.p)
     out: list[Sample] = []
     kf_truth: list[tuple[float, float, float]] = []
-    gate, last = MoveGate(), None
+    gate, last = MoveGate(TRACK_MOVE_M, TRACK_TURN_RAD), None
     for k, tick in enumerate(drive(world_name, minutes, seed)):
         n = slam.stats.keyframes
         redraw = k % 50 == 49  # the node redraws the published map every 5 s

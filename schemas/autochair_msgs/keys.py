@@ -122,8 +122,7 @@ MAP_CLOUD = Topic("autochair/map/cloud", PointCloud, 1, False,
                   "Accumulated odom-frame points (mapping), for live viewers; not recorded: "
                   "the grid is, and the scans and odometry it is made from are")
 LOC_POSE = Topic("autochair/localization/pose", LocalizedPose, 10, True,
-                 "Chair pose in `map` with covariance, quality and state (localization): "
-                 "one per scan taken (the chair moved 10 cm or 0.1 rad, else once a second)")
+                 "Chair pose in `map` with covariance, quality and state (localization)")
 LOC_MAP = Topic("autochair/localization/map", OccupancyGrid, 0.2, True,
                 "The map localization uses or builds, in `map` (localization)")
 LOC_SET_POSE = Topic("autochair/localization/set_pose", LocalizeRequest, None, False,

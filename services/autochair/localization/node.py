@@ -42,7 +42,7 @@ from autochair_msgs import (
     keys,
 )
 
-from .core import Estimate, Localizer, LocState, chair_cells
+from .core import TRACK_MOVE_M, TRACK_TURN_RAD, Estimate, Localizer, LocState, chair_cells
 from .matching import DistanceField, GridFrame, between
 from .slam import MapRenderer, Scan, Slam
 
@@ -90,7 +90,7 @@ class LocalizationService:
         # 50 Hz, taken in as each scan is processed (interpolated at its stamps): no thread
         # wakes per sample.
         self.odom_waiting = node.queued(keys.ODOM_SLOW, ODOM_RING)
-        self.gate = MoveGate()
+        self.gate = MoveGate(TRACK_MOVE_M, TRACK_TURN_RAD)
         self.map: MapFile | None = None
         self.loc: Localizer | None = None
         self.slam: Slam | None = None
@@ -167,8 +167,8 @@ class LocalizationService:
         if pose is None:
             health.count("scans_no_odom")
             return
-        # Tracking: one scan per 10 cm or 0.1 rad driven, or a second parked (MoveGate; a
-        # kidnap is still caught within a second); lost or initializing, every scan counts.
+        # Tracking a parked chair: one scan a second is enough (a kidnap is still caught
+        # within a second); lost or initializing, every scan counts.
         if not self.gate.take(pose, msg.stamp_ns) and self.last_state == LocState.TRACKING.value:
             health.count("scans_still")
             return

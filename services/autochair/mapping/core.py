@@ -168,10 +168,11 @@ class MoveGate:
     """Whether a scan adds anything to the map (or a tracking estimate): the laser moved
     `min_move_m` or turned `min_turn_rad` since the last one taken, or that is older than
     `max_age_ns`. A parked chair's identical views are taken once a second, not ten times
-    (CPU); what changes in front of it still shows within a second. Driving, one scan per
-    10 cm or 5.7°: at 0.5 m/s every other one (ROS stacks update less often still: AMCL
-    every 0.2 m / 30°, slam_toolbox every 0.5 m); the safety monitor and the people tracker
-    still take every scan."""
+    (CPU); what changes in front of it still shows within a second. The mapping service
+    driving: one scan per 10 cm or 5.7°, at 0.5 m/s every other one (ROS stacks update less
+    often still: slam_toolbox every 0.5 m, gmapping 1 m); localization tracks finer
+    (localization/core.py TRACK_MOVE_M); the safety monitor and the people tracker take every
+    scan."""
 
     min_move_m: float = 0.1
     min_turn_rad: float = 0.1
