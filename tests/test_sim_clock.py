@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from autochair.protocol import arduino as proto
 from autochair.sim.chair import node as sim_node
 from autochair.sim.chair.node import SimConfig, Simulator
 from autochair_msgs import keys
@@ -64,6 +65,25 @@ def test_a_stall_beyond_the_catch_up_bound_loses_time_and_counts_it() -> None:
     assert node.counts["steps_lost"] == 201 - 1 - bound
     run_ticks(node, sim, [2.01])  # and on time again from there
     assert sim.t == pytest.approx((2 + bound) * DT)
+
+
+def test_a_long_stall_of_the_sim_does_not_trip_the_firmware_watchdog() -> None:
+    """The host cannot feed the MCU's 200 ms watchdog while the sim stands still (no telemetry,
+    no reply): only 0.1 s is caught up, so the chair keeps the host's command as a real one,
+    whose time never stops, would have."""
+    node = FakeNode()
+    sim = Simulator(node, SimConfig(pty_link="/nonexistent"))  # type: ignore[arg-type]
+    drive = proto.encode(proto.Command(1, 0, 3000, 2500, proto.FL_ENABLE))
+    for k in range(130):  # past the firmware's 1 s boot, a host command every tick
+        sim.fw.receive(drive, sim.t)
+        run_ticks(node, sim, [k * DT])
+    assert sim.fw.output_volts[0] == pytest.approx(3.0)  # positive control: driving
+    run_ticks(node, sim, [130 * DT + 0.5])  # the sim stood still 0.5 s
+    assert sim.fw.output_volts[0] == pytest.approx(3.0)
+    assert not sim.fw.status & proto.ST_HOST_TIMEOUT
+    # Positive control: the host silent for 0.25 s of the chair's own time trips it.
+    run_ticks(node, sim, [130 * DT + 0.5 + k * DT for k in range(1, 26)])
+    assert sim.fw.output_volts[0] == pytest.approx(2.5)
 
 
 def test_the_pacer_follows_the_time_scale() -> None:

@@ -108,8 +108,10 @@ class PtyPort:
             raise
 
 
-# A stall longer than this (a frozen process) is not caught up: its time is lost, and counted.
-MAX_CATCH_UP_S = 0.5
+# Of a longer stall only this much is caught up, the rest is lost (and counted): the host could
+# not feed the firmware's 200 ms watchdog while the sim stood still, and a catch-up past it
+# would trip the watchdog, which a real MCU (whose time never stops) would not have.
+MAX_CATCH_UP_S = 0.1
 
 
 @dataclass
