@@ -92,6 +92,21 @@ def test_the_batched_footprint_clearance_is_the_plain_one() -> None:
     assert np.array_equal(fld.footprint_clearance(1.5, 1.0, yaws), want)
 
 
+def test_reading_for_a_threshold_decides_as_reading_all() -> None:
+    """NavField.footprint_clearance(need=, upto=) refines only the readings that could cross
+    `upto` (the planner's committed sweeps): every pose it puts under `need`, and every one it
+    puts at `upto` or more, the fine outline everywhere puts there too."""
+    fld = room()
+    x, y, yaw = poses(400, 25, 5, False)
+    full = np.minimum(*(plain_bilinear(fld.clearance, fld.map, *plain_place(o, x, y, yaw),
+                                       0.0).min(-1) for o in (fld.outline, fld.outline_fine)))
+    for need, upto in ((0.05, 0.05), (0.05, 0.09), (0.02, 0.02)):
+        got = fld.footprint_clearance(x, y, yaw, need=need, upto=upto)
+        assert ((full < need) & (full < got)).any()  # (coarse under need, left coarse)
+        assert np.array_equal(got < need, full < need)
+        assert np.array_equal(got >= upto, full >= upto)
+
+
 def plain_clearance(fld: NavField, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
                     ) -> np.ndarray:
     """The two-tier outline clearance, written plainly: the coarse outline everywhere, the

@@ -315,23 +315,35 @@ class NavField:
                 gm.origin_y_m + (iy + 0.5) * gm.resolution_m)
 
     def footprint_clearance(self, x: F64 | float, y: F64 | float, yaw: F64 | float,
-                            fine: bool = True) -> F64:
+                            fine: bool = True, need: float | None = None,
+                            upto: float | None = None) -> F64:
         """Least clearance of the footprint outline at poses (...) (broadcast together): on
         the coarse outline, and (`fine`) on the fine one where that reads under
-        `REFINE_BELOW_M`."""
+        `REFINE_BELOW_M`; for a caller that compares with `need` (`refined`), only where the
+        fine one could read under `upto` (default `need`) and the coarse one does not already
+        read under `need`."""
         shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(yaw))
         xs, ys, yaws = (np.broadcast_to(np.asarray(a, dtype=np.float64), shape).reshape(-1)
                         for a in (x, y, yaw))
         d = self._clearance(self.outline, xs, ys, yaws)
-        return (self.refined(d, xs, ys, yaws) if fine else d).reshape(shape)
+        if not fine:
+            return d.reshape(shape)
+        return self.refined(d, xs, ys, yaws, need, upto if upto is not None else need or 0.0
+                            ).reshape(shape)
 
-    def refined(self, d: F64, x: F64, y: F64, yaw: F64) -> F64:
+    def refined(self, d: F64, x: F64, y: F64, yaw: F64, need: float | None = None,
+                upto: float = 0.0) -> F64:
         """`d`, coarse outline clearances at poses (N,), with those under `REFINE_BELOW_M`
         read on the fine outline (in place). Past it the coarse reading cannot hide a fine one
         under 0.074 m, more than any margin checked (0.02–0.05): one obstacle cell midway
         between two points 0.15 m apart reads √((c + h)² + 0.075²) − h for c on the fine
-        outline, h half a 5 cm cell."""
-        near = d < REFINE_BELOW_M
+        outline, h half a 5 cm cell. With `need`, only readings from `need` to that bound for
+        c = `upto` (5 mm more): a coarse reading under `need` decides alone, one past the
+        bound keeps the fine one at `upto` or more (the planner's committed sweeps, read
+        under 0.10 m alike, took 35 % more time at its p95)."""
+        h = self.map.resolution_m / 2
+        hi = REFINE_BELOW_M if need is None else math.hypot(upto + h, 0.075) - h + 0.005
+        near = (d < hi) if need is None else (d >= need) & (d < hi)
         if near.any():
             d[near] = np.minimum(d[near], self._clearance(self.outline_fine, x[near], y[near],
                                                           yaw[near]))

@@ -640,16 +640,18 @@ class Mpepc:
         30 % more planning time moving whole sweeps). At rest (v0 and ω0 ~0) the sweep as
         planned."""
         fld, e = self.field, self.p.stop_timing_s
-        d = fld.footprint_clearance(sweep[0], sweep[1], sweep[2])  # (N, B)
-        if e <= 0.0 or (abs(v0) < 1e-3 and abs(w0) < 1e-3):
+        rest = e <= 0.0 or (abs(v0) < 1e-3 and abs(w0) < 1e-3)
+        band = need if rest else need + e * abs(v0) + 0.005  # (what a move could bring under)
+        d = fld.footprint_clearance(sweep[0], sweep[1], sweep[2], need=need, upto=band)
+        if rest:
             return np.asarray(d.min(1), dtype=np.float64)
         x0, y0, t0 = pose
-        near = d < need + e * abs(v0) + 0.005
+        near = d < band
         if near.any():
             dx, dy, yaw = sweep[0][near] - x0, sweep[1][near] - y0, sweep[2][near]
             for ds in (e * v0, -e * v0):
                 d[near] = np.minimum(d[near], fld.footprint_clearance(
-                    x0 + ds * math.cos(t0) + dx, y0 + ds * math.sin(t0) + dy, yaw))
+                    x0 + ds * math.cos(t0) + dx, y0 + ds * math.sin(t0) + dy, yaw, need=need))
         return np.asarray(d.min(1), dtype=np.float64)
 
     def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64
