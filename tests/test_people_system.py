@@ -93,6 +93,7 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
     session = client_session(hub)
     try:
         people = Recorder(session, keys.PEOPLE)
+        grids = Recorder(session, keys.MAP_GRID)  # (for a failure: when the maps came)
         pid = Recorder(session, keys.PID_STATUS)  # (for a failure: what held the chair)
         map_ready(session)
         # Round the corner (this test is about what the tracker reports on the way, not the
@@ -113,10 +114,12 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
                     f"{held(pid, sent_ns)}")
 
         wait_for(walker, 10, instead)
-        wrong = [(round(q.x_m, 2), round(q.y_m, 2)) for m in people.messages()
-                 if m.stamp_ns >= sent_ns
+        wrong = [(round(q.x_m, 2), round(q.y_m, 2), round((m.stamp_ns - sent_ns) / 1e9, 2))
+                 for m in people.messages() if m.stamp_ns >= sent_ns
                  for q in m.people if not (abs(q.y_m - 8.3) < 0.6 and 3.8 < q.x_m < 6.2)]
-        assert not wrong, f"walls reported as people: {wrong[:8]}"
+        # (for a failure: when, and when the grids came, in s after the goal)
+        came = [round((g.stamp_ns - sent_ns) / 1e9, 1) for g in grids.messages()]
+        assert not wrong, f"walls reported as people (x, y, s): {wrong[:8]}; grids {came[:12]}"
         request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
     finally:
         session.close()
