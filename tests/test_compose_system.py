@@ -170,6 +170,7 @@ def test_compose_sim_stack_drives_survives_a_killed_pid_and_records(
 
         out = Recorder(live, keys.JOYSTICK_OUT)
         truth = Recorder(live, keys.SIM_TRUTH)
+        pid = Recorder(live, keys.PID_STATUS)  # (for a failure: what held the chair)
         pid_ready(live)
         wait_for(truth.latest, 10, "ground truth")
         # The drive starts now, after the PID's start: a deliberate act it obeys.
@@ -245,8 +246,13 @@ def test_compose_sim_stack_drives_survives_a_killed_pid_and_records(
         new = subprocess.Popen([*AUTOCHAIR, "drive", "0.5", "0", "--for", "4", "--connect",
                                 hub], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         drives.append(new)
-        wait_for(lambda: truth.latest().v_mps > 0.2, 15, "driving on a new `autochair drive`",
-                 interval=0.05)
+        new_ns = time.time_ns()
+
+        def held() -> str:  # (for a failure: why the PID held the new drive)
+            why = list(dict.fromkeys(m.inhibit for m in pid.messages() if m.stamp_ns > new_ns))
+            return f"driving on a new `autochair drive`; the PID held for {why}"
+
+        wait_for(lambda: truth.latest().v_mps > 0.2, 15, held, interval=0.05)
         assert new.wait(timeout=20) == 0
 
         # The containers' healthchecks run `autochair health` inside each.
