@@ -75,10 +75,6 @@ def test_estop_under_a_goal_then_release_does_not_resume_or_lunge(
         assert request(session, keys.GOAL_SET, GoalRequest(
             waypoints=[Pose2D(x0 + 3.0, 0.0, 0.0)]), GoalReply).ok
         wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair driving the new goal")
-        # The acceleration peaks about here (the ramp's middle): measure the whole ramp, on the
-        # chair's own clock (until now the window ended at the peak and read 0.01-0.03 low).
-        t_06 = truth.latest().sim_time_s
-        wait_for(lambda: truth.latest().sim_time_s > t_06 + 0.6, 5, "the rest of the ramp")
         frames = [m for m in out.messages() if m.stamp_ns > start_ns and m.enable]
         first = frames[0]
         lunge = max(abs(first.longitudinal_v - 2.5), abs(first.angular_v - 2.5))
