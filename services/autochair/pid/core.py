@@ -26,8 +26,6 @@ from autochair_msgs.keys import DRIVE_RATE_HZ
 
 NEUTRAL_V = 2.5
 VOLTS_PER_EFFORT = 1.5  # thesis eq. 5.17: V = 1.5·C + 2.5
-# A plan's step at the speed-up bound, a_max·dt up to float rounding, passes bit for bit.
-ROUNDING_MPS = 1e-9
 
 
 @dataclass
@@ -218,14 +216,6 @@ class VelocityPidCore:
     # chain), so the sample that starts a drive carries the parked interval as its dt, while
     # its output acts only until the next sample, one period later.
     period_s: float = 1.0 / DRIVE_RATE_HZ
-    # The desired speed grows at most this fast on the encoders' clock (m/s², inf: unbounded),
-    # with up to `speed_up_burst_s` of it at once. A stream planned within the comfort limit
-    # reaches the PID in steps when a process on the way stalls (the control's plan goes on by
-    # the wall clock, the samples wait): the feed-forward's model inverse turned such a step
-    # into an effort kick, which a stall right after held (1.085 m/s² at the chair for an
-    # 80 ms stall under the ramp of a goal, the plan's 0.97). Slowing down is never delayed.
-    speed_up_mps2: float = math.inf
-    speed_up_burst_s: float = 0.02  # one command period of the control (ControlConfig.rate_hz)
     v_pid: PID = field(init=False)
     omega_pid: PID = field(init=False)
     probe: Probe | None = field(init=False, default=None)  # a tuning probe (autochair tune)
@@ -233,7 +223,6 @@ class VelocityPidCore:
     _last_effort: tuple[float, float] = (0.0, 0.0)  # low-passed
     _sent: list[float] = field(default_factory=lambda: [0.0, 0.0])  # last feed-forward
     _held: tuple[float, float] = (0.0, 0.0)  # the last desired driven (within caps, limit)
-    _speed_budget: float = 0.0  # how much more the desired v may grow now (`speed_up_mps2`)
     stop_ns: int = field(init=False)  # commands must have begun after this (Unix ns)
     stop_reason: str = field(init=False)
     _desired: tuple[float, float] = (0.0, 0.0)
@@ -419,7 +408,6 @@ class VelocityPidCore:
             # step through the processes settled in 1.6-1.8 s instead of 1.16 s (measured).
             dt = min(dt, self.period_s)
         meas = (v_meas, omega_meas)
-        desired = (self._speed_up(desired[0], dt), desired[1])
         self._held = desired
         efforts = [self._axis(i, desired[i], meas[i], dt) for i in (0, 1)]
         if self.probe is not None and self.probe.state is ProbeState.RUNNING \
@@ -463,17 +451,6 @@ class VelocityPidCore:
             self._resume(i, meas[i], self.probe.bias)
         return True
 
-    def _speed_up(self, v: float, dt: float) -> float:
-        """The desired v with its growth in speed bounded (`speed_up_mps2`); towards zero free."""
-        a = self.speed_up_mps2
-        if math.isinf(a):
-            return v
-        self._speed_budget = min(self._speed_budget + a * dt, a * self.speed_up_burst_s)
-        held, room = self._held[0], self._speed_budget + ROUNDING_MPS
-        out = min(v, max(held, 0.0) + room) if v >= 0.0 else max(v, min(held, 0.0) - room)
-        self._speed_budget -= max(abs(out) - abs(held) if out * held > 0 else abs(out), 0.0)
-        return out
-
     def _axis(self, i: int, r: float, y: float, dt: float) -> float:
         """One loop: feed-forward (if modelled) plus the PID on the model's response to what
         was sent; the PID's window is what the feed-forward leaves (anti-windup on the total)."""
@@ -501,8 +478,6 @@ class VelocityPidCore:
                   effort - (0.0 if ff is None else ff.model.effort_for(y)))
 
     def _restart(self, v_meas: float, omega_meas: float) -> None:
-        self._held = (v_meas, self._held[1])  # the desired speed grows from the measured one
-        self._speed_budget = self.speed_up_mps2 * self.speed_up_burst_s
         for i, y in enumerate((v_meas, omega_meas)):
             ff = self._ff[i]
             (self.v_pid, self.omega_pid)[i].reset(y if ff is None else 0.0)  # (see _axis)
@@ -556,10 +531,6 @@ class PidConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     v_model: Model | None = (1.839, 0.049, 0.358, 0.358, 0.372)
     omega_model: Model | None = (1.888, 0.049, 0.241, 0.241, 0.318)
     prefilter_s: Annotated[float, msgspec.Meta(gt=0, le=2)] = 0.15
-    # The desired speed's growth at the PID, on the encoders' clock (VelocityPidCore's
-    # speed_up_mps2): the comfort limit ([control] a_max_mps2), one command period at once.
-    speed_up_mps2: Annotated[float, msgspec.Meta(gt=0)] = 1.0
-    speed_up_burst_s: Annotated[float, msgspec.Meta(ge=0.01, le=0.2)] = 0.02
     min_v: float = 1.1
     max_v: float = 3.9
     d_filter_n: float = 10.0
@@ -594,8 +565,7 @@ def make_core(cfg: PidConfig, *, stale_s: float = 0.3, skew_s: float = 0.1,
         estop_stale_s=estop_stale_s, odom_gap_s=odom_gap_s,
         caps=Caps(cfg.v_max_fwd_mps, cfg.v_max_rev_mps, cfg.omega_max_radps),
         start_ns=start_ns, v_model=v_model, omega_model=omega_model,
-        prefilter_s=cfg.prefilter_s, d_filter_n=cfg.d_filter_n, speed_up_mps2=cfg.speed_up_mps2,
-        speed_up_burst_s=cfg.speed_up_burst_s)
+        prefilter_s=cfg.prefilter_s, d_filter_n=cfg.d_filter_n)
 
 
 def probe_reply(probe: Probe | None) -> dict[str, object]:
