@@ -276,16 +276,18 @@ def mapping_run(world_name: str, minutes: float, seed: int = 7
     for k, tick in enumerate(drive(world_name, minutes, seed)):
         n = slam.stats.keyframes
         redraw = k % 50 == 49  # the node redraws the published map every 5 s
-        if (held := passed_over(gate, last, tick)) is not None and not redraw:
-            out.append(held)
+        sample = passed_over(gate, last, tick)
+        if sample is not None and not redraw:
+            out.append(sample)
             continue
         c0 = time.process_time()
-        if held is None:
+        if sample is None:
             last = slam.update(tick.odom, tick.scan)
-            held = Sample(tick.t, tick.truth, tick.odom, last.pose, last.state, 0.0, tick.counts)
+            sample = Sample(tick.t, tick.truth, tick.odom, last.pose, last.state, 0.0,
+                            tick.counts)
         if redraw:
             renderer.update(*slam.snapshot())
-        out.append(dataclasses.replace(held, cpu_s=time.process_time() - c0))
+        out.append(dataclasses.replace(sample, cpu_s=time.process_time() - c0))
         if slam.stats.keyframes > n:
             kf_truth.append(tick.truth)
     nodes, truth = np.array(slam.graph.nodes), np.array(kf_truth)

@@ -36,7 +36,8 @@ OCCUPIED_PCT = 65  # an OccupancyGrid cell ≥ this (percent, not 255 = unknown)
 # temporaries then stay in the CPU's cache. A plan round's 88k points in one batch took 3×
 # as long as in batches of ~13k (measured: 6.4 → 2.3 ms).
 BATCH_POINTS = 16384
-FINE_SPLIT = 3  # NavField's fine outline: the coarse one's gaps (0.14–0.15 m) split in 3
+COARSE_SPACING_M = 0.15  # NavField's coarse outline: its points at most this far apart
+FINE_SPLIT = 3  # NavField's fine outline: the coarse one's gaps split in 3
 REFINE_BELOW_M = 0.10  # ... read where the coarse one reads under this
 
 
@@ -287,8 +288,8 @@ class NavField:
         # bias, below, ~1.9). Every pose is read on the coarse outline (cheap: most poses are
         # far from everything) and, where that reads under `REFINE_BELOW_M`, at the points
         # between (`outline_fine`).
-        self.outline = footprint.outline(0.15)
-        fine = footprint.outline(0.15, FINE_SPLIT)  # (the coarse points among them)
+        self.outline = footprint.outline(COARSE_SPACING_M)
+        fine = footprint.outline(COARSE_SPACING_M, FINE_SPLIT)  # (the coarse points among them)
         self.outline_fine = fine[~(np.abs(fine[:, None] - self.outline[None]).sum(-1)
                                    < 1e-9).any(1)]  # the points between the coarse ones
 
@@ -319,7 +320,7 @@ class NavField:
                             upto: float | None = None) -> F64:
         """Least clearance of the footprint outline at poses (...) (broadcast together): on
         the coarse outline, and (`fine`) on the fine one where that reads under
-        `REFINE_BELOW_M`; for a caller that compares with `need` (`refined`), only where the
+        `REFINE_BELOW_M`; for a caller that compares with `need` (`_refined`), only where the
         fine one could read under `upto` (default `need`) and the coarse one does not already
         read under `need`."""
         shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(yaw))
@@ -328,21 +329,21 @@ class NavField:
         d = self._clearance(self.outline, xs, ys, yaws)
         if not fine:
             return d.reshape(shape)
-        return self.refined(d, xs, ys, yaws, need, upto if upto is not None else need or 0.0
-                            ).reshape(shape)
+        return self._refined(d, xs, ys, yaws, need, upto).reshape(shape)
 
-    def refined(self, d: F64, x: F64, y: F64, yaw: F64, need: float | None = None,
-                upto: float = 0.0) -> F64:
+    def _refined(self, d: F64, x: F64, y: F64, yaw: F64, need: float | None,
+                 upto: float | None) -> F64:
         """`d`, coarse outline clearances at poses (N,), with those under `REFINE_BELOW_M`
         read on the fine outline (in place). Past it the coarse reading cannot hide a fine one
         under 0.074 m, more than any margin checked (0.02–0.05): one obstacle cell midway
-        between two points 0.15 m apart reads √((c + h)² + 0.075²) − h for c on the fine
-        outline, h half a 5 cm cell. With `need`, only readings from `need` to that bound for
-        c = `upto` (5 mm more): a coarse reading under `need` decides alone, one past the
-        bound keeps the fine one at `upto` or more (the planner's committed sweeps, read
-        under 0.10 m alike, took 35 % more time at its p95)."""
-        h = self.map.resolution_m / 2
-        hi = REFINE_BELOW_M if need is None else math.hypot(upto + h, 0.075) - h + 0.005
+        between two points s = COARSE_SPACING_M apart reads √((c + h)² + (s/2)²) − h for c on
+        the fine outline, h half a 5 cm cell. With `need`, only readings from `need` to that
+        bound for c = `upto` (5 mm more): a coarse reading under `need` decides alone, one
+        past the bound keeps the fine one at `upto` or more (the planner's committed sweeps,
+        read under 0.10 m alike, took 35 % more time at its p95)."""
+        h, half_gap = self.map.resolution_m / 2, COARSE_SPACING_M / 2
+        hi = REFINE_BELOW_M if need is None else \
+            math.hypot((need if upto is None else upto) + h, half_gap) - h + 0.005
         near = (d < hi) if need is None else (d >= need) & (d < hi)
         if near.any():
             d[near] = np.minimum(d[near], self._clearance(self.outline_fine, x[near], y[near],
