@@ -170,6 +170,10 @@ class Gateway:
             return
         try:
             data = port.read(max(1, port.in_waiting))
+            if len(data) == 1 and port.in_waiting:
+                # Woken by a frame's first byte: the rest is there too, so take it in this
+                # pass instead of a second one (half the loop's passes, each with its tick).
+                data += port.read(port.in_waiting)
         except (serial.SerialException, OSError, TypeError) as e:
             # TypeError: pyserial on a pty whose other side went away can fail inside read()
             with self.lock:
