@@ -77,8 +77,10 @@ def test_effort_maps_to_thesis_voltage_and_clamps() -> None:
 
 
 def cmd(v: float, w: float, t: float, source: str = "autonomy", began: float = 0.0) -> Command:
-    """A command stamped at t (s) from a stream begun at `began` (s); the core starts at 0."""
-    return Command(v, w, source, ns(t), ns(began) + 1)
+    """A command stamped at t (s) from a stream begun at `began` (s); the core starts at 0.
+    (Both 1 ns later: a stream begun at a stop's instant begins after it, and is stamped no
+    earlier than it began.)"""
+    return Command(v, w, source, ns(t) + 1, ns(began) + 1)
 
 
 def ns(t: float) -> int:
@@ -291,6 +293,30 @@ def test_old_and_future_stamps_are_rejected() -> None:
         is Verdict.FUTURE
     assert core.set_desired(Command(0.5, 0, "autonomy", now - ns(0.2), 1), 10.0, now) \
         is Verdict.OK
+
+
+def test_a_stream_begun_after_its_own_stamp_is_refused_so_no_stop_can_be_outlived() -> None:
+    """H49: the sender's clock stepped back 5 s mid-stream (or a bug): its stream's start lies
+    after its commands' stamps, so it would pass for a stream begun after any stop of the
+    next 5 s and drive on through an e-stop latched and released."""
+    ahead = 5.0
+
+    def run(shift: float) -> list[bool]:
+        core, obeyed = core_(), []
+        for i in range(3 * HALF_S):  # 1.5 s: latched at 0.5 s, released at 0.6 s
+            t = i * DT
+            core.set_estop(0.5 <= t < 0.6, t, ns(t))
+            core.set_limit(1.0, 0.5, 1.0, t, 0.5)
+            core.set_desired(Command(0.5, 0.0, "autonomy", ns(t) + 1, ns(shift) + 1), t, ns(t))
+            obeyed.append(core.update(0.3, 0.0, DT, t, ns(t)).active)
+        return obeyed
+
+    honest = run(0.0)  # positive control: begun at 0, the stream drives until the latch
+    assert all(honest[:HALF_S - 1]) and not any(honest[HALF_S + 1:])
+    assert not any(run(ahead)), "a stream begun 'in the future' outlived the e-stop"
+    core = core_()
+    assert core.set_desired(Command(0.5, 0.0, "autonomy", ns(1.0), ns(1.0) + 1), 1.0, ns(1.0)) \
+        is Verdict.STREAM_AHEAD
 
 
 def test_two_streams_on_one_key_are_never_mixed_and_the_older_never_drives_again() -> None:

@@ -162,6 +162,9 @@ class Verdict(enum.Enum):
     OLD = "old"  # its stamp is older than the stale threshold
     FUTURE = "future"  # stamped further ahead than the allowed clock skew
     BEFORE_STOP = "before_stop"  # its stream began before the last stop (no unexpected start)
+    # Its stream "began" after its own stamp: no sender's act comes after its command (a clock
+    # stepped back mid-stream, a bug), and such a start would outlive every stop (H49).
+    STREAM_AHEAD = "stream_ahead"
     SUPERSEDED = "superseded"  # a stream begun later drives: two sources are never mixed (H37)
     TOOK_OVER = "took_over"  # obeyed: a stream begun later than the one obeyed replaces it
 
@@ -258,6 +261,8 @@ class VelocityPidCore:
             return Verdict.OLD
         if cmd.stamp_ns - now_ns > self.skew_s * 1e9:
             return Verdict.FUTURE
+        if cmd.stream_start_ns > cmd.stamp_ns:
+            return Verdict.STREAM_AHEAD
         if cmd.stream_start_ns <= self.stop_ns:
             return Verdict.BEFORE_STOP
         # One stream at a time (H37): two sources on one key (a goal and `autochair drive`,
