@@ -59,7 +59,9 @@ class Rig:
         same command stream), then the volts for the next `sense`."""
         ns = round(t * 1e9)
         if desired is not None:
-            self.core.set_desired(Command(desired[0], desired[1], "autonomy", ns, 1), t, ns)
+            # (stamped 1 ns on: at t = 0 the stream, begun just after the core's start, would
+            # otherwise be stamped before it began)
+            self.core.set_desired(Command(desired[0], desired[1], "autonomy", ns + 1, 1), t, ns)
         out = self.core.update(v_meas, omega_meas, DT, t, ns)
         self.volts = (out.longitudinal_v, out.angular_v)
         return out
