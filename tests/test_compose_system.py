@@ -243,14 +243,18 @@ def test_compose_sim_stack_drives_survives_a_killed_pid_and_records(
         assert old.wait(timeout=10) == 0
 
         # A new drive (a new deliberate act) moves the chair again.
-        new = subprocess.Popen([*AUTOCHAIR, "drive", "0.5", "0", "--for", "4", "--connect",
-                                hub], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        said = tmp_path / "new-drive.log"
+        with said.open("wb") as log:
+            new = subprocess.Popen([*AUTOCHAIR, "drive", "0.5", "0", "--for", "4",
+                                    "--connect", hub], stdout=log, stderr=subprocess.STDOUT)
         drives.append(new)
         new_ns = time.time_ns()
 
-        def held() -> str:  # (for a failure: why the PID held the new drive)
+        def held() -> str:  # (for a failure: why the PID held the new drive, what it said)
             why = list(dict.fromkeys(m.inhibit for m in pid.messages() if m.stamp_ns > new_ns))
-            return f"driving on a new `autochair drive`; the PID held for {why}"
+            return (f"driving on a new `autochair drive`; the PID held for {why}; the drive "
+                    f"{'exited ' + str(new.returncode) if new.poll() is not None else 'runs'}"
+                    f", saying {said.read_text(errors='replace')[-600:]!r}")
 
         wait_for(lambda: truth.latest().v_mps > 0.2, 15, held, interval=0.05)
         assert new.wait(timeout=20) == 0
