@@ -319,6 +319,30 @@ def test_a_stream_begun_after_its_own_stamp_is_refused_so_no_stop_can_be_outlive
         is Verdict.STREAM_AHEAD
 
 
+def test_a_stream_known_at_a_stop_never_drives_after_it_whatever_the_senders_clock() -> None:
+    """H49: a laptop's clock 0.09 s ahead (within the 0.1 s skew allowed): its stream, begun
+    0.03 s before a momentary e-stop, claims to have begun 0.06 s after it."""
+
+    def run(ahead: float) -> list[bool]:
+        core, obeyed = core_(), []
+        for i in range(3 * HALF_S):
+            t = 0.97 + i * DT  # the stream began at 0.97; latched at 1.0, released a tick on
+            core.set_estop(abs(t - 1.0) < DT / 2, t, ns(t))
+            core.set_limit(1.0, 0.5, 1.0, t, 0.5)
+            core.set_desired(cmd(0.5, 0.0, t + ahead, began=0.97 + ahead), t, ns(t))
+            obeyed.append(core.update(0.3, 0.0, DT, t, ns(t)).active)
+        return obeyed
+
+    assert any(run(0.0)[:3]) and not any(run(0.0)[3:])  # in sync: driven, then never again
+    assert not any(run(0.09)[3:]), "the stream drove on after the release"
+    core = core_()  # a new act after the stop, from the laptop ahead, drives
+    core.set_estop(True, 1.0, ns(1.0))
+    core.set_estop(False, 1.01, ns(1.01))
+    core.set_limit(1.0, 0.5, 1.0, 1.2, 0.5)
+    assert core.set_desired(cmd(0.5, 0.0, 1.2 + 0.09, began=1.15 + 0.09), 1.2, ns(1.2)) \
+        is Verdict.OK
+
+
 def test_two_streams_on_one_key_are_never_mixed_and_the_older_never_drives_again() -> None:
     """H37: a goal's stream and `autochair drive` (or two teleop laptops) on one key."""
     core = core_(stale_s=0.3)

@@ -279,7 +279,9 @@ class VelocityPidCore:
         """A stop nobody asked for: obey nothing begun before `now_ns`. True if it ended
         obeying a stream (the node says so once)."""
         was = self.obeying
-        self.stop_ns = max(self.stop_ns, now_ns)
+        # Also past the stream it knew, whatever the sender's clock: one up to the skew ahead
+        # would otherwise make a stream begun just before the stop pass for one begun after it.
+        self.stop_ns = max(self.stop_ns, now_ns, self._stream_ns)
         self._desired_t = -math.inf
         self.stop_reason = reason
         return was
