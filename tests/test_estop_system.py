@@ -3,6 +3,7 @@ command keeps coming, `autochair release` clears it and driving resumes."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import time
@@ -13,7 +14,7 @@ import pytest
 from autochair.launcher import Launcher
 from autochair.runtime.client import Publisher
 from autochair_msgs import EStopAssert, JoystickCommand, keys
-from tests.helpers import Recorder, client_session, wait_for
+from tests.helpers import Recorder, client_session, pid_ready, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -83,3 +84,25 @@ def test_cli_clear_of_a_held_cause_then_release(stack_factory: Callable[..., Lau
         wait_for(lambda: not states.latest().latched, 2, "released")
     finally:
         session.close()
+
+
+def test_drive_says_why_the_pid_holds_the_chair(stack_factory: Callable[..., Launcher],
+                                                hub: str) -> None:
+    """A chair that stands still under `autochair drive` says why (here the e-stop), instead
+    of reading v 0 as if it were driving."""
+    stack_factory(["estop", "sim", "gateway", "odometry", "pid"])
+    session = client_session(hub)
+    try:
+        pid_ready(session)
+    finally:
+        session.close()
+    free = cli(hub, "drive", "0.3", "0", "--for", "2")  # positive control: it drives
+    assert free.returncode == 0, free.stderr
+    assert "held by the PID" not in free.stdout, free.stdout
+    measured = [float(v) for v in re.findall(r"\| v ([+-]\d+\.\d+) m/s", free.stdout)]
+    assert max(measured, default=0.0) > 0.1, free.stdout
+    latched = cli(hub, "estop", "test")
+    assert latched.returncode == 0, latched.stderr
+    held = cli(hub, "drive", "0.3", "0", "--for", "1.5")
+    assert held.returncode == 0, held.stderr
+    assert "held by the PID: e-stop latched" in held.stdout, held.stdout

@@ -30,7 +30,7 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from autochair.commands.link import tool_session
     from autochair.runtime.client import Publisher, alive_services, pid_caps, subscribe
-    from autochair_msgs import Odometry, VelocityCommand, keys
+    from autochair_msgs import Odometry, PidStatus, VelocityCommand, keys
 
     if abs(args.v) > MAX_V or abs(args.w) > MAX_W:
         raise CliError(f"|v| must be ≤ {MAX_V} m/s and |w| ≤ {MAX_W} rad/s")
@@ -58,10 +58,18 @@ def run(args: argparse.Namespace) -> int:
                 latest[:] = [msg]
 
         subscribe(session, keys.ODOM_SLOW, on_odom)
-
         # This command is the deliberate act: the PID obeys it only if it began after any
         # stop (an e-stop, a restart, ...); an old `drive` that simply goes on is refused.
         stream_start = time.time_ns()
+        # Why the PID obeys nothing now (an e-stop, a stop before this drive began, no safety
+        # limit, ...): a chair that stands still must say why, not just read v 0.
+        held: list[str] = [""]
+
+        def on_pid(msg: PidStatus) -> None:
+            # (not before the PID has had 0.2 s to take this drive's first command)
+            held[0] = msg.inhibit if msg.stamp_ns > stream_start + 200_000_000 else ""
+
+        subscribe(session, keys.PID_STATUS, on_pid)
 
         def send(v: float, w: float) -> None:
             pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,
@@ -79,8 +87,9 @@ def run(args: argparse.Namespace) -> int:
                     meas = (f"v {o.v_mps:+.3f} m/s  ω {o.omega_radps:+.3f} rad/s  "
                             f"pose ({o.x_m:+.2f}, {o.y_m:+.2f}, {o.yaw_rad:+.2f})"
                             if o else "no odometry yet")
+                    why = f"  | held by the PID: {held[0]}" if held[0] else ""
                     print(f"t {now - start:5.1f} s  want v {args.v:+.3f} ω {args.w:+.3f}  "
-                          f"| {meas}", flush=True)
+                          f"| {meas}{why}", flush=True)
                     next_print += 0.5
                 time.sleep(1.0 / args.rate)
         except KeyboardInterrupt:
