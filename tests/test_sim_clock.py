@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from autochair.protocol import arduino as proto
-from autochair.sim.chair import node as sim_node
+from autochair.sim.chair.clock import MAX_CATCH_UP_S, Pacer
 from autochair.sim.chair.node import SimConfig, Simulator
 from autochair_msgs import keys
 
@@ -59,7 +59,7 @@ def test_ticks_the_timer_skipped_are_simulated_at_the_next_one() -> None:
 def test_a_stall_beyond_the_catch_up_bound_loses_time_and_counts_it() -> None:
     node = FakeNode()
     sim = Simulator(node, SimConfig(pty_link="/nonexistent"))  # type: ignore[arg-type]
-    bound = round(sim_node.MAX_CATCH_UP_S / DT)
+    bound = round(MAX_CATCH_UP_S / DT)
     run_ticks(node, sim, [0.0, 2.0])  # a process frozen for 2 s
     assert sim.t == pytest.approx((1 + bound) * DT)
     assert node.counts["steps_lost"] == 201 - 1 - bound
@@ -87,7 +87,7 @@ def test_a_long_stall_of_the_sim_does_not_trip_the_firmware_watchdog() -> None:
 
 
 def test_the_pacer_follows_the_time_scale() -> None:
-    pacer = sim_node.Pacer(period_s=DT / 4, max_steps=50)  # time_scale 4: a step per 2.5 ms of wall
+    pacer = Pacer(period_s=DT / 4, max_steps=50)  # time_scale 4: a step per 2.5 ms of wall
     assert pacer.steps(5.0) == (1, 0)
     assert pacer.steps(5.0 + DT / 4) == (1, 0)
     assert pacer.steps(5.0 + DT) == (3, 0)  # two missed
