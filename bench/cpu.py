@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import shutil
 import statistics
@@ -45,7 +46,7 @@ from autochair.processes import local_values, selected
 from autochair.runtime.client import Publisher, open_client, subscribe
 from autochair.runtime.config import ZenohSettings
 from autochair.runtime.session import open_session
-from autochair_msgs import GroundTruth, VelocityCommand, keys
+from autochair_msgs import GroundTruth, PidStatus, VelocityCommand, keys
 
 RESULTS = Path(__file__).parent / "results" / "cpu.json"
 ENC = msgspec.msgpack.Encoder()
@@ -178,6 +179,13 @@ class Driver:
             self.truth = m
 
         self.sub = subscribe(session, keys.SIM_TRUTH, on_truth)
+        self.inhibit = ""  # why the PID obeys nothing (for a restart's record)
+
+        def on_pid(m: PidStatus) -> None:
+            self.inhibit = m.inhibit
+
+        self.pid_sub = subscribe(session, keys.PID_STATUS, on_pid)
+        self.why: list[str] = []  # the first restarts: phase, the PID's inhibit, true pose
         self.pub = Publisher(session, keys.CMD_VEL)
         self.phase, self.t_phase, self.cycles = "fwd", time.monotonic(), 0
         self.stream = (self.phase, time.time_ns())
@@ -210,13 +218,18 @@ class Driver:
         if abs(m.v_mps) > 0.02 or abs(m.omega_radps) > 0.02:
             self.moved_at = now
         if self.stream[0] != self.phase or now - self.moved_at > 2.0:
-            self.restarts += self.stream[0] == self.phase
+            if self.stream[0] == self.phase:
+                self.restarts += 1
+                if len(self.why) < 5:
+                    self.why.append(f"{self.phase}: PID {self.inhibit or 'obeying'!r} at "
+                                    f"({m.x_m:.2f}, {m.y_m:.2f}, {math.degrees(m.yaw_rad):.0f}°)")
             self.stream, self.moved_at = (self.phase, time.time_ns()), now
         self.pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,
                                      source="bench-cpu", stream_start_ns=self.stream[1]))
 
     def close(self) -> None:
         self.sub.undeclare()
+        self.pid_sub.undeclare()
         self.pub.undeclare()
 
 
@@ -266,6 +279,8 @@ def run_stack(case: str, args: argparse.Namespace, work: Path,
             res["pattern_cycles"] = driver.cycles
             res["pattern_phase_at_end"] = driver.phase
             res["stream_restarts"] = driver.restarts
+            if driver.why:
+                res["restarts_first"] = driver.why
     finally:
         if driver is not None:
             driver.close()
