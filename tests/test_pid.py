@@ -569,3 +569,19 @@ def test_a_streams_first_command_a_stall_after_its_start_does_not_lunge() -> Non
 
     assert abs(first_volts(0.17) - 2.5) < 0.1
     assert first_volts(0.0) > 2.5 + 0.1  # positive control: the same step at once
+
+
+@pytest.mark.parametrize("bad_dt", [float("nan"), float("inf"), -DT, 2.0])
+def test_a_sample_with_an_absurd_dt_leaves_the_reference_finite(bad_dt: float) -> None:
+    """A sample whose dt is not a time is skipped (neutral); the reference the next samples
+    follow is not advanced by it (a NaN there would reach the volts)."""
+    core = core_(v_model=MODEL)
+    outs = []
+    for i, dt in enumerate([DT, DT, bad_dt, DT, DT]):
+        t = 0.1 + i * DT
+        core.set_estop(False, t, ns(t))
+        drive(core, 0.5, 0.2, t)
+        outs.append(core.update(0.0, 0.0, dt, t, ns(t)))
+    assert not outs[2].active
+    assert all(math.isfinite(v) for o in outs for v in (o.longitudinal_v, o.angular_v))
+    assert outs[4].active and outs[4].longitudinal_v > 2.6

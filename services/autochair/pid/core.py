@@ -479,7 +479,8 @@ class VelocityPidCore:
             if desired is None:
                 self._ref.forget((v_meas, omega_meas))
             else:  # (parked: the stream's next step counts from this command)
-                self._ref.step(desired, self._desired_ns, self._stream_ns, max(dt, 0.0))
+                self._ref.step(desired, self._desired_ns, self._stream_ns,
+                               dt if 0 < dt <= 1.0 else 0.0)
             return PidOutput(0.0, 0.0, NEUTRAL_V, NEUTRAL_V, False, desired or (0.0, 0.0),
                              probe=self._probe_text())
         if not self._active:
