@@ -13,6 +13,7 @@ from autochair.pid.core import (
     Caps,
     Command,
     Feedforward,
+    GapFill,
     VelocityPidCore,
     Verdict,
     effort_to_volts,
@@ -526,3 +527,111 @@ def test_the_output_tells_the_feed_forward_from_the_feedback() -> None:
     stuck = run(False, MODEL)
     assert max(e - f for e, f in stuck) > 0.05
     assert all(f == 0.0 for _, f in run(False, None))
+
+
+def ramp_with_a_gap(gap_from: float | None, gap_s: float = 0.08, a: float = 1.0,
+                    until: float = 0.8) -> list[tuple[float, float]]:
+    """A goal's plan at `a` m/s² as the control sends it (50 Hz, stamped when sent) to a core
+    whose chair is its model (the feed-forward alone drives it). From `gap_from` the samples
+    wait `gap_s` while the commands come on (the gateway or odometry descheduled); then the
+    waiting samples are worked through at once, the newest command in force. (the sample's
+    time, the feed-forward on it) of each sample."""
+    core = core_(v_gains=(0.5, 0.7, 0.1), v_model=MODEL)
+    twin = Feedforward(MODEL, core.prefilter_s)
+    y, u = 0.0, 0.0
+    waiting: list[float] = []
+    rows: list[tuple[float, float]] = []
+    for i in range(1, round(until / DT)):
+        t = i * DT
+        core.set_estop(False, t, ns(t))
+        if i % 2 == 0:
+            core.set_desired(Command(a * t, 0.0, "autonomy", ns(t), 1), t, ns(t))
+        waiting.append(t)
+        if gap_from is None or not gap_from <= t < gap_from + gap_s:
+            for taken in waiting:
+                u = core.update(y, 0.0, DT, t, ns(t)).feedforward[0]
+                rows.append((taken, u))
+            waiting = []
+        y = twin.reference(u, DT)  # (while the samples wait, the chair holds its effort)
+    return rows
+
+
+def test_a_gap_in_the_command_stream_gives_the_plan_late_never_harder() -> None:
+    """The samples stall 80 ms under a goal's ramp: the first one after meets a command 80 ms
+    on. Taken at once, that step is a feed-forward kick (the model inverse's r̈ term) the plan
+    never asked for (1.15 m/s² at the chair in lockstep after three 40 ms stalls; the hazard
+    test's 1.03-1.12 under load). Each sample's feed-forward stays within the smooth plan's
+    around the same sample (its staircase: each 20 ms command is a small kick of its own)."""
+    smooth = ramp_with_a_gap(None)
+    peak = {t: max(u for _, u in smooth[max(k - 1, 0):k + 2]) for k, (t, _) in enumerate(smooth)}
+    over = max(u - peak[t] for t, u in ramp_with_a_gap(0.4))
+    # (the straight line across the gap runs above the staircase by half a command's step on
+    # every other sample: 0.0002 effort more, later, than the plan's own 20 ms steps gave)
+    assert over <= 0.001, f"{over:.3f} more effort than the smooth plan"
+    # Positive control: without the gap the stream is taken as it comes (bit for bit).
+    assert ramp_with_a_gap(0.4, 0.0) == smooth
+
+
+def test_gap_fill_follows_a_gap_along_the_stream_and_catches_up_where_it_is_flat() -> None:
+    """The reference across a gap (GapFill): one period at once, the rest on the samples'
+    clock; behind by what the gap left while the stream rises; caught up over its flat part;
+    slowing never held back."""
+    ref = GapFill()
+    stream = ns(0.0)
+    v = [ref.step((0.02 * k, 0.0), ns(0.02 * k), stream, DT)[0] for k in range(1, 6)]
+    assert v == pytest.approx([0.02, 0.04, 0.06, 0.08, 0.10])  # within the period: as it comes
+    # The stream 0.1 s on at 1 m/s² (a stall of its sender): one period (0.02) at once, then
+    # 0.01 per 10 ms sample of the 0.1 s step of 0.1 (its straight line), not 0.1 at once.
+    got = [ref.step((0.2, 0.0), ns(0.2), stream, DT)[0]]
+    got += [ref.step((0.2, 0.0), ns(0.2), stream, DT)[0] for _ in range(3)]
+    assert got == pytest.approx([0.12, 0.13, 0.14, 0.15])
+    # The stream rises on at its own pace: the reference stays behind by what is left (0.05)
+    for k in range(1, 4):
+        got = [ref.step((0.2 + 0.02 * k, 0.0), ns(0.2 + 0.02 * k), stream, DT)[0]]
+        got += [ref.step((0.2 + 0.02 * k, 0.0), ns(0.2 + 0.02 * k), stream, DT)[0]]
+        assert got[-1] == pytest.approx(0.2 + 0.02 * k - 0.05)
+    # ... and catches it up where it is flat, at the gap's own slope (no new lag)
+    flat = [ref.step((0.26, 0.0), ns(0.26 + 0.02 * (k // 2)), stream, DT)[0]
+            for k in range(2, 8)]
+    assert flat == pytest.approx([0.22, 0.23, 0.24, 0.25, 0.26, 0.26])
+    # Slowing is taken at once, whatever the lag: a gap down, and the way through zero
+    ref.step((0.5, 0.0), ns(0.5), stream, DT)
+    assert ref.step((0.1, -0.2), ns(0.7), stream, DT) == pytest.approx((0.1, -0.02))
+    assert ref.step((-0.3, 0.0), ns(0.9), stream, DT)[0] == pytest.approx(-0.3 * 0.02 / 0.2)
+
+
+def test_a_streams_first_command_a_stall_after_its_start_does_not_lunge() -> None:
+    """The control stalled 170 ms after a goal was accepted (the stream's start): its first
+    command carried the plan 0.17 s on (0.02 m/s, usually ~0.001), the first volts 2.66
+    (through the processes; the hazard test allows 2.5 ± 0.1). A stream's first command at
+    its start (a deliberate step, `autochair drive`) is taken whole."""
+    def first_volts(first_after: float) -> float:
+        core = core_(v_model=MODEL)
+        t0 = 1.0
+        core.update(0.0, 0.0, DT, t0 - DT, ns(t0 - DT))  # obeying nothing
+        t = t0 + first_after
+        core.set_estop(False, t, ns(t))
+        assert core.set_desired(Command(0.02, 0.0, "autonomy", ns(t), ns(t0)), t, ns(t)) \
+            is Verdict.OK
+        out = core.update(0.0, 0.0, DT, t + 0.005, ns(t + 0.005))
+        assert out.active
+        return out.longitudinal_v
+
+    assert abs(first_volts(0.17) - 2.5) < 0.1
+    assert first_volts(0.0) > 2.5 + 0.1  # positive control: the same step at once
+
+
+@pytest.mark.parametrize("bad_dt", [float("nan"), float("inf"), -DT, 2.0])
+def test_a_sample_with_an_absurd_dt_leaves_the_reference_finite(bad_dt: float) -> None:
+    """A sample whose dt is not a time is skipped (neutral); the reference the next samples
+    follow is not advanced by it (a NaN there would reach the volts)."""
+    core = core_(v_model=MODEL)
+    outs = []
+    for i, dt in enumerate([DT, DT, bad_dt, DT, DT]):
+        t = 0.1 + i * DT
+        core.set_estop(False, t, ns(t))
+        drive(core, 0.5, 0.2, t)
+        outs.append(core.update(0.0, 0.0, dt, t, ns(t)))
+    assert not outs[2].active
+    assert all(math.isfinite(v) for o in outs for v in (o.longitudinal_v, o.angular_v))
+    assert outs[4].active and outs[4].longitudinal_v > 2.6

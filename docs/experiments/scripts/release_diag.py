@@ -1,4 +1,10 @@
-# Session 14 (issue 14): see docs/experiments/README.md. Copy into tests/ to run.
+# Sessions 14-15 (issue 14): see docs/experiments/README.md. Copy into tests/ to run.
+# Injected stalls (SIGSTOP, then SIGCONT after the time given: a diagnostic, not a sync):
+#   STALL_MS: the simulator, once the ramp is under way (v > 0.15)
+#   STALL_CONTROL_MS: the control, after its first moving command
+#   STALL_START_MS: the control, as soon as the new goal is accepted (its first command late)
+#   STALL_PROCS=gateway,odometry with STALL_PROCS_MS: those, once the ramp is under way (the
+#     samples wait while the commands come on); STALL_PROCS_AGAIN_MS: 5 ms after, again
 """No unexpected start-up across processes: an e-stop under an active goal, then a release;
 two command streams; the hub killed under a goal."""
 
@@ -54,11 +60,21 @@ def test_diag_release(
         cmd = Recorder(session, keys.CMD_VEL)
         odom = Recorder(session, keys.ODOM)
         status = Recorder(session, keys.GOAL_STATUS)
+        pidst = Recorder(session, keys.PID_STATUS)
+
+        def pid_says(since_ns: int) -> str:  # (why a goal did not move the chair)
+            g = status.latest()
+            return ("; pid: " + " | ".join(sorted({m.inhibit for m in pidst.messages()
+                                                   if m.stamp_ns > since_ns}))
+                    + f"; goal: {g.state if g else None} {g.reason if g else ''}")
+
         goal_ready(session)
+        goal_ns = time.time_ns()
         wait_for(truth.latest, 10, "ground truth")  # (10 Hz while the chair is parked)
         goal = GoalRequest(waypoints=[Pose2D(8.0, 0.0, 0.0)])
         assert request(session, keys.GOAL_SET, goal, GoalReply).ok
-        wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair cruising to the goal")
+        wait_for(lambda: truth.latest().v_mps > 0.6, 20,
+                 lambda: "the chair cruising to the goal" + pid_says(goal_ns))
         # A momentary press (a button): latched, nothing left to clear.
         session.put(keys.ESTOP_ASSERT.key, msgspec.msgpack.encode(EStopAssert(
             stamp_ns=time.time_ns(), source="test", reason="hazard test", active=False)))
@@ -78,6 +94,12 @@ def test_diag_release(
         start_ns = time.time_ns()
         assert request(session, keys.GOAL_SET, GoalRequest(
             waypoints=[Pose2D(x0 + 3.0, 0.0, 0.0)]), GoalReply).ok
+        sst = float(os.environ.get("STALL_START_MS", "0")) / 1000
+        if sst:
+            cpid = launcher.pid("control")
+            os.kill(cpid, signal.SIGSTOP)
+            time.sleep(sst)
+            os.kill(cpid, signal.SIGCONT)
         cst = float(os.environ.get("STALL_CONTROL_MS", "0")) / 1000
         if cst:
             wait_for(lambda: any(m.v_mps > 0 for m in cmd.messages() if m.stamp_ns > start_ns), 5, "first cmd")
@@ -87,12 +109,33 @@ def test_diag_release(
             os.kill(cpid, signal.SIGCONT)
         stall = float(os.environ.get("STALL_MS", "0")) / 1000
         if stall:
-            wait_for(lambda: truth.latest().v_mps > 0.15, 20, "ramp under way")
+            wait_for(lambda: truth.latest().v_mps > 0.15, 20,
+                     lambda: "ramp under way" + pid_says(start_ns))
             pid = launcher.pid("sim")
             os.kill(pid, signal.SIGSTOP)
             time.sleep(stall)
             os.kill(pid, signal.SIGCONT)
-        wait_for(lambda: truth.latest().v_mps > 0.6, 20, "the chair driving the new goal")
+        pst = float(os.environ.get("STALL_PROCS_MS", "0")) / 1000
+        if pst:
+            wait_for(lambda: truth.latest().v_mps > 0.15, 20,
+                     lambda: "ramp under way" + pid_says(start_ns))
+            pids = [launcher.pid(n) for n in os.environ["STALL_PROCS"].split(",")]
+            for p in pids:
+                os.kill(p, signal.SIGSTOP)
+            time.sleep(pst)
+            for p in pids:
+                os.kill(p, signal.SIGCONT)
+            again = float(os.environ.get("STALL_PROCS_AGAIN_MS", "0")) / 1000
+            if again:  # a few samples through, then the host stalls again holding their volts
+                time.sleep(0.005)
+                for p in pids:
+                    os.kill(p, signal.SIGSTOP)
+                time.sleep(again)
+                for p in pids:
+                    os.kill(p, signal.SIGCONT)
+        wait_for(lambda: truth.latest().v_mps > 0.6, 20,
+                 lambda: "the chair driving the new goal" + pid_says(start_ns))
+        i_06 = len(truth.messages())
         t_06 = truth.latest().sim_time_s
         wait_for(lambda: truth.latest().sim_time_s > t_06 + 0.6, 5, "the rest of the ramp")
         frames = [m for m in out.messages() if m.stamp_ns > start_ns and m.enable]
@@ -100,13 +143,15 @@ def test_diag_release(
         lunge = max(abs(first.longitudinal_v - 2.5), abs(first.angular_v - 2.5))
         run = [m for m in truth.messages() if m.stamp_ns > start_ns]
         a = peak_accel(run)
+        a_test = peak_accel([m for m in truth.messages()[:i_06] if m.stamp_ns > start_ns])
         time.sleep(1.5)  # (diagnostic only: the rest of the ramp)
         dump = {"start_ns": start_ns,
                 "truth": [(m.stamp_ns, m.sim_time_s, m.v_mps, m.longitudinal_v) for m in truth.messages() if m.stamp_ns > start_ns - 10**9],
                 "out": [(m.stamp_ns, m.longitudinal_v, m.enable) for m in out.messages() if m.stamp_ns > start_ns - 10**9],
                 "cmd": [(m.stamp_ns, m.v_mps) for m in cmd.messages() if m.stamp_ns > start_ns - 10**9],
                 "odom": [(m.stamp_ns, m.v_mps, m.sample_dt_s) for m in odom.messages() if m.stamp_ns > start_ns - 10**9],
-                "peak": a, "load": os.getloadavg()[0]}
+                "peak": a, "peak_test_window": a_test, "first_v": first.longitudinal_v,
+                "load": os.getloadavg()[0]}
         import json
         fn = os.environ.get("DIAG_OUT", "/tmp/s14a/run.json")
         with open(fn, "w") as f:
@@ -114,7 +159,8 @@ def test_diag_release(
         print(f"first joystick frame after the new goal {first.longitudinal_v:.3f} V; "
               f"peak |a| {a:.2f} m/s² (limit {A_MAX})")
         assert lunge < 0.1, f"first frame {lunge:.2f} V off neutral: a lunge"
-        print('DIAG', fn, a)
+        print(f"DIAG {fn} first {first.longitudinal_v:.3f} V peak {a:.3f} "
+              f"(test's window {a_test:.3f}) load {os.getloadavg()[0]:.2f}")
         assert a <= A_MAX, f"peak |a| {a:.2f} m/s² beyond the comfort limit"
     finally:
         session.close()
