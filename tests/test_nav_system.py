@@ -35,10 +35,10 @@ def world_config(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, world: str) ->
 
 
 def map_ready(session: zenoh.Session) -> Recorder:
-    """Wait until the control service has built a navigation field from the live map."""
+    """Wait until the control service has the live map (a goal's field is made from it)."""
     health = Recorder(session, keys.HEALTH, keys.HEALTH.for_service("control"))
-    wait_for(lambda: (lambda h: h is not None and h.counters.get("nav_fields", 0) >= 1)(
-        health.latest()), 30, "a navigation field from the live map")
+    wait_for(lambda: (lambda h: h is not None and h.counters.get("grids", 0) >= 1)(
+        health.latest()), 30, "the live map at the control service")
     return health
 
 
@@ -77,8 +77,12 @@ def test_unreachable_goal_is_refused_at_once(stack_factory: Callable[..., Launch
     stack_factory(STACK)
     session = client_session(hub)
     try:
-        map_ready(session)
+        health = map_ready(session)
         goal_ready(session)
+        # Without a goal the live map is taken in but no navigation field made of it (they
+        # went unused); a goal's request makes it (the refusal below needs the map's wall).
+        wait_for(lambda: health.latest().counters.get("grids", 0) >= 2, 15, "a second grid")
+        assert health.latest().counters.get("nav_fields", 0) == 0
         # The README's old example: at 90° the chair's front would be inside the wall.
         t0 = time.monotonic()
         bad = request(session, keys.GOAL_SET, GoalRequest(
@@ -90,6 +94,8 @@ def test_unreachable_goal_is_refused_at_once(stack_factory: Callable[..., Launch
             waypoints=[Pose2D(3.0, 0.0, math.radians(90))]), GoalReply)
         assert ok.ok, ok.error
         request(session, keys.GOAL_CANCEL, GoalRequest(waypoints=[]), GoalReply)
+        wait_for(lambda: health.latest().counters.get("nav_fields", 0) >= 1, 10,
+                 "the goal's navigation field counted")
     finally:
         session.close()
 

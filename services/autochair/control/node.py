@@ -81,6 +81,8 @@ class ControlNode:
         self.announced = 0
         self.grid: OccupancyGrid | None = None  # newest map, not yet turned into a field
         self.grid_key = b""
+        self.field_grid: OccupancyGrid | None = None  # the grid the field was last made for
+        self.field_lock = threading.Lock()  # (the map thread and a goal request both make it)
         # People for MPEPC, tracked in the scans (on the scan callback, its own lock).
         self.people = ScanPeople(chair.laser_mount)
         self.people_lock = threading.Lock()
@@ -224,32 +226,49 @@ class ControlNode:
             plan_ms=round(ms, 2)))
 
     def map_tick(self) -> None:
-        """Rebuild the navigation field when the grid's obstacles changed."""
+        """Take a new grid in: the people tracker's static map at once; the navigation field
+        while a goal is active, else when one is asked for (`on_set`). A parked or driven
+        chair's map changes every second and the field went unused without a goal (the
+        control service's largest idle cost, ~1 % of a core: profiled)."""
         msg = self.grid
-        if msg is None or msg is self.people_grid:  # (ticks twice per grid published)
+        if msg is None:
             return
-        self.people_grid = msg  # every new grid: what the tracker leaves to the map
-        with self.people_lock:
-            old = self.people.tracker.static
-        static = StaticMap.from_grid(msg, reuse=old)
-        if static is not old:
+        if msg is not self.people_grid:  # (ticks twice per grid published)
+            self.people_grid = msg  # every new grid: what the tracker leaves to the map
+            self.node.health.count("grids")
             with self.people_lock:
-                self.people.tracker.static = static
-        # At the map's own resolution, as nav_eval plans: the field's clearance reads over the
-        # truth near an obstacle's corner by up to ~2.3 cm on 5 cm cells but ~4.5 cm on the
-        # 0.1 m cells it was coarsened to (measured, H47), most of MPEPC's 5 cm contact margin.
-        # (Coarsened to bound the costs-to-go's cost while they stalled the 50 Hz loop; they
-        # run in the helper process now, H46.)
-        gm = GridMap.from_msg(msg)
-        key = gm.occupied.tobytes() + repr((gm.resolution_m, gm.origin_x_m,
-                                           gm.origin_y_m)).encode()
-        if key == self.grid_key:
-            return
-        self.grid_key = key
-        fld = NavField(gm, self.core.footprint)
+                old = self.people.tracker.static
+            static = StaticMap.from_grid(msg, reuse=old)
+            if static is not old:
+                with self.people_lock:
+                    self.people.tracker.static = static
         with self.held():
-            self.core.on_field(fld)
-        self.node.health.count("nav_fields")
+            active = self.core.active
+        if active:
+            self.refresh_field()
+
+    def refresh_field(self) -> None:
+        """Rebuild the navigation field if the newest grid's obstacles changed."""
+        with self.field_lock:
+            msg = self.grid
+            if msg is None or msg is self.field_grid:
+                return
+            self.field_grid = msg
+            # At the map's own resolution, as nav_eval plans: the field's clearance reads over
+            # the truth near an obstacle's corner by up to ~2.3 cm on 5 cm cells but ~4.5 cm on
+            # the 0.1 m cells it was coarsened to (measured, H47), most of MPEPC's 5 cm
+            # contact margin. (Coarsened to bound the costs-to-go's cost while they stalled
+            # the 50 Hz loop; they run in the helper process now, H46.)
+            gm = GridMap.from_msg(msg)
+            key = gm.occupied.tobytes() + repr((gm.resolution_m, gm.origin_x_m,
+                                               gm.origin_y_m)).encode()
+            if key == self.grid_key:
+                return
+            self.grid_key = key
+            fld = NavField(gm, self.core.footprint)
+            with self.held():
+                self.core.on_field(fld)
+            self.node.health.count("nav_fields")
 
     # --- requests and status ------------------------------------------------------------------
     def status_msg(self) -> GoalStatus:
@@ -268,6 +287,7 @@ class ControlNode:
         self.status_pub.put(self.status_msg())
 
     def on_set(self, req: GoalRequest) -> GoalReply:
+        self.refresh_field()  # (not kept up while no goal was active)
         with self.held():
             check = self.core.check_goal(req, time.monotonic())
         if isinstance(check, GoalCheck):
