@@ -46,7 +46,7 @@ from autochair.processes import local_values, selected
 from autochair.runtime.client import Publisher, open_client, subscribe
 from autochair.runtime.config import ZenohSettings
 from autochair.runtime.session import open_session
-from autochair_msgs import GroundTruth, PidStatus, VelocityCommand, keys
+from autochair_msgs import GroundTruth, Health, VelocityCommand, keys
 
 RESULTS = Path(__file__).parent / "results" / "cpu.json"
 ENC = msgspec.msgpack.Encoder()
@@ -179,13 +179,15 @@ class Driver:
             self.truth = m
 
         self.sub = subscribe(session, keys.SIM_TRUTH, on_truth)
-        self.inhibit = ""  # why the PID obeys nothing (for a restart's record)
+        # What the PID says it does (its health's detail: why it obeys nothing, if so), for a
+        # restart's record; not its 100 Hz status, which the hub would relay to this client.
+        self.pid_detail = ""
 
-        def on_pid(m: PidStatus) -> None:
-            self.inhibit = m.inhibit
+        def on_pid(m: Health) -> None:
+            self.pid_detail = m.detail
 
-        self.pid_sub = subscribe(session, keys.PID_STATUS, on_pid)
-        self.why: list[str] = []  # the first restarts: phase, the PID's inhibit, true pose
+        self.pid_sub = subscribe(session, keys.HEALTH, on_pid, keys.HEALTH.for_service("pid"))
+        self.why: list[str] = []  # the first restarts: phase, what the PID says, true pose
         self.pub = Publisher(session, keys.CMD_VEL)
         self.phase, self.t_phase, self.cycles = "fwd", time.monotonic(), 0
         self.stream = (self.phase, time.time_ns())
@@ -221,7 +223,7 @@ class Driver:
             if self.stream[0] == self.phase:
                 self.restarts += 1
                 if len(self.why) < 5:
-                    self.why.append(f"{self.phase}: PID {self.inhibit or 'obeying'!r} at "
+                    self.why.append(f"{self.phase}: PID {self.pid_detail!r} at "
                                     f"({m.x_m:.2f}, {m.y_m:.2f}, {math.degrees(m.yaw_rad):.0f}°)")
             self.stream, self.moved_at = (self.phase, time.time_ns()), now
         self.pub.put(VelocityCommand(stamp_ns=time.time_ns(), v_mps=v, omega_radps=w,
