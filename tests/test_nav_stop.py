@@ -202,3 +202,36 @@ def test_the_committed_stop_is_checked_from_every_pose_a_chain_misfit_allows() -
     old = Mpepc(mp.field, mp.law, MpepcParams(stop_timing_s=0.0))
     assert float(mp.stop_clearance(pose, 0.0, 0.0, sweep, need)[0]) == float(
         old.stop_clearance(pose, 0.0, 0.0, sweep, need)[0])
+
+
+def doorway() -> NavField:
+    """nav_eval's 0.9 m doorway world, rasterised as nav_eval plans on it (0.05 m cells)."""
+    segs = np.array([[-1.0, -2.0, 9.0, -2.0], [-1.0, 2.0, 9.0, 2.0], [-1.0, -2.0, -1.0, 2.0],
+                     [9.0, -2.0, 9.0, 2.0], [4.0, -2.0, 4.0, 0.55], [4.0, 1.45, 4.0, 2.0]])
+    return NavField(GridMap.from_shapes(segs, np.zeros((0, 3)), resolution_m=0.05), FP)
+
+
+def test_the_committed_sweep_is_read_between_its_poses_where_it_passes_a_corner() -> None:
+    # nav_eval seed 2, "door: into room B facing down": two poses of a committed sweep
+    # 0.1 s apart read 0.070 and 0.058 m from the door's frame; between them, where the
+    # body's front corner passes the frame's, 0.047 (the chair passed it at 0.038 m).
+    fld = doorway()
+    a, b = (3.010, 0.9513, math.radians(-1.11)), (3.105, 0.9505, math.radians(0.11))
+    need, v0, w0 = 0.05, 0.45, 0.2  # (its speed then: a timing band of ±1.35 cm)
+
+    def check(dy: float) -> tuple[float, float, float]:
+        sweep = np.array([[[a[0], b[0]]], [[a[1] + dy, b[1] + dy]], [[a[2], b[2]]]])
+        f = np.linspace(0.0, 1.0, 201)
+        dense = fld.footprint_clearance(a[0] + (b[0] - a[0]) * f, a[1] + dy + (b[1] - a[1]) * f,
+                                        a[2] + (b[2] - a[2]) * f)
+        start = (a[0], a[1] + dy, a[2])
+        mp = Mpepc(fld, ControlConfig().law(0.025))
+        return (float(fld.footprint_clearance(sweep[0], sweep[1], sweep[2]).min()),
+                float(dense.min()), float(mp.stop_clearance(start, v0, w0, sweep, need)[0]))
+
+    at_poses, between, read = check(0.0)
+    assert at_poses >= need + 0.005 and between < need - 0.002  # the dip is real
+    assert read < need  # (read ≥ 0.053 at the poses and their band before)
+    # Positive control: 2 cm further from the frame the sweep is clear between its poses too.
+    at_poses, between, read = check(0.02)
+    assert between >= need and read >= need
