@@ -9,6 +9,7 @@ comes to rest, along the path it really sweeps.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -202,3 +203,80 @@ def test_the_committed_stop_is_checked_from_every_pose_a_chain_misfit_allows() -
     old = Mpepc(mp.field, mp.law, MpepcParams(stop_timing_s=0.0))
     assert float(mp.stop_clearance(pose, 0.0, 0.0, sweep, need)[0]) == float(
         old.stop_clearance(pose, 0.0, 0.0, sweep, need)[0])
+
+
+def doorway() -> NavField:
+    """nav_eval's 0.9 m doorway world, rasterised as nav_eval plans on it (0.05 m cells)."""
+    segs = np.array([[-1.0, -2.0, 9.0, -2.0], [-1.0, 2.0, 9.0, 2.0], [-1.0, -2.0, -1.0, 2.0],
+                     [9.0, -2.0, 9.0, 2.0], [4.0, -2.0, 4.0, 0.55], [4.0, 1.45, 4.0, 2.0]])
+    return NavField(GridMap.from_shapes(segs, np.zeros((0, 3)), resolution_m=0.05), FP)
+
+
+def test_the_committed_sweep_is_read_between_its_poses_where_it_passes_a_corner() -> None:
+    # nav_eval seed 2, "door: into room B facing down": two poses of a committed sweep
+    # 0.1 s apart read 0.070 and 0.058 m from the door's frame; between them, where the
+    # body's front corner passes the frame's, 0.047 (the chair passed it at 0.038 m).
+    fld = doorway()
+    a, b = (3.010, 0.9513, math.radians(-1.11)), (3.105, 0.9505, math.radians(0.11))
+    need, v0, w0 = 0.05, 0.45, 0.2  # (its speed then: a timing band of ±1.35 cm)
+
+    def check(dy: float) -> tuple[float, float, float]:
+        sweep = np.array([[[a[0], b[0]]], [[a[1] + dy, b[1] + dy]], [[a[2], b[2]]]])
+        f = np.linspace(0.0, 1.0, 201)
+        dense = fld.footprint_clearance(a[0] + (b[0] - a[0]) * f, a[1] + dy + (b[1] - a[1]) * f,
+                                        a[2] + (b[2] - a[2]) * f)
+        start = (a[0], a[1] + dy, a[2])
+        mp = Mpepc(fld, ControlConfig().law(0.025))
+        return (float(fld.footprint_clearance(sweep[0], sweep[1], sweep[2]).min()),
+                float(dense.min()), float(mp.stop_clearance(start, v0, w0, sweep, need)[0]))
+
+    at_poses, between, read = check(0.0)
+    assert at_poses >= need + 0.005 and between < need - 0.002  # the dip is real
+    assert read < need  # (read ≥ 0.053 at the poses and their band before)
+    # Positive control: 2 cm further from the frame the sweep is clear between its poses too.
+    at_poses, between, read = check(0.02)
+    assert between >= need and read >= need
+
+
+def test_the_cores_own_approach_is_handed_back_when_its_committed_stop_would_touch() -> None:
+    # nav_eval seed 2, "door: into room B facing down": the core on its own final approach
+    # (the law towards the goal, beyond the door) 1.5 m before the door frame. Its next
+    # plan's committed motion and stop along that approach (row 0) would touch the frame
+    # (0.005 m), while the prediction's clearance the core watched read 0.073 m (it drops
+    # the goal under 0.02): it drove on and passed the frame at 0.033 m. Now the goal goes
+    # back to MPEPC, whose own plan keeps the margin over what it commits to.
+    from autochair.nav.planner import PlanRequest, PlanResult
+
+    fld = doorway()
+    goal = (6.0, -0.8, -math.pi / 2)
+    cfg = ControlConfig()
+    planner._planners.clear()
+    planner._lattices.clear()
+
+    def plan_from(pose: tuple[float, float, float], v: float, w: float,
+                  rates: tuple[float, float]) -> PlanResult:
+        return planner.compute(PlanRequest(1, 0, pose, v, w, goal, fld, None, None,
+                                           cfg.law(0.025), [], rates, True,
+                                           approaching=True), MpepcParams(seed=2))
+
+    tight = plan_from((2.5062, 1.0025, -0.2071), 0.1107, 0.0488, (0.64, 0.308))
+    assert tight.plan is not None
+    assert tight.plan.goal_clearance_m >= 0.02  # (what the core watched: it kept the goal)
+    assert not tight.plan.goal_stop_clear
+    # Positive control: through the door's middle, the approach is clear.
+    clear = plan_from((2.962, 0.9563, -0.0159), 0.5954, 0.1830, (0.0, -0.154))
+    assert clear.plan is not None and clear.plan.goal_stop_clear
+
+    core = ControlCore(cfg, footprint=FP)
+    core.on_field(fld)
+    core.on_odom(OdomSample(2.5, 1.0, -0.2, 0.1, 0.0, 0.0))
+    from autochair_msgs import GoalRequest, Pose2D
+
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+    handed = replace(clear.plan, is_goal=True)
+    for res, final in ((clear, True), (tight, False)):
+        core.on_plan(PlanResult(core.goal_id, 0, fld, clear.ctg, handed), 0.0)
+        assert core.final  # (handed over)
+        core.on_plan(PlanResult(core.goal_id, 0, fld, res.ctg, res.plan), 0.1)
+        assert core.final is final
+        assert core.state == "driving"  # (MPEPC's own plan, not blocked)

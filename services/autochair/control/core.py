@@ -675,8 +675,13 @@ class ControlCore:
         self._plan_got_t = now
         if plan.is_goal and self.index == len(self.waypoints) - 1:
             self.final = True
-        elif self.final and plan.goal_clearance_m < 0.02:
-            self.final = self.straight = self.aligning = False  # something stepped in
+        elif self.final and (plan.goal_clearance_m < 0.02 or not (
+                plan.goal_stop_clear or self.straight or self.aligning)):
+            # Something stepped in; or the law's approach, which MPEPC checks only as it hands
+            # the goal over, would commit the chair to a motion or a stop that does not keep
+            # MPEPC's margin: its own plan then, checked every cycle (a 0.9 m door's frame
+            # was passed at 0.033 m, the approach read 0.005 m; nav_eval seed 2).
+            self.final = self.straight = self.aligning = False
         if not res.blocked_by or self.final:
             self.state, self.reason, self._blocked_since = DRIVING, "", None
             return

@@ -341,14 +341,30 @@ class NavField:
         bound for c = `upto` (5 mm more): a coarse reading under `need` decides alone, one
         past the bound keeps the fine one at `upto` or more (the planner's committed sweeps,
         read under 0.10 m alike, took 35 % more time at its p95)."""
-        h, half_gap = self.map.resolution_m / 2, COARSE_SPACING_M / 2
-        hi = REFINE_BELOW_M if need is None else \
-            math.hypot((need if upto is None else upto) + h, half_gap) - h + 0.005
-        near = (d < hi) if need is None else (d >= need) & (d < hi)
+        lo, hi = self._refine_range(need, upto)
+        near = (d >= lo) & (d < hi)
         if near.any():
             d[near] = np.minimum(d[near], self._clearance(self.outline_fine, x[near], y[near],
                                                           yaw[near]))
         return d
+
+    def reading_floor(self, d: F64, need: float | None = None, upto: float | None = None
+                      ) -> F64:
+        """A lower bound of the fine outline's clearance at poses that
+        footprint_clearance(..., need=need, upto=upto) read as `d`: `d` where it was read on
+        the fine outline, else the least the fine one can be beside that coarse reading (the
+        bound of `_refined`, inverted)."""
+        lo, hi = self._refine_range(need, upto)
+        h, half_gap = self.map.resolution_m / 2, COARSE_SPACING_M / 2
+        coarse = np.sqrt(np.maximum((d + h) ** 2 - half_gap ** 2, 0.0)) - h
+        return np.asarray(np.where((d >= lo) & (d < hi), d, coarse), dtype=np.float64)
+
+    def _refine_range(self, need: float | None, upto: float | None) -> tuple[float, float]:
+        """The coarse readings `_refined` reads on the fine outline too: [lo, hi)."""
+        if need is None:
+            return -math.inf, REFINE_BELOW_M
+        h, half_gap = self.map.resolution_m / 2, COARSE_SPACING_M / 2
+        return need, math.hypot((need if upto is None else upto) + h, half_gap) - h + 0.005
 
     def _clearance(self, outline: F64, xs: F64, ys: F64, yaws: F64) -> F64:
         """Least clearance of `outline` at poses (N,), in batches of about BATCH_POINTS

@@ -140,6 +140,9 @@ class MpepcParams:
     # spin), 20 ms still 12 s on it, 10 ms 2.2–3 s on room B's corner, while ±10 ms of
     # predict_omega_s changed no nav_eval case (docs/experiments/pid-planned-stream-v4.md).
     stop_timing_s: float = 0.03
+    # The committed sweep's poses are read at most this far apart in the outline's travel
+    # where it could come under the margin (stop_clearance): as the outline's own points.
+    between_m: float = 0.05
     goal_blend_m: float = 1.0
     # Inside the heading-aware window, a state from which the lattice has no way to the goal
     # costs this much more than the 2-D field says (nav/lattice.py).
@@ -229,6 +232,15 @@ class Plan:
     # `contact_m` (Mpepc.goal_turn_clearance); planner.compute hands it over after all where
     # the chair is otherwise blocked (the check must not make a goal unreachable).
     goal_withheld: bool = False
+    # The goal's own motion (row 0: the law towards it, as the core drives its final approach)
+    # keeps `brake_clear_m` over what it commits the chair to and the stop after it
+    # (`stop_clearance`, its timing band included); True where the goal is out of reach.
+    goal_stop_clear: bool = True
+
+
+# How fast a footprint reading can fall as the outline moves (per m): the bilinear reading of
+# a distance field, each partial derivative within ±1 (NavField.clearance_at).
+SLOPE = math.sqrt(2.0)
 
 
 def wrap(a: F64) -> F64:
@@ -586,7 +598,12 @@ class Mpepc:
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
         # Both that motion and its stop as the core's limiter really drives them (committed).
         need = min(p.brake_clear_m, d0 - 0.005)
-        hit[:, -1] |= self.stop_clearance(pose, v0, w0, brake, need) < need
+        # (read between its poses only where that can decide: not for a motion that is a hit
+        # already, except row 0, the goal's own, which the core may be driving)
+        between: npt.NDArray[np.bool_] = np.logical_not(hit.any(1))
+        between[0] = True
+        stop_hit = self.stop_clearance(pose, v0, w0, brake, need, between, d0) < need
+        hit[:, -1] |= stop_hit
         d_all = d_static
         for person, (to_path, to_here) in zip(people, to_people, strict=True):
             dp = to_path - person.radius_m
@@ -628,31 +645,79 @@ class Mpepc:
                       "survival": ps[:, -1], "clearance": d_all.min(1), "near": near,
                       "in_lattice": in_lattice.astype(np.float64),
                       "hit": hit.any(1).astype(np.float64),
+                      "stop_hit": stop_hit.astype(np.float64),
                       "x": xs, "y": ys, "yaw": yaws}
 
     def stop_clearance(self, pose: tuple[float, float, float], v0: float, w0: float,
-                       sweep: F64, need: float) -> F64:
+                       sweep: F64, need: float, between: npt.NDArray[np.bool_] | None = None,
+                       start: float | None = None) -> F64:
         """Least clearance (N,) of the committed sweeps (3, N, B) (`simulate`) from every
         start within `stop_timing_s` of `pose` along the present motion: the sweep as planned
         and moved with its start by ±δ·v0 along the heading. Exact against `need`; above it,
         a lower bound of what the band would give. Only poses that could fall below `need`
         are moved (each moves by δ·|v0|: the doorway's few, not every pose; the band cost
         30 % more planning time moving whole sweeps). At rest (v0 and ω0 ~0) the sweep as
-        planned."""
+        planned. Between two of the sweep's poses (kept ~0.1 s apart: 12 cm at 1.2 m/s) the
+        body can pass closer than at either: a door frame's corner at the front corner read
+        0.047 m there against 0.070 and 0.058 at the poses, and the chair passed it at 0.038 m
+        (nav_eval seed 2, measured). So where the least a reading between a pair of poses can
+        be (the outline moving from one to the other, the reading falls at most SLOPE per m)
+        is under the band ((r_a + r_b − SLOPE·T) / 2 from readings r_a, r_b at the ends of a
+        travel T), poses between are read too, the outline moving at most `between_m` from
+        one to the next; for the sweeps `between` selects (default: all; the rest are read at
+        their poses only). `start`: the start pose's footprint_clearance, if read already."""
         fld, e = self.field, self.p.stop_timing_s
         rest = e <= 0.0 or (abs(v0) < 1e-3 and abs(w0) < 1e-3)
         band = need if rest else need + e * abs(v0) + 0.005  # (what a move could bring under)
         d = fld.footprint_clearance(sweep[0], sweep[1], sweep[2], need=need, upto=band)
+        floor = fld.reading_floor(d, need, band)
+        least = self._banded(pose, v0, sweep[0], sweep[1], sweep[2], d, need, band, rest).min(1)
+        rows = np.nonzero((least >= need) & (True if between is None else between))[0]
+        if not rows.size:
+            return np.asarray(least, dtype=np.float64)
+        # (x, y, yaw, a lower bound of the reading) of those sweeps' poses, from the start pose
+        # on: the first pose kept is ~0.1 s into the motion
+        lb0 = fld.reading_floor(fld.footprint_clearance(*pose, need=need, upto=band), need,
+                                band) if start is None else fld.reading_floor(np.array(start))
+        q = np.concatenate([np.broadcast_to(np.array([*pose, float(lb0)])[:, None, None],
+                                            (4, rows.size, 1)),
+                            np.concatenate([sweep[:, rows], floor[None, rows]])], 2)
+        gap = self._travel(q[:, :, :-1], q[:, :, 1:])
+        i, k = np.nonzero((0.5 * (q[3, :, :-1] + q[3, :, 1:] - SLOPE * gap) < band)
+                          & (gap > self.p.between_m))
+        if i.size:
+            # (evenly between, in one batch: halving pair by pair read fewer poses, but its
+            # rounds of small numpy calls cost more than the reading)
+            a, b = q[:, i, k], q[:, i, k + 1]
+            m = math.ceil(float(gap[i, k].max()) / self.p.between_m)
+            f = np.arange(1, m) / m
+            x = a[0, :, None] + (b[0] - a[0])[:, None] * f
+            y = a[1, :, None] + (b[1] - a[1])[:, None] * f
+            yaw = a[2, :, None] + wrap(b[2] - a[2])[:, None] * f  # (a 0.1 s arc: ~straight)
+            dm = fld.footprint_clearance(x, y, yaw, need=need, upto=band)
+            np.minimum.at(least, rows[i], self._banded(pose, v0, x, y, yaw, dm, need, band,
+                                                       rest).min(1))
+        return np.asarray(least, dtype=np.float64)
+
+    def _travel(self, a: F64, b: F64) -> F64:
+        """How far any point of the outline moves from poses a to poses b (x, y, yaw, ...)."""
+        return np.asarray(np.hypot(b[0] - a[0], b[1] - a[1]) + np.abs(wrap(b[2] - a[2]))
+                          * self.field.footprint.reach_m, dtype=np.float64)
+
+    def _banded(self, pose: tuple[float, float, float], v0: float, x: F64, y: F64, yaw: F64,
+                d: F64, need: float, band: float, rest: bool) -> F64:
+        """`d`, the clearances at poses (x, y, yaw), each under `band` also read moved by
+        ±stop_timing_s·v0 along the start's heading (stop_clearance; in place)."""
         if rest:
-            return np.asarray(d.min(1), dtype=np.float64)
-        x0, y0, t0 = pose
+            return d
         near = d < band
         if near.any():
-            dx, dy, yaw = sweep[0][near] - x0, sweep[1][near] - y0, sweep[2][near]
+            e, t0 = self.p.stop_timing_s, pose[2]
             for ds in (e * v0, -e * v0):
-                d[near] = np.minimum(d[near], fld.footprint_clearance(
-                    x0 + ds * math.cos(t0) + dx, y0 + ds * math.sin(t0) + dy, yaw, need=need))
-        return np.asarray(d.min(1), dtype=np.float64)
+                d[near] = np.minimum(d[near], self.field.footprint_clearance(
+                    x[near] + ds * math.cos(t0), y[near] + ds * math.sin(t0), yaw[near],
+                    need=need))
+        return d
 
     def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64
                           ) -> tuple[F64, list[tuple[F64, F64]]]:
@@ -1227,6 +1292,9 @@ class Mpepc:
             scale *= 0.5
         is_goal, goal_clear, withheld = False, math.nan, False
         r_goal = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+        # (row 0 predicts the core's approach only beyond in_place_r_m: handover)
+        goal_stop_clear = not has_goal or r_goal < self.p.in_place_r_m \
+            or float(info["stop_hit"][0]) == 0.0
         turn_ok = not (final and goal_turn) or \
             self.goal_turn_clearance(pose, goal) >= self.p.contact_m
         if has_goal:
@@ -1295,7 +1363,8 @@ class Mpepc:
                     best_c, float(best["phi0"] - best["phi_end"]), float(best["survival"]),
                     float(best["clearance"]), path, is_goal, goal_clear,
                     float(cost[int(has_goal)]), evals, final_turn,
-                    goal_withheld=withheld and not is_goal and not final_turn)
+                    goal_withheld=withheld and not is_goal and not final_turn,
+                    goal_stop_clear=goal_stop_clear)
 
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],
