@@ -16,10 +16,11 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 
 import pytest
 
-from autochair.commands.teleop import Event, TeleopLink, loop
+from autochair.commands.teleop import Event, TeleopLink, loop, status_text
 from autochair.commands.teleop_core import PadConfig, Teleop, TeleopConfig
 from autochair.launcher import Launcher
-from autochair_msgs import keys
+from autochair.runtime.client import Publisher
+from autochair_msgs import EStopAssert, keys
 from tests.helpers import Recorder, client_session, pid_ready, wait_for
 from tests.test_teleop_foxglove import CFG, DRIVE_CHAIN, STALE_S, Chair, stream_figures
 
@@ -138,6 +139,40 @@ def test_a_gamepad_sampled_every_tick_drives_steadily_and_its_buttons_stop(
                            "the latched state on the chair's side")
         assert any(c.source.startswith("teleop:") for c in latched.causes)
         assert laptop.core.estop_presses == 1
+    finally:
+        laptop.close()
+        chair.close()
+
+
+def test_the_status_line_says_why_the_pid_holds_a_press(
+        stack_factory: Callable[..., Launcher], hub: str) -> None:
+    """An e-stop latched by someone else (not this laptop's button): a press then drives
+    nothing, and the status line says why instead of just "driving"."""
+    stack_factory(DRIVE_CHAIN)
+    chair = Chair(hub)
+    laptop = Laptop(hub)
+    try:
+        pid_ready(chair.session)
+        laptop.start()
+        laptop.events.put("t")
+        wait_for(chair.handed_to_teleop, 10, "the drive handed to teleop")
+
+        def holding(key: str) -> str:  # one key repeat (the OS's 30 Hz), then the status line
+            laptop.events.put((key, time.monotonic()))
+            return status_text(laptop.link, laptop.core, None, None)
+
+        # Positive control: a free press drives, and says nothing of a hold.
+        wait_for(lambda: "driving" in holding("w") and chair.truth.latest().v_mps > 0.1, 10,
+                 "the press driving", interval=1 / 30)
+        assert "HELD" not in holding("w")
+        laptop.events.put(" ")  # let go (space: stop at once)
+        Publisher(chair.session, keys.ESTOP_ASSERT, reliable=True).put(EStopAssert(
+            stamp_ns=time.time_ns(), source="another laptop", reason="test", active=False))
+        wait_for(lambda: (lambda m: m is not None and m.inhibit == "e-stop latched")(
+            chair.pid.latest()), 5, "the e-stop latched at the PID")
+        line = wait_for(lambda: (lambda t: t if "HELD BY THE PID: e-stop latched" in t else None)(
+            holding("w")), 5, "the status line naming the hold", interval=1 / 30)
+        assert "E-STOP LATCHED" not in line  # (that one is this laptop's own button)
     finally:
         laptop.close()
         chair.close()

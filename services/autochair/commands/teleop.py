@@ -34,7 +34,7 @@ from autochair.commands.teleop_core import (
     TeleopLimits,
     keys_request,
 )
-from autochair_msgs import CommandOwner, EStopAssert, EStopState, VelocityCommand, keys
+from autochair_msgs import CommandOwner, EStopAssert, EStopState, PidStatus, VelocityCommand, keys
 
 if TYPE_CHECKING:
     import zenoh
@@ -136,6 +136,15 @@ class TeleopLink:
 
         subscribe(session, keys.ESTOP_STATE, on_estop)
         watch_alive(session, self._on_alive, "pid")
+        # Why the PID obeys nothing now (any e-stop, the safety monitor, a stop before this
+        # press): shown while driving, once the PID has had 0.2 s to take the press's stream.
+        self.pid_hold = ""
+
+        def on_pid(st: PidStatus) -> None:
+            began = self._stream_start_ns
+            self.pid_hold = st.inhibit if began and st.stamp_ns > began + 200_000_000 else ""
+
+        subscribe(session, keys.PID_STATUS, on_pid)
 
     def _on_alive(self, _service: str, alive: bool) -> None:
         self._pid_alive = alive
@@ -428,6 +437,8 @@ def status_text(link: TeleopLink, core: Teleop, inputs: SdlInputs | None,
              "LET GO of every input to drive again" if core.waiting_for_release else "idle")
     if link.estop_latched:
         state += ", E-STOP LATCHED"
+    elif core.driving_source and link.pid_hold:
+        state += f", HELD BY THE PID: {link.pid_hold}"
     return (f"{'TELEOP OWNS' if link.owner else 'autonomy owns (t: take over)'} | link "
             f"{'ok' if link.link_ok else 'LOST'} | v {v:+.2f} w {w:+.2f} x{core.scale:.1f} | "
             f"{state} | keys: {key_mode(inputs)} | pad: {pad}")
