@@ -45,6 +45,13 @@ class Laptop:
         wait_for(lambda: self.link.link_ok, 10, "the PID's token seen by the laptop")
         self.thread.start()
 
+    def take_over(self, chair: Chair) -> None:
+        """Start once the PID is ready and take the drive over (`t`), as a person would."""
+        pid_ready(chair.session)
+        self.start()
+        self.events.put("t")
+        wait_for(chair.handed_to_teleop, 10, "the drive handed to teleop")
+
     def close(self) -> None:
         self.stop.set()
         self.thread.join(timeout=5)
@@ -77,10 +84,7 @@ def test_terminal_keys_drive_without_stop_go_and_stop_after_the_last_repeat(
     chair = Chair(hub)
     laptop = Laptop(hub)
     try:
-        pid_ready(chair.session)
-        laptop.start()
-        laptop.events.put("t")
-        wait_for(chair.handed_to_teleop, 10, "the drive handed to teleop")
+        laptop.take_over(chair)
         # Hold "w": the press, the OS's 600 ms first-repeat delay, then 30 Hz repeats.
         times = [0.0, *[0.6 + i / 30 for i in range(60)]]
         t0 = time.monotonic()
@@ -113,10 +117,7 @@ def test_a_gamepad_sampled_every_tick_drives_steadily_and_its_buttons_stop(
 
     laptop = Laptop(hub, [sample])
     try:
-        pid_ready(chair.session)
-        laptop.start()
-        laptop.events.put("t")
-        wait_for(chair.handed_to_teleop, 10, "the drive handed to teleop")
+        laptop.take_over(chair)
         pressed_ms = time.time_ns() / 1e6
         state["now"] = ({"lefty": -0.8, "leftx": 0.0}, {PAD.enable_button})  # steady stick
         time.sleep(1.2)  # the person holds the stick steady for a while
@@ -152,10 +153,7 @@ def test_the_status_line_says_why_the_pid_holds_a_press(
     chair = Chair(hub)
     laptop = Laptop(hub)
     try:
-        pid_ready(chair.session)
-        laptop.start()
-        laptop.events.put("t")
-        wait_for(chair.handed_to_teleop, 10, "the drive handed to teleop")
+        laptop.take_over(chair)
 
         def holding(key: str) -> str:  # one key repeat (the OS's 30 Hz), then the status line
             laptop.events.put((key, time.monotonic()))

@@ -29,7 +29,13 @@ def register(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from autochair.commands.link import tool_session
-    from autochair.runtime.client import Publisher, alive_services, pid_caps, subscribe
+    from autochair.runtime.client import (
+        Publisher,
+        alive_services,
+        pid_caps,
+        pid_hold,
+        subscribe,
+    )
     from autochair_msgs import Odometry, PidStatus, VelocityCommand, keys
 
     if abs(args.v) > MAX_V or abs(args.w) > MAX_W:
@@ -66,8 +72,7 @@ def run(args: argparse.Namespace) -> int:
         held: list[str] = [""]
 
         def on_pid(msg: PidStatus) -> None:
-            # (not before the PID has had 0.2 s to take this drive's first command)
-            held[0] = msg.inhibit if msg.stamp_ns > stream_start + 200_000_000 else ""
+            held[0] = pid_hold(msg.inhibit, msg.stamp_ns, stream_start)
 
         subscribe(session, keys.PID_STATUS, on_pid)
 

@@ -117,7 +117,7 @@ class TeleopLink:
 
     def __init__(self, session: zenoh.Session, core: Teleop, by: str = "teleop") -> None:
         # here, not at import: `autochair --help` stays fast
-        from autochair.runtime.client import Publisher, subscribe, watch_alive
+        from autochair.runtime.client import Publisher, pid_hold, subscribe, watch_alive
 
         self.session, self.core, self.by = session, core, by
         self._pub = Publisher(session, keys.TELEOP, express=True)
@@ -137,12 +137,11 @@ class TeleopLink:
         subscribe(session, keys.ESTOP_STATE, on_estop)
         watch_alive(session, self._on_alive, "pid")
         # Why the PID obeys nothing now (any e-stop, the safety monitor, a stop before this
-        # press): shown while driving, once the PID has had 0.2 s to take the press's stream.
+        # press): shown while driving.
         self.pid_hold = ""
 
         def on_pid(st: PidStatus) -> None:
-            began = self._stream_start_ns
-            self.pid_hold = st.inhibit if began and st.stamp_ns > began + 200_000_000 else ""
+            self.pid_hold = pid_hold(st.inhibit, st.stamp_ns, self._stream_start_ns)
 
         subscribe(session, keys.PID_STATUS, on_pid)
 

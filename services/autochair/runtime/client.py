@@ -237,6 +237,19 @@ def pid_caps(session: zenoh.Session, timeout_s: float = 1.5) -> tuple[float, flo
     return t["v_max_fwd_mps"], t.get("v_max_rev_mps", 0.0), t.get("omega_max_radps", 0.0)
 
 
+# A stream's command reaches the PID and is taken within this (the drive chain's 20-100 Hz):
+# before it, the PID's status still says why it held the stream before.
+PID_TAKES_NS = 200_000_000
+
+
+def pid_hold(inhibit: str, status_ns: int, stream_start_ns: int) -> str:
+    """Why the velocity PID holds a tool's stream begun at `stream_start_ns` (its status's
+    `inhibit`, stamped `status_ns`): "" while it obeys, before it has had PID_TAKES_NS to take
+    the stream, or without a stream (0)."""
+    fresh = stream_start_ns > 0 and status_ns > stream_start_ns + PID_TAKES_NS
+    return inhibit if fresh else ""
+
+
 def answer_hub_probe(session: zenoh.Session) -> zenoh.Queryable[None]:
     """The hub's own queryable (keys.HUB_PROBE): an empty reply to every ask."""
     return session.declare_queryable(keys.HUB_PROBE, lambda q: q.reply(q.key_expr, b""))
