@@ -296,25 +296,31 @@ def test_old_and_future_stamps_are_rejected() -> None:
         is Verdict.OK
 
 
+def obeyed_across_an_estop(t0: float, latched: tuple[float, float], stamps_ahead: float,
+                           began: float) -> list[bool]:
+    """1.5 s of a stream of 0.5 m/s from t0 (s, the core's clock), the e-stop latched over
+    [latched), its commands stamped `stamps_ahead` s on the sender's clock and begun at
+    `began` by it: whether the core obeyed it, sample by sample."""
+    core, obeyed = core_(), []
+    for i in range(3 * HALF_S):
+        t = t0 + i * DT
+        core.set_estop(latched[0] <= t < latched[1], t, ns(t))
+        core.set_limit(1.0, 0.5, 1.0, t, 0.5)
+        core.set_desired(cmd(0.5, 0.0, t + stamps_ahead, began=began), t, ns(t))
+        obeyed.append(core.update(0.3, 0.0, DT, t, ns(t)).active)
+    return obeyed
+
+
 def test_a_stream_begun_after_its_own_stamp_is_refused_so_no_stop_can_be_outlived() -> None:
     """H49: the sender's clock stepped back 5 s mid-stream (or a bug): its stream's start lies
     after its commands' stamps, so it would pass for a stream begun after any stop of the
     next 5 s and drive on through an e-stop latched and released."""
-    ahead = 5.0
-
-    def run(shift: float) -> list[bool]:
-        core, obeyed = core_(), []
-        for i in range(3 * HALF_S):  # 1.5 s: latched at 0.5 s, released at 0.6 s
-            t = i * DT
-            core.set_estop(0.5 <= t < 0.6, t, ns(t))
-            core.set_limit(1.0, 0.5, 1.0, t, 0.5)
-            core.set_desired(Command(0.5, 0.0, "autonomy", ns(t) + 1, ns(shift) + 1), t, ns(t))
-            obeyed.append(core.update(0.3, 0.0, DT, t, ns(t)).active)
-        return obeyed
+    def run(began: float) -> list[bool]:  # latched at 0.5 s, released at 0.6 s
+        return obeyed_across_an_estop(0.0, (0.5, 0.6), stamps_ahead=0.0, began=began)
 
     honest = run(0.0)  # positive control: begun at 0, the stream drives until the latch
     assert all(honest[:HALF_S - 1]) and not any(honest[HALF_S + 1:])
-    assert not any(run(ahead)), "a stream begun 'in the future' outlived the e-stop"
+    assert not any(run(5.0)), "a stream begun 'in the future' outlived the e-stop"
     core = core_()
     assert core.set_desired(Command(0.5, 0.0, "autonomy", ns(1.0), ns(1.0) + 1), 1.0, ns(1.0)) \
         is Verdict.STREAM_AHEAD
@@ -324,15 +330,9 @@ def test_a_stream_known_at_a_stop_never_drives_after_it_whatever_the_senders_clo
     """H49: a laptop's clock 0.09 s ahead (within the 0.1 s skew allowed): its stream, begun
     0.03 s before a momentary e-stop, claims to have begun 0.06 s after it."""
 
-    def run(ahead: float) -> list[bool]:
-        core, obeyed = core_(), []
-        for i in range(3 * HALF_S):
-            t = 0.97 + i * DT  # the stream began at 0.97; latched at 1.0, released a tick on
-            core.set_estop(abs(t - 1.0) < DT / 2, t, ns(t))
-            core.set_limit(1.0, 0.5, 1.0, t, 0.5)
-            core.set_desired(cmd(0.5, 0.0, t + ahead, began=0.97 + ahead), t, ns(t))
-            obeyed.append(core.update(0.3, 0.0, DT, t, ns(t)).active)
-        return obeyed
+    def run(ahead: float) -> list[bool]:  # begun at 0.97; latched at 1.0, released a tick on
+        return obeyed_across_an_estop(0.97, (1.0 - DT / 2, 1.0 + DT / 2), stamps_ahead=ahead,
+                                      began=0.97 + ahead)
 
     assert any(run(0.0)[:3]) and not any(run(0.0)[3:])  # in sync: driven, then never again
     assert not any(run(0.09)[3:]), "the stream drove on after the release"
