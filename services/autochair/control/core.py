@@ -15,6 +15,7 @@ odometry aborts the goal and brakes through the limiter.
 
 from __future__ import annotations
 
+import copy
 import itertools
 import math
 from collections import deque
@@ -32,7 +33,7 @@ from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, 
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, park_kuipers
-from .limits import ComfortLimiter, ComfortLimits
+from .limits import ComfortLimiter, ComfortLimits, SCurveAxis
 
 IDLE, ARRIVED, ABORTED, CANCELLED = "idle", "arrived", "aborted", "cancelled"
 PLANNING, DRIVING, BLOCKED = "planning", "driving", "blocked"
@@ -80,16 +81,14 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     # Lead the PID's prefilter (LeadAxis, smoothed by two lags of LEAD_SMOOTH_S): the chair
     # follows the plan delayed by the dead time + 0.12 s, not smoothed by the prefilter's 2τ;
     # after every goal it rests sooner. Only for a drive chain with that prefilter ([pid]
-    # model, prefilter_s). Measured (session 16): control_eval 1.60 → 1.527× the least time
-    # (1.44× with approach_rate_1ps 0.8, 1.42× with 1.0), chair peaks 0.983 / 1.85 / 2.60, first
-    # frame from rest ≤ 0.067 V off neutral (0.034 V through the processes; the no-lunge check
-    # allows 0.1 V), through the processes 12/12 with peaks 0.983 / 1.84 / 2.28. Off: with it
-    # nav_eval loses office A's far corner (seeds 7, 1, 2: blocked in the door, or beside the
-    # goal with no room to turn) and, seed 7, room B's corner (the chair overran its line-up
-    # pose before the door); with the lead on ω alone the body touched office A's door frame.
-    # And every forward stop overruns the plan by ~1.1 cm (1.5 without S): to stop the
-    # prefilter on time the led v goes below 0 in the plan's last 0.1-0.5 s (down to −j·τ²),
-    # which _lead_out clamps to 0 (straight goals land 1.5-1.8 cm past, 0.5 cm without lead).
+    # model, prefilter_s). Measured (session 16, with the predictor counting the forward-only
+    # clamp's overrun, _stop_overrun): with approach_rate_1ps 0.8, control_eval 1.60 → 1.44×
+    # the least time (worst 1.90), chair peaks 0.983 / 1.83 / 2.47, first frame from rest
+    # ≤ 0.067 V off neutral (0.034 V through the processes; the no-lunge check allows 0.1 V);
+    # nav_eval seed 7 32/32, clearances 0.064 / 0.069 m, but its median time 1.60 → 1.755
+    # (office A's far corner 4.5 → 6.9×, office A to B, clutter far side, room B's corner and,
+    # from the approach rate, the overtaken person much slower) and seed 1 loses office A's far
+    # corner (blocked beside the goal). Off until MPEPC's hard cases are understood with it.
     lead: bool = False
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
@@ -836,10 +835,34 @@ class ControlCore:
             y += v * math.sin(yaw_mid) * h
             yaw += w * h
         dv, dw = self._lead[0].ahead, self._lead[1].ahead
+        dv -= self._stop_overrun()
         yaw -= dw
         x -= dv * math.cos(yaw)
         y -= dv * math.sin(yaw)
         return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
+
+    def _stop_overrun(self) -> float:
+        """With the lead: the motion the forward-only clamp (_lead_out) adds to v's stop if the
+        plan braked to rest now. To stop the prefilter on time the led command goes below 0 in
+        the last 0.1-0.5 s of a stop (down to −jerk·τ²); clamped to 0, the chair overran every
+        forward stop by ~1.1 cm (straight goals landed 1.5-1.8 cm past). The braking is the
+        limiter's (SCurveAxis.step to 0), the lead a copy of the live one."""
+        lv = self.limiter.v
+        if not self.cfg.lead or lv.value <= 0.0:
+            return 0.0
+        ax = SCurveAxis(lv.vmax, lv.amax, lv.jmax)
+        ax.reset(lv.value, lv.rate)
+        lead = copy.deepcopy(self._lead[0])
+        h = 1.0 / self.cfg.rate_hz
+        over = 0.0
+        for _ in range(400):
+            r = ax.step(0.0, h)
+            c = lead.step(r, h, lv.amax, lv.jmax)
+            if c < 0.0:
+                over -= c * h
+            if r == 0.0 and ax.rate == 0.0 and abs(c) < 1e-5:
+                break
+        return over
 
     def _desired(self, o: OdomSample, now: float) -> tuple[float, float]:
         cfg = self.cfg
