@@ -8,13 +8,22 @@ import itertools
 import math
 
 import pytest
-from bench.control_eval import scurve_time
+from bench.control_eval import make_pid, scurve_time
 from bench.min_time import Limits, min_time
 
-from autochair.control.core import ChainAxis, ControlConfig, ControlCore, LeadAxis, OdomSample
+from autochair.control.core import (
+    LEAD_SMOOTH_S,
+    ChainAxis,
+    ControlConfig,
+    ControlCore,
+    LeadAxis,
+    OdomSample,
+)
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
 from autochair.geometry import wrap_angle as wrap
-from autochair.pid.core import PidConfig
+from autochair.pid.core import NEUTRAL_V, PidConfig
+from autochair.tune.lockstep import DT as LOCKSTEP_DT
+from autochair.tune.lockstep import Rig
 from autochair_msgs import GoalRequest, Pose2D
 
 DT = 0.02  # the control core's period (50 Hz)
@@ -109,10 +118,11 @@ def test_chain_prediction_is_the_motion_still_to_come() -> None:
     assert abs(window - (total - so_far)) > math.radians(1.0)  # positive control
 
 
-def test_lead_passes_the_plan_through_the_prefilter() -> None:
-    """The PID's prefilter (two lags) fed the led command returns the planned velocity itself;
-    fed the plan, it trails it by 2τ (positive control). `ahead` (motion sent ahead of the
-    plan) returns to 0 once the plan is at rest."""
+def test_lead_passes_the_smoothed_plan_through_the_prefilter() -> None:
+    """The PID's prefilter (two lags) fed the led command returns the planned velocity through
+    the lead's own short smoothing S (two lags of LEAD_SMOOTH_S); fed the plan, it trails it
+    by 2τ (positive control). `ahead` (motion sent ahead of the plan) returns to 0 once the plan
+    is at rest."""
     cfg = ControlConfig()
     tau, h = cfg.predict_lag_s, 1.0 / cfg.rate_hz
     w = ComfortLimiter(cfg.limits).w
@@ -124,14 +134,82 @@ def test_lead_passes_the_plan_through_the_prefilter() -> None:
     plan += [0.0] * 50
     lead = LeadAxis(tau)
     led, plain = ChainAxis(2 * tau, tau), ChainAxis(2 * tau, tau)
-    err_led = err_plain = 0.0
+    smoothed = ChainAxis(2 * LEAD_SMOOTH_S, LEAD_SMOOTH_S)  # S(r)
+    err_led = err_plain = lag_s = 0.0
     for r in plan:
         led.push(h, lead.step(r, h, w.amax, w.jmax))
         plain.push(h, r)
-        err_led, err_plain = max(err_led, abs(led.x2 - r)), max(err_plain, abs(plain.x2 - r))
+        smoothed.push(h, r)
+        err_led = max(err_led, abs(led.x2 - smoothed.x2))
+        err_plain = max(err_plain, abs(plain.x2 - r))
+        lag_s = max(lag_s, abs(smoothed.x2 - r))
     assert abs(led.x2) < 1e-3 and abs(lead.ahead) < 1e-3
     assert err_led < 0.05  # rad/s (the plan moves by up to ω̇·h = 0.055 a step)
     assert err_plain > 0.3  # positive control: without the lead it trails by 2τ
+    assert lag_s < 0.6 * err_plain  # S trails by 2·LEAD_SMOOTH_S (0.12 s), not 2τ (0.3 s)
+
+
+def first_frame_off_neutral(goal: tuple[float, float, float], smooth_s: float | None = None
+                            ) -> float:
+    """A goal from rest in lockstep (the tuned PID, its feed-forward and prefilter, on the
+    simulated chair) with the lead: how far the PID's first driving frame is off neutral (V)."""
+    rig = Rig(make_pid("tuned"), start=(0.0, 0.0, 0.0))
+    cfg = ControlConfig(lead=True)
+    core = ControlCore(cfg)
+    if smooth_s is not None:
+        core._lead = (LeadAxis(cfg.predict_lag_s, smooth_s), LeadAxis(cfg.predict_lag_s, smooth_s))
+    every = round(1.0 / (cfg.rate_hz * LOCKSTEP_DT))
+    for k in range(200):
+        t = k * LOCKSTEP_DT
+        st = rig.sense()
+        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
+        if k == 0:
+            assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t).ok
+        out = rig.act(t, st.v, st.omega, core.step(t) if k % every == 0 else None)
+        if out.active:
+            return max(abs(out.longitudinal_v - NEUTRAL_V), abs(out.angular_v - NEUTRAL_V))
+    raise AssertionError("the PID never drove")
+
+
+@pytest.mark.parametrize("goal", [(3.0, 0.0, 0.0), (0.0, 0.5, 0.0), (0.0, 0.0, math.pi / 2)],
+                         ids=["ahead", "beside", "turn"])
+def test_the_leads_first_frame_from_rest_is_no_lunge(goal: tuple[float, float, float]) -> None:
+    """The no-lunge check after an e-stop release (tests/test_hazard_drive_system.py) allows
+    0.1 V off neutral in a new goal's first frame; the lead keeps clear of it in lockstep
+    (0.02–0.07 V). The exact lead (no smoothing) inverts a plan whose jerk steps on at the
+    limit: 0.11–0.30 V (positive control)."""
+    assert first_frame_off_neutral(goal) < 0.08
+    assert first_frame_off_neutral(goal, smooth_s=0.0) > 0.1
+
+
+def lead_lands_past(goal_m: float, monkeypatch: pytest.MonkeyPatch | None = None) -> float:
+    """A straight goal from rest in lockstep with the lead: how far past it the chair comes to
+    rest (m). With `monkeypatch`, the predictor ignores the forward-only clamp's overrun."""
+    rig = Rig(make_pid("tuned"), start=(0.0, 0.0, 0.0))
+    cfg = ControlConfig(lead=True)
+    core = ControlCore(cfg)
+    if monkeypatch is not None:
+        monkeypatch.setattr(core, "_stop_overrun", lambda: 0.0)
+    every = round(1.0 / (cfg.rate_hz * LOCKSTEP_DT))
+    for k in range(round(20.0 / LOCKSTEP_DT)):
+        t = k * LOCKSTEP_DT
+        st = rig.sense()
+        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
+        if k == 0:
+            assert core.set_goal(GoalRequest(waypoints=[Pose2D(goal_m, 0.0, 0.0)]), t).ok
+        rig.act(t, st.v, st.omega, core.step(t) if k % every == 0 else None)
+        if not core.active and abs(rig.chair.v) < 1e-4:
+            assert core.state == "arrived", core.reason
+            return rig.chair.x - goal_m
+    raise AssertionError("not at rest")
+
+
+def test_the_leads_forward_stop_lands_on_the_goal(monkeypatch: pytest.MonkeyPatch) -> None:
+    """To stop the prefilter on time the led v goes below 0 at the end of every stop, which
+    the forward-only clamp removes: the predictor counts that overrun (ControlCore._stop_overrun)
+    and the chair lands within 1 cm; without it 1.5 cm past (positive control)."""
+    assert abs(lead_lands_past(3.0)) < 0.01
+    assert lead_lands_past(3.0, monkeypatch) > 0.012
 
 
 def test_predictor_defaults_are_the_identified_drive_chain() -> None:

@@ -15,6 +15,7 @@ odometry aborts the goal and brakes through the limiter.
 
 from __future__ import annotations
 
+import copy
 import itertools
 import math
 from collections import deque
@@ -32,7 +33,7 @@ from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, 
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, park_kuipers
-from .limits import ComfortLimiter, ComfortLimits
+from .limits import ComfortLimiter, ComfortLimits, SCurveAxis
 
 IDLE, ARRIVED, ABORTED, CANCELLED = "idle", "arrived", "aborted", "cancelled"
 PLANNING, DRIVING, BLOCKED = "planning", "driving", "blocked"
@@ -77,20 +78,25 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     predict_s: float = 0.67
     predict_omega_s: float = 0.62
     predict_lag_s: float = 0.15
-    # Lead the PID's prefilter (LeadAxis): the chair follows the plan delayed by the dead time
-    # only; after every goal it rests ~0.5 s sooner (plan end → arrived, median 0.96 → 0.46 s;
-    # control_eval 1.60 → 1.505× the least time). Only for a drive chain with that prefilter
-    # ([pid] model, prefilter_s). Off: the feed-forward's first frame from rest is 0.19 V off
-    # neutral (the no-lunge check after an e-stop release allows 0.1 V) and through the
-    # processes the chair's jerk touched 2.04 m/s³ (commands' timing, amplified).
+    # Lead the PID's prefilter (LeadAxis, smoothed by two lags of LEAD_SMOOTH_S): the chair
+    # follows the plan delayed by the dead time + 0.12 s, not smoothed by the prefilter's 2τ;
+    # after every goal it rests sooner. Only for a drive chain with that prefilter ([pid]
+    # model, prefilter_s). Measured (session 16, with the predictor counting the forward-only
+    # clamp's overrun, _stop_overrun): with approach_rate_1ps 0.8, control_eval 1.60 → 1.44×
+    # the least time (worst 1.90), chair peaks 0.983 / 1.83 / 2.47, first frame from rest
+    # ≤ 0.067 V off neutral (0.034 V through the processes; the no-lunge check allows 0.1 V);
+    # nav_eval seed 7 32/32, clearances 0.064 / 0.069 m, but its median time 1.60 → 1.755
+    # (office A's far corner 4.5 → 6.9×, office A to B, clutter far side, room B's corner and,
+    # from the approach rate, the overtaken person much slower) and seed 1 loses office A's far
+    # corner (blocked beside the goal). Off until MPEPC's hard cases are understood with it.
     lead: bool = False
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
-    # shows at the chair: at the full limits it measured a 1.004 m/s², jerk 2.13 m/s³
-    # (control_eval; through the processes jerk 2.07 at 0.925). So the limiter plans the
-    # accelerations (a, ω̇) and v's jerk at these fractions of the comfort limits, which stay
-    # as they are and are what the chair is measured against (lockstep peaks then 0.98, 1.90,
-    # 2.76).
+    # shows at the chair: with the exact lead (no smoothing) at the full limits it measured a
+    # 1.004 m/s², jerk 2.13 m/s³ (control_eval; through the processes jerk 2.07 at 0.925). So
+    # the limiter plans the accelerations (a, ω̇) and v's jerk at these fractions of the
+    # comfort limits, which stay as they are and are what the chair is measured against
+    # (smoothed lead: lockstep peaks 0.983, 1.85, 2.60).
     plan_fraction_a: float = 0.98
     plan_fraction_jerk: float = 0.9
     omega_floor_radps: float = 0.5  # min |ω| on tight curves (law.py); 0 = the paper's v(κ)
@@ -339,24 +345,32 @@ class ChainAxis:
         return out
 
 
-JERK_LAG_S = 0.04
+# The lead's own smoothing (LeadAxis): two lags of this. Its first command from rest then moves
+# the PID's feed-forward 0.02-0.07 V off neutral (0.19 V without: the exact inverse of a plan
+# whose jerk steps on at the limit); the chair lags the plan by 2·0.06 s more than the dead time.
+LEAD_SMOOTH_S = 0.06
 
 
 class LeadAxis:
-    """One axis's command led past the velocity PID's prefilter (two lags of `prefilter_s`):
-    c = r + 2τ·ṙ + τ²·r̈ of the planned velocity r, so that the prefilter hands the PID's
-    feed-forward r itself and the chair follows the plan delayed by the dead time only, not
-    smoothed by another 2τ (which left ~0.5 s of tail after every goal). `ahead` is the motion
-    sent ahead of the plan so far, ∫(c − r) dt: the pose predictor counts it as motion still
-    to be planned (it returns to 0 as r comes to rest)."""
+    """One axis's command led past the velocity PID's prefilter (two lags τ = `prefilter_s`):
+    c = S(r) + 2τ·S(ṙ) + τ²·S(r̈) of the planned velocity r, S two short lags (`smooth_s`),
+    so that the prefilter hands the PID's feed-forward S(r): the chair follows the plan
+    delayed by the dead time and 2·smooth_s, not smoothed by another 2τ (which left ~0.5 s of
+    tail after every goal). S keeps the feed-forward from stepping where the plan's jerk steps
+    (at rest the exact inverse moves the effort at once by τ1·τ2·jerk, a lunge-like first
+    frame) and smooths the commands' timing. S has no overshoot, so S(r) keeps r's limits.
+    `ahead` is the motion sent ahead of the plan so far, ∫(c − r) dt: the pose predictor counts
+    it as motion still to be planned (it returns to 0 as r comes to rest)."""
 
-    def __init__(self, prefilter_s: float) -> None:
-        self.tau = prefilter_s
-        self._r = self._d1 = self._d2 = 0.0
+    def __init__(self, prefilter_s: float, smooth_s: float = LEAD_SMOOTH_S) -> None:
+        self.tau, self.smooth_s = prefilter_s, smooth_s
+        self._r = self._d1 = 0.0
+        self._s = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]  # S's two lags for r, ṙ, r̈
         self.ahead = 0.0
 
     def reset(self, value: float) -> None:
-        self._r, self._d1, self._d2, self.ahead = value, 0.0, 0.0, 0.0
+        self._r, self._d1, self.ahead = value, 0.0, 0.0
+        self._s = [[value, value], [0.0, 0.0], [0.0, 0.0]]
 
     def step(self, r: float, dt: float, amax: float, jmax: float) -> float:
         if self.tau <= 0.0 or dt <= 0.0:
@@ -366,11 +380,14 @@ class LeadAxis:
         d1 = min(max((r - self._r) / dt, -amax), amax)
         d2 = min(max((d1 - self._d1) / dt, -jmax), jmax)
         self._r, self._d1 = r, d1
-        # The jerk term over a short lag: where the plan's jerk flips, τ²·Δj steps the command
-        # by 4× a normal step, and the PID holds each command for one tick more or less as
-        # they arrive through the processes (measured: the chair's jerk then rose to 2.1).
-        self._d2 += (d2 - self._d2) * (1.0 - math.exp(-dt / JERK_LAG_S))
-        c = r + 2.0 * self.tau * d1 + self.tau * self.tau * self._d2
+        y = [r, d1, d2]
+        if self.smooth_s > 0.0:
+            e = math.exp(-dt / self.smooth_s)
+            for i, s in enumerate(self._s):  # exact for an input held over dt (ChainAxis.lags)
+                u, x1, x2 = y[i], s[0], s[1]
+                s[0] = u + (x1 - u) * e
+                s[1] = y[i] = u + (x2 - u) * e + (x1 - u) * (dt / self.smooth_s) * e
+        c = y[0] + 2.0 * self.tau * y[1] + self.tau * self.tau * y[2]
         self.ahead += (c - r) * dt
         return c
 
@@ -818,10 +835,34 @@ class ControlCore:
             y += v * math.sin(yaw_mid) * h
             yaw += w * h
         dv, dw = self._lead[0].ahead, self._lead[1].ahead
+        dv -= self._stop_overrun()
         yaw -= dw
         x -= dv * math.cos(yaw)
         y -= dv * math.sin(yaw)
         return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
+
+    def _stop_overrun(self) -> float:
+        """With the lead: the motion the forward-only clamp (_lead_out) adds to v's stop if the
+        plan braked to rest now. To stop the prefilter on time the led command goes below 0 in
+        the last 0.1-0.5 s of a stop (down to −jerk·τ²); clamped to 0, the chair overran every
+        forward stop by ~1.1 cm (straight goals landed 1.5-1.8 cm past). The braking is the
+        limiter's (SCurveAxis.step to 0), the lead a copy of the live one."""
+        lv = self.limiter.v
+        if not self.cfg.lead or lv.value <= 0.0:
+            return 0.0
+        ax = SCurveAxis(lv.vmax, lv.amax, lv.jmax)
+        ax.reset(lv.value, lv.rate)
+        lead = copy.deepcopy(self._lead[0])
+        h = 1.0 / self.cfg.rate_hz
+        over = 0.0
+        for _ in range(400):
+            r = ax.step(0.0, h)
+            c = lead.step(r, h, lv.amax, lv.jmax)
+            if c < 0.0:
+                over -= c * h
+            if r == 0.0 and ax.rate == 0.0 and abs(c) < 1e-5:
+                break
+        return over
 
     def _desired(self, o: OdomSample, now: float) -> tuple[float, float]:
         cfg = self.cfg
