@@ -17,7 +17,7 @@ from autochair.control.core import ChainAxis, ControlConfig, ControlCore, OdomSa
 from autochair.control.limits import ComfortLimiter
 from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
-from autochair.nav.mpepc import Mpepc, MpepcParams
+from autochair.nav.mpepc import Chain, Mpepc, MpepcParams
 from autochair.nav.planner import free_field
 
 FP = Footprint()
@@ -280,3 +280,54 @@ def test_the_cores_own_approach_is_handed_back_when_its_committed_stop_would_tou
         core.on_plan(PlanResult(core.goal_id, 0, fld, res.ctg, res.plan), 0.1)
         assert core.final is final
         assert core.state == "driving"  # (MPEPC's own plan, not blocked)
+
+
+def test_the_committed_sweep_is_the_body_through_the_drive_chain() -> None:
+    # At 1 m/s the chair begins a turn at the ω limit; 0.3 s later a plan brakes it (the
+    # stop). MPEPC's rollout drives the braking commands as a unicycle from the pose the
+    # chain predictor gives; the chair behind the chain (its v lagging ω's by 50 ms, and
+    # the distance still in the chain covered along the new turn) swings its body wider: by
+    # 5 cm outside the rollout's sweep, at the far corner as it comes to rest. Through the
+    # chain (Mpepc.chain_sweep) the committed sweep is the body's own.
+    cfg = ControlConfig()
+    chair = LaggedChair(cfg)
+    chair.drive(1.0, 0.0, 2.0)
+    chair.drive(1.0, -0.9, 0.3)
+    p = chair.predicted()
+    pose = (p.x, p.y, p.yaw)
+    st = chair.state()
+    v0, a0, w0, q0 = (float(st[i, 0]) for i in range(4))
+    cv, cw = chair.core._chain
+    chain = Chain((chair.x, chair.y, chair.yaw), cv.copy(), cw.copy(), chair.h)
+    n = len(chair.true)
+    chair.drive(0.0, 0.0, 4.0)  # braked (the stop), to rest
+    true = np.array(chair.true[n:])
+    true = true[int(np.argmin(np.hypot(true[:, 0] - p.x, true[:, 1] - p.y))):]  # (from p on)
+    stop = np.array([[1.0, 0.0, 0.0, 0.0]])  # (vmax 0: the law's v and ω 0, the limiter brakes)
+    need = 0.05
+
+    def post(x: float, y: float) -> tuple[float, float, float]:
+        """(old, new, true): the rollout's sweep, the chain's, the real body's least
+        clearance from a 2 cm post (a table leg) there."""
+        segs = np.array([[-3.0, -4.0, 7.0, -4.0], [-3.0, 4.0, 7.0, 4.0]])
+        fld = NavField(GridMap.from_shapes(segs, np.array([[x, y, 0.02]]), resolution_m=0.02),
+                       FP)
+        mp = Mpepc(fld, cfg.law(0.025))
+        old = mp.simulate(pose, v0, w0, stop, a0, q0)
+        assert old[6] is None
+        new = mp.simulate(pose, v0, w0, stop, a0, q0, chain=chain)
+        assert new[6] is not None
+        return (float(mp.stop_clearance(pose, v0, w0, old[5], need)[0]),
+                float(mp.stop_clearance(pose, v0, w0, new[5], need, origin=new[6])[0]),
+                float(fld.footprint_clearance(true[:, 0], true[:, 1], true[:, 2]).min()))
+
+    # A post just outside the real body's sweep, where it strays furthest from the rollout's:
+    # the rollout keeps 6 cm from it, the body passes at 2 cm.
+    old, new, real = post(2.750, -0.894)
+    assert old >= need > real + 0.02
+    assert new < need  # (and the chain's sweep reads 4 cm)
+    # Positive control: 3 cm further out the body keeps the margin, and the chain's sweep
+    # says so. (It still reads the body ~2 cm far here: MPEPC's limiter, at its 0.05 s steps,
+    # brakes the turn ~1° short of the core's at 0.02 s.)
+    old, new, real = post(2.738, -0.921)
+    assert new >= need and real >= need

@@ -28,7 +28,7 @@ from autochair.geometry import Pose, along_lateral, compose
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav.field import CostToGo, Footprint, GridMap, NavField
 from autochair.nav.frames import MapFrame
-from autochair.nav.mpepc import ALIGNED_RAD, LawParams, MpepcParams, Person, Plan
+from autochair.nav.mpepc import ALIGNED_RAD, Chain, LawParams, MpepcParams, Person, Plan
 from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
@@ -312,6 +312,13 @@ class ChainAxis:
     def reset(self, value: float) -> None:
         self.pipe.clear()
         self.x1 = self.x2 = value
+
+    def copy(self) -> ChainAxis:
+        """A snapshot (for a planning cycle run outside the core's lock)."""
+        c = ChainAxis(0.0, 0.0)
+        c.lag, c.delay, c.pipe, c.x1, c.x2 = self.lag, self.delay, deque(self.pipe), self.x1, \
+            self.x2
+        return c
 
     def push(self, dt: float, u: float) -> None:
         self.pipe.append((dt, u))
@@ -674,7 +681,16 @@ class ControlCore:
                            self.index == len(self.waypoints) - 1,
                            self.plan is not None and self.plan.straight_m > 0.0,
                            None if self.plan is None else self.plan.then, self.given_up,
-                           self.final)
+                           self.final, self._chain_now(o, now))
+
+    def _chain_now(self, o: OdomSample, now: float) -> Chain | None:
+        """The drive chain as the predictor holds it now, for MPEPC's committed sweeps
+        (Mpepc.chain_sweep): not with the lead, whose commands are not the plan's (the chair
+        follows the plan delayed by the dead time only), nor with the predictor off."""
+        cv, cw = self._chain
+        if self.cfg.lead or max(cv.delay, cw.delay, cv.lag, cw.lag) <= 0.0:
+            return None
+        return Chain(self._now_pose(o, now), cv.copy(), cw.copy(), 1.0 / self.cfg.rate_hz)
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""
@@ -820,13 +836,7 @@ class ControlCore:
         h = 1.0 / self.cfg.rate_hz
         horizon = max(cv.delay, cw.delay) + 8 * max(cv.lag, cw.lag)  # lags decay to < 0.4 %
         n = math.ceil(horizon / h) if horizon > 0 else 0
-        x, y, yaw = o.x, o.y, o.yaw
-        age = min(max(now - o.t, 0.0) + o.age_s, MAX_ODOM_AGE_S)
-        if age > 0.0:
-            yaw_mid = yaw + 0.5 * o.omega * age
-            x += o.v * math.cos(yaw_mid) * age
-            y += o.v * math.sin(yaw_mid) * age
-            yaw += o.omega * age
+        x, y, yaw = self._now_pose(o, now)
         if n == 0:
             return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
         for v, w in zip(cv.future(h, n), cw.future(h, n), strict=True):
@@ -863,6 +873,18 @@ class ControlCore:
             if r == 0.0 and ax.rate == 0.0 and abs(c) < 1e-5:
                 break
         return over
+
+    @staticmethod
+    def _now_pose(o: OdomSample, now: float) -> tuple[float, float, float]:
+        """The odometry's pose moved on to `now` at its own velocity over its age (_predicted)."""
+        x, y, yaw = o.x, o.y, o.yaw
+        age = min(max(now - o.t, 0.0) + o.age_s, MAX_ODOM_AGE_S)
+        if age > 0.0:
+            yaw_mid = yaw + 0.5 * o.omega * age
+            x += o.v * math.cos(yaw_mid) * age
+            y += o.v * math.sin(yaw_mid) * age
+            yaw += o.omega * age
+        return x, y, yaw
 
     def _desired(self, o: OdomSample, now: float) -> tuple[float, float]:
         cfg = self.cfg

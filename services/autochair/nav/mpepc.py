@@ -28,8 +28,10 @@ of ms (bench/nav_eval.py reports the per-cycle time).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -56,6 +58,54 @@ class Person:
     vx_mps: float = 0.0
     vy_mps: float = 0.0
     radius_m: float = 0.25
+
+
+class ChainAxisLike(Protocol):
+    """One axis of the core's drive-chain model (control/core.py ChainAxis, which imports this
+    module): the command delayed by `delay`, then two equal lags `lag`; `future` is its output
+    (the chair's mean velocity per step) if no further command came."""
+
+    delay: float
+    lag: float
+
+    def future(self, h: float, n: int) -> list[float]: ...
+
+
+@dataclass(frozen=True)
+class Chain:
+    """The core's chain predictor when the plan was asked for: the chair's pose now (the
+    odometry moved on to now, where the predictor integrates from) and its two axes, holding
+    the commands already sent. MPEPC plans from the pose they come to rest at; what the body
+    sweeps on the way there and through the committed motion is this chain's response to the
+    commands (Mpepc.chain_sweep)."""
+
+    pose: tuple[float, float, float]
+    v: ChainAxisLike
+    omega: ChainAxisLike
+    tick_s: float  # the core's command period (what each command in the chain is held for)
+
+
+@functools.lru_cache(maxsize=16)
+def chain_response(delay: float, lag: float, h: float, n: int) -> F64:
+    """(n, n) Toeplitz: [k, j] the chain's (dead time `delay`, two equal lags `lag`) mean output
+    over step j of h for a unit command held over step k (ChainAxis's exact lags, continuous
+    in time): the integral of the lags' step response is S(t) = t − 2τ + (2τ + t)·e^(−t/τ)."""
+    t = np.asarray(np.arange(n + 1) * h - delay, dtype=np.float64)
+
+    def integral(t: F64) -> F64:
+        t = np.maximum(t, 0.0)
+        if lag <= 0.0:
+            return t
+        return np.asarray(t - 2 * lag + (2 * lag + t) * np.exp(-t / lag), dtype=np.float64)
+
+    s = integral(t)  # ∫ of the response to a unit step begun at 0, at the step boundaries
+    s_late = integral(np.asarray(t - h, dtype=np.float64))  # ... to one begun at h
+    g = (np.diff(s) - np.diff(s_late)) / h  # mean output per step of a pulse over [0, h)
+    k = np.arange(n)
+    lag_steps = k[None, :] - k[:, None]
+    out = np.where(lag_steps >= 0, g[np.clip(lag_steps, 0, n - 1)], 0.0)
+    out.setflags(write=False)
+    return np.asarray(out, dtype=np.float64)
 
 
 class LawParams(Gains, frozen=True, kw_only=True):
@@ -143,6 +193,9 @@ class MpepcParams:
     # The committed sweep's poses are read at most this far apart in the outline's travel
     # where it could come under the margin (stop_clearance): as the outline's own points.
     between_m: float = 0.05
+    # ... and the body's poses through the drive chain (Mpepc.chain_sweep) kept this far apart
+    # in the outline's travel (the fixed ~0.1 s of the rollout's own: 12 cm at 1.2 m/s)
+    keep_m: float = 0.12
     goal_blend_m: float = 1.0
     # Inside the heading-aware window, a state from which the lattice has no way to the goal
     # costs this much more than the 2-D field says (nav/lattice.py).
@@ -304,6 +357,7 @@ class Mpepc:
         lo, hi = self.bounds()
         self._global = lo + unit * (hi - lo)
         self._rng = np.random.default_rng(p.seed)
+        self._free: tuple[Chain, dict[float, tuple[F64, F64]]] | None = None
 
     def bounds(self) -> tuple[F64, F64]:
         p = self.p
@@ -371,13 +425,17 @@ class Mpepc:
 
     def simulate(self, pose: tuple[float, float, float], v0: float, w0: float,
                  z: F64, a0: float = 0.0, q0: float = 0.0,
-                 goal: tuple[float, float, float] | None = None, last: bool = True
-                 ) -> tuple[F64, F64, F64, F64, F64, F64]:
+                 goal: tuple[float, float, float] | None = None, last: bool = True,
+                 chain: Chain | None = None
+                 ) -> tuple[F64, F64, F64, F64, F64, F64, tuple[float, float, float] | None]:
         """Predicted (x, y, yaw, v, ω), each (N, T), of candidates z (N, 4), from the limiter's
         state (v0, a0; ω0, ω̇0); and (3, N, B) poses of the motion committed to until
         `commit_s` (the earliest a next plan can stop the chair) and the stop after it
-        (`committed`). Candidates targeting `goal`
-        itself, if it is the `last` waypoint, are driven on the core's final approach."""
+        (`committed`); and with `chain`, where the body stands before the new commands act
+        (the sweeps' start, common to all; else None). Candidates targeting `goal`
+        itself, if it is the `last` waypoint, are driven on the core's final approach.
+        With the core's `chain`, the committed sweeps are the body's poses as that chain
+        passes the committed motion's and the stop's commands on (chain_sweep)."""
         g, dt = self.law, self.p.dt_s
         n = z.shape[0]
         in_place = z[:, 0] < self.p.in_place_r_m
@@ -416,10 +474,17 @@ class Mpepc:
         every = max(1, round(0.5 * dt / self.p.exact_dt_s))  # poses kept: ~0.1 s
         n_b, j_b = self.brake_steps(), -1  # the stop's steps, the one done (-1: not braking)
         m, stopped = len(sched), False  # the steps simulated side by side; the stop done
+        h = self.p.exact_dt_s
+        # the commands of the committed motion and its stop, (v, ω) (2, N) after each step,
+        # for chain_sweep (which takes steps of one length: else the rollout's own sweep)
+        cmds: list[F64] | None = [] if chain is not None and abs(span / n_c - h) < 1e-9 \
+            else None
         for j, (step_dt, k) in enumerate(sched):
             dts[:n] = step_dt
             xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
                                        dts, jerk_from=0 if self.p.v_jerk else n)
+            if cmds is not None:
+                cmds.append(both[0::2, n:].copy())
             if k >= 0:
                 out[0, :, k], out[1, :, k], out[2, :, k] = xx[:n], yy[:n], ww[:n]
                 out[3, :, k], out[4, :, k] = both[0, :n], both[2, :n]
@@ -439,10 +504,16 @@ class Mpepc:
         side = (xx[n:], yy[n:], ww[n:], both[:, n:].copy())
         if j_b < 0:  # (the committed motion outlasts the prediction)
             sure = self.committed(*side, tgt, vmax, turning2[n:].copy(), arrived2[n:].copy(),
-                                  on_final, span, m, kept)
+                                  on_final, span, m, kept, cmds)
         else:  # (the stop goes on alone where it outlasts the prediction)
             sure = np.concatenate([np.stack(kept, -1), np.stack(stop, -1) if stopped
-                                   else self.braking(*side, j_b, stop)], -1)
+                                   else self.braking(*side, j_b, stop, cmds)], -1)
+        origin = None
+        if chain is not None and cmds:
+            after = np.stack(cmds, -1)
+            before = np.concatenate([np.broadcast_to(np.array([[[v0]], [[w0]]]), (2, n, 1)),
+                                     after[:, :, :-1]], 2)
+            sure, origin = self.chain_sweep(chain, 0.5 * (before + after))  # (steps' means)
         x, y, yaw, st = xx[:n], yy[:n], ww[:n], both[:, :n].copy()
         turning, arrived = turning2[:n].copy(), arrived2[:n].copy()
         for step_dt, k in sched[m:]:
@@ -451,12 +522,12 @@ class Mpepc:
             if k >= 0:
                 out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
                 out[3, :, k], out[4, :, k] = st[0], st[2]
-        return out[0], out[1], out[2], out[3], out[4], sure
+        return out[0], out[1], out[2], out[3], out[4], sure, origin
 
     def committed(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                   turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
                   final: npt.NDArray[np.bool_] | None, span_s: float, start: int = 0,
-                  kept: list[F64] | None = None) -> F64:
+                  kept: list[F64] | None = None, cmds: list[F64] | None = None) -> F64:
         """(3, N, B) poses of what a plan commits the chair to: its first `span_s` as the
         core's limiter drives it (v's jerk on, steps of `exact_dt_s`), then braking to rest from
         there (from its step `start` on, the poses kept before it in `kept`: simulate runs the
@@ -474,9 +545,88 @@ class Mpepc:
         for k in range(start, n):
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
                                       span_s / n, True)
+            if cmds is not None:
+                cmds.append(st[0::2].copy())
             if (k + 1) % every == 0 or k == n - 1:
                 kept.append(np.stack([x, y, yaw]))
-        return np.concatenate([np.stack(kept, -1), self.braking(x, y, yaw, st)], -1)
+        return np.concatenate([np.stack(kept, -1), self.braking(x, y, yaw, st, cmds=cmds)], -1)
+
+    def chain_sweep(self, chain: Chain, u: F64
+                    ) -> tuple[F64, tuple[float, float, float]]:
+        """(3, N, B) poses of the body, ~0.1 s apart, while the core's drive chain (`chain`:
+        the commands already sent, and where the chair stands now) passes on the commands
+        `u` (2, N, K): each step of `exact_dt_s`'s mean (v, ω) from now on, the committed
+        motion's then its stop's, until it has come to rest; from the first step a new
+        command can act in (before it every candidate's body moves alike). MPEPC's own
+        rollout drives the commands as a unicycle from the pose the chain comes to rest at;
+        the chain's axes lag differently (dead time v 0.37 s, ω 0.32 s: the chair turns
+        before it has covered the distance the commands pair with each turn), and what is
+        still in the chain is covered along the new turn, so the body's path runs off that
+        rollout: braking a turn begun at 0.4–1.2 m/s, the body's outline strayed up to 4.9 cm
+        (median 1.4) outside the rollout's sweep, 2.6 (1.05) outside this one (36 states,
+        the chair behind ChainAxis driven by the core's limiter; the rest is the limiter's
+        0.05 s steps; tests/test_nav_stop.py). And the body's pose just before a new command
+        acts (the sweeps' common start)."""
+        # On the sweep's own spacing (~0.1 s: each pair of steps' mean command; the chain's
+        # response to commands held over a step is exact, chain_response), which halves the
+        # work against the commands' own steps.
+        every = max(1, round(0.5 * self.p.dt_s / self.p.exact_dt_s))
+        h = every * self.p.exact_dt_s
+        cv, cw = chain.v, chain.omega
+        pad = (-u.shape[2]) % every  # (at rest after the stop: zeros)
+        if pad:
+            u = np.concatenate([u, np.zeros((2, u.shape[1], pad))], 2)
+        u = u.reshape(2, u.shape[1], -1, every).mean(3)
+        k = u.shape[2]
+        lag, delay = max(cv.lag, cw.lag), max(cv.delay, cw.delay)
+        m = k + math.ceil((delay + 8 * lag) / h)  # (to rest: the lags decay to < 0.4 %)
+        fv, fw = self._chain_future(chain, h, m)
+        vel = fv + u[0] @ chain_response(cv.delay, cv.lag, h, m)[:k]  # (N, m)
+        w = fw + u[1] @ chain_response(cw.delay, cw.lag, h, m)[:k]
+        yaw = chain.pose[2] + h * np.cumsum(w, 1)
+        mid = yaw - 0.5 * h * w
+        x = chain.pose[0] + h * np.cumsum(vel * np.cos(mid), 1)
+        y = chain.pose[1] + h * np.cumsum(vel * np.sin(mid), 1)
+        # Kept: from the first step a new command acts in, wherever the outline has moved
+        # `keep_m` since the last pose kept (at speed every step; the poses between are read
+        # where they could come under the margin: stop_clearance), and where the body rests.
+        j0 = min(int(min(cv.delay, cw.delay) / h), m - 1)
+        # (each step's travel of the outline, the most of any candidate: |v|·h + reach·|ω|·h)
+        travel = h * np.max(np.abs(vel[:, j0:]) + self.field.footprint.reach_m
+                            * np.abs(w[:, j0:]), axis=0)
+        step = np.floor((np.cumsum(travel) - travel[0]) / self.p.keep_m)
+        far = np.cumsum(travel[::-1])[::-1] - travel  # (what is still to come from each pose)
+        new = np.concatenate([[True], step[1:] > step[:-1]]) & (far > 0.005)
+        idx = list(j0 + np.nonzero(new)[0])
+        idx.append(m - 1)
+        origin = chain.pose if j0 == 0 else (float(x[0, j0 - 1]), float(y[0, j0 - 1]),
+                                             float(yaw[0, j0 - 1]))
+        return np.stack([x[:, idx], y[:, idx], yaw[:, idx]]), origin
+
+    def _chain_future(self, chain: Chain, h: float, m: int) -> tuple[F64, F64]:
+        """The chain's mean output over each of m steps of h with no new command, per plan:
+        ChainAxis.future on the core's own tick (coarser, it holds one command of the
+        several in each step), integrated to steps of h."""
+        if self._free is None or self._free[0] is not chain:
+            self._free = (chain, {})
+        got = self._free[1].get(h)
+        if got is None or got[0].size < m:
+            # (once per plan: as long as the longest stop's sweep can be)
+            big = max(m, math.ceil(self.brake_steps() * self.p.exact_dt_s / h) + 2 * math.ceil(
+                (self.law.commit_s + max(chain.v.delay, chain.omega.delay)
+                 + 8 * max(chain.v.lag, chain.omega.lag)) / h))
+            tick = chain.tick_s
+            n = math.ceil(big * h / tick - 1e-9)
+            at = np.arange(big + 1) * h
+
+            def resample(out: list[float]) -> F64:
+                moved = np.concatenate([[0.0], np.cumsum(out) * tick])  # ∫ at the ticks
+                return np.asarray(np.diff(np.interp(at, np.arange(n + 1) * tick, moved)) / h,
+                                  dtype=np.float64)
+
+            got = (resample(chain.v.future(tick, n)), resample(chain.omega.future(tick, n)))
+            self._free[1][h] = got
+        return got[0][:m], got[1][:m]
 
     def law_step(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                  turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
@@ -548,7 +698,7 @@ class Mpepc:
         return max(1, math.ceil(stop_s / self.p.exact_dt_s))
 
     def braking(self, x: F64, y: F64, yaw: F64, st: F64, start: int = 0,
-                kept: list[F64] | None = None) -> F64:
+                kept: list[F64] | None = None, cmds: list[F64] | None = None) -> F64:
         """(3, N, B) poses while the limiter brakes to rest (v, ω desired 0, as the core does
         when a plan says blocked) from state st, at `exact_dt_s` (kept every ~0.1 s), until
         every candidate is at rest; from its step `start` on (the poses kept before it in
@@ -570,6 +720,8 @@ class Mpepc:
             old = vw.copy()
             vw[...], rates[...] = scurve(vw, rates, zero, *lim, h)
             x, y, yaw = move(x, y, yaw, old[0], old[1], st, h)
+            if cmds is not None:
+                cmds.append(vw.copy())
             done = not st.any()  # every candidate at rest: the rest is where it stands
             if (k + 1) % every == 0 or k == steps - 1 or done:
                 kept.append(np.stack([x, y, yaw]))
@@ -581,9 +733,11 @@ class Mpepc:
     def evaluate(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                  ctg: CostToGo, people: list[Person], a0: float = 0.0, q0: float = 0.0,
                  goal: tuple[float, float, float] | None = None, last: bool = True,
-                 hf: HeadingField | None = None) -> tuple[F64, dict[str, F64]]:
+                 hf: HeadingField | None = None, chain: Chain | None = None
+                 ) -> tuple[F64, dict[str, F64]]:
         p, dt, fld = self.p, self.p.dt_s, self.field
-        xs, ys, yaws, vs, ws, brake = self.simulate(pose, v0, w0, z, a0, q0, goal, last)
+        xs, ys, yaws, vs, ws, brake, origin = self.simulate(pose, v0, w0, z, a0, q0, goal, last,
+                                                            chain)
         t = np.asarray((np.arange(self.steps) + 1) * dt, dtype=np.float64)
         d_static, to_people = self.outline_distances(xs, ys, yaws, people, t)  # (N, T)
         pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
@@ -602,7 +756,8 @@ class Mpepc:
         # already, except row 0, the goal's own, which the core may be driving)
         between: npt.NDArray[np.bool_] = np.logical_not(hit.any(1))
         between[0] = True
-        stop_hit = self.stop_clearance(pose, v0, w0, brake, need, between, d0) < need
+        stop_hit = self.stop_clearance(pose, v0, w0, brake, need, between,
+                                       d0 if origin is None else None, origin) < need
         hit[:, -1] |= stop_hit
         d_all = d_static
         for person, (to_path, to_here) in zip(people, to_people, strict=True):
@@ -650,7 +805,8 @@ class Mpepc:
 
     def stop_clearance(self, pose: tuple[float, float, float], v0: float, w0: float,
                        sweep: F64, need: float, between: npt.NDArray[np.bool_] | None = None,
-                       start: float | None = None) -> F64:
+                       start: float | None = None,
+                       origin: tuple[float, float, float] | None = None) -> F64:
         """Least clearance (N,) of the committed sweeps (3, N, B) (`simulate`) from every
         start within `stop_timing_s` of `pose` along the present motion: the sweep as planned
         and moved with its start by ±δ·v0 along the heading. Exact against `need`; above it,
@@ -665,7 +821,8 @@ class Mpepc:
         is under the band ((r_a + r_b − SLOPE·T) / 2 from readings r_a, r_b at the ends of a
         travel T), poses between are read too, the outline moving at most `between_m` from
         one to the next; for the sweeps `between` selects (default: all; the rest are read at
-        their poses only). `start`: the start pose's footprint_clearance, if read already."""
+        their poses only). `start`: the start pose's footprint_clearance, if read already;
+        `origin`: where the sweeps start if not at `pose` (chain_sweep's)."""
         fld, e = self.field, self.p.stop_timing_s
         rest = e <= 0.0 or (abs(v0) < 1e-3 and abs(w0) < 1e-3)
         band = need if rest else need + e * abs(v0) + 0.005  # (what a move could bring under)
@@ -677,9 +834,10 @@ class Mpepc:
             return np.asarray(least, dtype=np.float64)
         # (x, y, yaw, a lower bound of the reading) of those sweeps' poses, from the start pose
         # on: the first pose kept is ~0.1 s into the motion
-        lb0 = fld.reading_floor(fld.footprint_clearance(*pose, need=need, upto=band), need,
+        o = pose if origin is None else origin
+        lb0 = fld.reading_floor(fld.footprint_clearance(*o, need=need, upto=band), need,
                                 band) if start is None else fld.reading_floor(np.array(start))
-        q = np.concatenate([np.broadcast_to(np.array([*pose, float(lb0)])[:, None, None],
+        q = np.concatenate([np.broadcast_to(np.array([*o, float(lb0)])[:, None, None],
                                             (4, rows.size, 1)),
                             np.concatenate([sweep[:, rows], floor[None, rows]])], 2)
         gap = self._travel(q[:, :, :-1], q[:, :, 1:])
@@ -1256,7 +1414,8 @@ class Mpepc:
              goal: tuple[float, float, float], ctg: CostToGo, people: list[Person] | None = None,
              previous_target: tuple[float, float, float, float] | None = None,
              rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
-             heading: HeadingField | None = None, goal_turn: bool = True) -> Plan:
+             heading: HeadingField | None = None, goal_turn: bool = True,
+             chain: Chain | None = None) -> Plan:
         """The best z from the chair at `pose` (v0, ω0: the command it is tracking; `rates`:
         the limiter's dv/dt and dω/dt; `final`: `goal` is the last waypoint, which the core
         approaches on its braking curve once it is the target; an intermediate one it passes).
@@ -1264,7 +1423,8 @@ class Mpepc:
         The goal itself wins over a slightly cheaper target near it when its prediction is
         clear and ends on it (the final approach is then the control law's own), and, with
         `goal_turn`, the core's turn onto the goal's yaw keeps `contact_m`
-        (goal_turn_clearance)."""
+        (goal_turn_clearance). `chain`: the core's drive chain, through which the committed
+        sweeps are checked (chain_sweep)."""
         people = people or []
         lo, hi = self.bounds()
         prev = None
@@ -1275,7 +1435,7 @@ class Mpepc:
         seeds, has_goal = self.seeds(pose, goal, prev, ctg, heading)
         z = np.concatenate([seeds, self._global])
         cost, info = self._costs(pose, v0, w0, z, ctg, people, goal, rates, final,
-                                  heading)
+                                  heading, chain)
         evals = len(z)
         i = int(np.argmin(cost))
         best_z, best_c, best = z[i].copy(), float(cost[i]), {k: v[i] for k, v in info.items()}
@@ -1283,7 +1443,7 @@ class Mpepc:
         for _ in range(self.p.local_rounds):
             cand = np.clip(best_z + self._rng.normal(size=(self.p.n_local, 4)) * scale, lo, hi)
             c2, inf2 = self._costs(pose, v0, w0, cand, ctg, people, goal, rates, final,
-                                   heading)
+                                   heading, chain)
             evals += len(cand)
             j = int(np.argmin(c2))
             if c2[j] < best_c:
@@ -1348,7 +1508,7 @@ class Mpepc:
                                [0.0, float(wrap(np.array(psi - pose[2]))), 0.0,
                                 self.p.v_min_mps]])
                 c3, inf3 = self._costs(pose, v0, w0, zz, ctg, people, goal, rates, final,
-                                       heading)
+                                       heading, chain)
                 if float(inf3["hit"][0]) == 0.0:
                     is_goal, final_turn = psi == pose[2], psi != pose[2]
                     best_z, best_c, best = (z[0] if is_goal else zz[0]).copy(), float(c3[0]), {
@@ -1369,8 +1529,10 @@ class Mpepc:
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],
                rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
-               heading: HeadingField | None = None) -> tuple[F64, dict[str, F64]]:
-        cost, info = self.evaluate(pose, v0, w0, z, ctg, people, *rates, goal, final, heading)
+               heading: HeadingField | None = None, chain: Chain | None = None
+               ) -> tuple[F64, dict[str, F64]]:
+        cost, info = self.evaluate(pose, v0, w0, z, ctg, people, *rates, goal, final, heading,
+                                   chain)
         # Final-heading term: the turn still to make where the prediction ends. Away from the
         # goal, to face down −∇φ; within goal_blend_m, to the goal's yaw (the law curves onto
         # it). Within half that (no room to curve: the chair is 1.2 m long) a forward-only

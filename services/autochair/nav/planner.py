@@ -16,7 +16,7 @@ import numpy as np
 from . import lattice
 from .field import CostToGo, Footprint, GridMap, NavField
 from .lattice import HeadingField
-from .mpepc import LawParams, Mpepc, MpepcParams, Person, Plan
+from .mpepc import Chain, LawParams, Mpepc, MpepcParams, Person, Plan
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,9 @@ class PlanRequest:
     then: tuple[float, float] | None = None
     given_up: GridMap | None = None  # cells given up for this waypoint (PlanResult.given_up)
     approaching: bool = False  # the core is on its own final approach (ControlCore.final)
+    # the core's drive chain (its pose predictor's), through which the committed sweeps are
+    # checked (Mpepc.chain_sweep); None: as the rollout drives them from `pose`
+    chain: Chain | None = None
 
 
 @dataclass(frozen=True)
@@ -243,7 +246,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         return lattice_for(fld, req.goal, ctg, req.pose)
 
     plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
-                    req.rates, req.final, hf)
+                    req.rates, req.final, hf, chain=req.chain)
     r_goal = math.hypot(req.goal[0] - req.pose[0], req.goal[1] - req.pose[1])
     at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
     if plan.goal_withheld and stuck(plan) and at_rest:
@@ -258,7 +261,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
             if staged is not None:
                 return PlanResult(req.goal_id, req.index, fld, ctg, staged, given_up=given_up)
         plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
-                        req.rates, req.final, hf, goal_turn=False)
+                        req.rates, req.final, hf, goal_turn=False, chain=req.chain)
     blocked = blocker(fld, ctg, req.pose, req.people) if stuck(plan) else ""
     if at_rest and req.final and not req.approaching and not plan.is_goal \
             and not plan.final_turn \
@@ -279,7 +282,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         alt = give_up(fld, ctg, req.pose, req.goal, mp.contact_m)
         if alt is not None:
             plan2 = mpc.plan(req.pose, req.v, req.omega, req.goal, alt[0], req.people,
-                             req.previous, req.rates, req.final, hf)
+                             req.previous, req.rates, req.final, hf, chain=req.chain)
             if not stuck(plan2):
                 return PlanResult(req.goal_id, req.index, fld, alt[0], plan2, given_up=alt[1])
     return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked,
