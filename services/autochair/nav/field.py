@@ -304,7 +304,7 @@ class NavField:
         if not gm.occupied.any():
             self.clearance[:] = 1e3
         exact = bool(gm.occupied.any()) and min(gm.occupied.shape) >= 2
-        self._corner = self._corner_cells().ravel() if exact else None
+        self._corner = self._corner_cells() if exact else None
         self._slots = self._candidates() if exact else None
         self.pass_m = footprint.half_width_m + pass_margin_m
         self.passable: Bool = self.clearance >= self.pass_m
@@ -353,51 +353,66 @@ class NavField:
         return v
 
     def _corner_cells(self) -> Bool:
-        """(H, W): whether the bilinear reading between the cell centre and the next ones in
-        x, y and both (the square they span) can differ from the exact one (`_exact`). It is
-        the exact one where the four centres' nearest obstacle cells lie straight across from
-        them (in their own rows, or columns), all in the same column (row), beyond the span:
-        the face those cells form covers the span's rows (columns), and the distance to it,
-        affine, is read exactly at the centres (the distance transform less half a cell)."""
-        ny, nx = self._nearest
-        h, w = ny.shape
-        iy, ix = np.indices((h, w))
-        corner = np.ones((h, w), dtype=np.bool_)
-        s = (slice(0, h - 1), slice(0, w - 1))
-        quad = [(slice(a, h - 1 + a), slice(b, w - 1 + b)) for a in (0, 1) for b in (0, 1)]
-        nx0, ny0 = nx[quad[0]], ny[quad[0]]
-        same_col = np.ones((h - 1, w - 1), dtype=np.bool_)
-        same_row = np.ones((h - 1, w - 1), dtype=np.bool_)
-        for q in quad:
-            same_col &= (nx[q] == nx0) & (ny[q] == iy[q])
-            same_row &= (ny[q] == ny0) & (nx[q] == ix[q])
-        same_col &= (nx0 < ix[s]) | (nx0 > ix[s] + 1)
-        same_row &= (ny0 < iy[s]) | (ny0 > iy[s] + 1)
-        corner[s] = ~(same_col | same_row)
+        """(H·W): whether the bilinear reading between the cell centre and the next ones in
+        x, y and both (the square they span) can differ from the exact one (`_exact`); only
+        for the spans that read under EXACT_BELOW_M somewhere (no other is read exactly).
+        It is the exact one where the four centres' nearest obstacle cells lie straight
+        across from them (in their own rows, or columns), all in the same column (row),
+        beyond the span: the face those cells form covers the span's rows (columns), and
+        the distance to it, affine, is read exactly at the centres (the distance transform
+        less half a cell)."""
+        ny, nx = (a.ravel() for a in self._nearest)
+        h, w = self.clearance.shape
+        c = self.clearance
+        span = np.full((h, w), np.inf)
+        span[:-1, :-1] = np.minimum(np.minimum(c[:-1, :-1], c[:-1, 1:]),
+                                    np.minimum(c[1:, :-1], c[1:, 1:]))
+        cells = np.flatnonzero(span.ravel() < EXACT_BELOW_M)
+        y0, x0 = cells // w, cells % w
+        nx0, ny0 = nx[cells], ny[cells]
+        same_col = (nx0 < x0) | (nx0 > x0 + 1)
+        same_row = (ny0 < y0) | (ny0 > y0 + 1)
+        for oy in (0, 1):
+            for ox in (0, 1):
+                q = cells + (oy * w + ox)
+                same_col &= (nx[q] == nx0) & (ny[q] == y0 + oy)
+                same_row &= (ny[q] == ny0) & (nx[q] == x0 + ox)
+        corner = np.zeros(h * w, dtype=np.bool_)
+        corner[cells] = ~(same_col | same_row)
         return corner
 
-    def _candidates(self) -> tuple[F64, F64, Bool]:
-        """Per cell centre (flat; as the lower left of the square it spans with the next
-        ones): the distinct obstacle cells nearest to the cell centres of EXACT_BLOCK round
-        it, as their centres' offsets (cells) from it in x and y, (SLOTS, H·W) each, unused
-        slots far; and where there are more than SLOTS (then all are read)."""
+    def _candidates(self) -> tuple[F64, F64, Bool, npt.NDArray[np.intp]]:
+        """For the corner cells (`_corner_cells`) whose span reads under EXACT_BELOW_M
+        somewhere (the only ones read exactly; all cells of a 400 × 1000 map took 0.35 s),
+        as the lower left cell centre of a point: the distinct obstacle cells nearest to the
+        cell centres of EXACT_BLOCK round it, as their centres' offsets (cells) from it in x
+        and y, (SLOTS, n + 1) each (unused slots, and column 0, far); whether there are more
+        than SLOTS (then all are read); and each cell's column (H·W; 0: none)."""
         ny, nx = self._nearest
         h, w = ny.shape
-        iy, ix = np.indices((h, w))
+        assert self._corner is not None
+        cells = np.flatnonzero(self._corner)
         big = h * w  # (beyond any cell: off the map, or a slot left empty)
-        flat = np.pad(ny * w + nx, 2, constant_values=big)
-        cand = np.stack([flat[2 + oy:2 + oy + h, 2 + ox:2 + ox + w].ravel()
-                         for ox, oy in EXACT_BLOCK], -1)
+        flat = np.pad(ny * w + nx, 2, constant_values=big).ravel()
+        y0, x0 = cells // w, cells % w
+        base = (y0 + 2) * (w + 4) + x0 + 2
+        cand = np.stack([flat[base + (dy * (w + 4) + dx)] for dx, dy in EXACT_BLOCK], -1)
         cand.sort(-1)
         cand[:, 1:][cand[:, 1:] == cand[:, :-1]] = big  # duplicates
         cand.sort(-1)
-        many = cand[:, SLOTS] < big if cand.shape[1] > SLOTS else np.zeros(h * w, np.bool_)
-        c = np.pad(cand[:, :SLOTS], ((0, 0), (0, max(0, SLOTS - cand.shape[1]))),
-                   constant_values=big).T
-        far = c == big
-        ox = np.where(far, 1e3, (c % w).astype(np.float64) - ix.ravel())
-        oy = np.where(far, 1e3, (c // w).astype(np.float64) - iy.ravel())
-        return np.ascontiguousarray(ox), np.ascontiguousarray(oy), many
+        n = cells.size
+        many = np.zeros(n + 1, dtype=np.bool_)
+        if cand.shape[1] > SLOTS:
+            many[1:] = cand[:, SLOTS] < big
+        ox, oy = np.full((SLOTS, n + 1), 1e3), np.full((SLOTS, n + 1), 1e3)
+        for k in range(min(SLOTS, cand.shape[1])):
+            ck = cand[:, k]
+            real = np.flatnonzero(ck < big)
+            ox[k, real + 1] = (ck[real] % w - x0[real]).astype(np.float64)
+            oy[k, real + 1] = (ck[real] // w - y0[real]).astype(np.float64)
+        row = np.zeros(h * w, dtype=np.intp)
+        row[cells] = np.arange(1, n + 1)
+        return ox, oy, many, row
 
     def _exact(self, i: npt.NDArray[np.intp], ax: F64, ay: F64) -> F64:
         """The exact distance (m) from points, each `ax`, `ay` cells past the cell centre of
@@ -412,9 +427,10 @@ class NavField:
         points over 400 random grids (1–40 % occupied), the sixteen no better
         (tests/test_nav.py)."""
         assert self._slots is not None
-        ox, oy, many = self._slots
-        out = self._nearest_of(ox, oy, i, ax, ay)
-        more = many.take(i)
+        ox, oy, many, row = self._slots
+        col = row.take(i)
+        out = self._nearest_of(ox, oy, col, ax, ay)
+        more = many.take(col)
         if more.any():  # (more distinct candidates than slots: read them all)
             j = i[more]
             w = self.map.occupied.shape[1]
