@@ -238,6 +238,9 @@ class Plan:
     goal_stop_clear: bool = True
 
 
+# The core drops the goal on its own final approach where Plan.goal_clearance_m is under this
+# (control/core.py): the lowest margin the prediction's clearance is compared with.
+GOAL_DROP_M = 0.02
 # How fast a footprint reading can fall as the outline moves (per m): the bilinear reading of
 # a distance field, each partial derivative within ±1 (NavField.clearance_at).
 SLOPE = math.sqrt(2.0)
@@ -590,8 +593,10 @@ class Mpepc:
         # (each read as what it is compared with: the prediction coarse, the committed fine)
         hit_under = min(p.contact_m, float(fld.footprint_clearance(
             *pose, fine=False, below=self.predict_below)) - 0.005)
+        # (poses read under both it and the 0.02 m the core drops its own approach at,
+        # Plan.goal_clearance_m, decide alike whatever the exact reading: left bilinear)
         d_static, to_people = self.outline_distances(xs, ys, yaws, people, t,
-                                                     hit_under)  # (N, T)
+                                                     min(hit_under, GOAL_DROP_M))  # (N, T)
         pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
         hit = d_static < hit_under
         d0 = float(fld.footprint_clearance(*pose))
@@ -739,7 +744,8 @@ class Mpepc:
         the least distance of its outline to their centre predicted at constant velocity (at
         times `t`) and to where they stand now. In batches of candidates (field.BATCH_POINTS:
         the temporaries stay in cache), the same numbers. The clearance is read exactly under
-        `predict_below` but not at poses read under `hit_under` (hits whatever it reads)."""
+        `predict_below` but not at poses read under `hit_under` (hits, and under every margin
+        it is compared with, whatever it reads)."""
         fld = self.field
         if not people:
             return fld.footprint_clearance(xs, ys, yaws, fine=False, below=self.predict_below,
