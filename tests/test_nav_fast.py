@@ -45,6 +45,40 @@ def plain_bilinear(grid: np.ndarray, gm: GridMap, x: np.ndarray, y: np.ndarray,
     return np.where(inside, v, outside)
 
 
+def plain_reading(fld: NavField, x: np.ndarray, y: np.ndarray,
+                  below: float = nav_field.EXACT_BELOW_M) -> np.ndarray:
+    """NavField.clearance_xy written plainly: the bilinear reading, and under EXACT_BELOW_M
+    (and `below`; not 0: off the map) the least of it and the exact distance to the nearest
+    of the obstacle squares nearest to the cell centres round the point (EXACT_BLOCK; the
+    same operations, 2-D indices), except where the bilinear one is exact (`col`, `row`)."""
+    gm, (h, w) = fld.map, fld.clearance.shape
+    v = plain_bilinear(fld.clearance, gm, x, y, 0.0)
+    fx = np.minimum(np.maximum((x - gm.origin_x_m) / gm.resolution_m - 0.5, 0), w - 1.0001)
+    fy = np.minimum(np.maximum((y - gm.origin_y_m) / gm.resolution_m - 0.5, 0), h - 1.0001)
+    x0, y0 = fx.astype(np.intp), fy.astype(np.intp)
+    ax, ay = fx - x0, fy - y0
+    best = np.full(v.shape, np.inf)
+    for ox, oy in nav_field.EXACT_BLOCK:
+        cy, cx = y0 + oy, x0 + ox
+        real = (cy >= 0) & (cy < h) & (cx >= 0) & (cx < w)
+        cy, cx = np.clip(cy, 0, h - 1), np.clip(cx, 0, w - 1)
+        ny, nx = fld._nearest[0][cy, cx], fld._nearest[1][cy, cx]
+        gx = np.maximum(np.abs(ax - (nx - x0).astype(np.float64)) - 0.5, 0.0)
+        gy = np.maximum(np.abs(ay - (ny - y0).astype(np.float64)) - 0.5, 0.0)
+        best = np.where(real, np.minimum(best, gx * gx + gy * gy), best)
+    exact = np.sqrt(best) * gm.resolution_m
+    # (not where the four centres' nearest obstacles lie straight across, in one column or
+    # row beyond them: there the bilinear reading is the distance to their face)
+    ny, nx = fld._nearest
+    quad = [(y0 + oy, x0 + ox) for oy in (0, 1) for ox in (0, 1)]
+    col = np.all([(nx[q] == nx[quad[0]]) & (ny[q] == q[0]) for q in quad], 0) & (
+        (nx[quad[0]] < x0) | (nx[quad[0]] > x0 + 1))
+    row = np.all([(ny[q] == ny[quad[0]]) & (nx[q] == q[1]) for q in quad], 0) & (
+        (ny[quad[0]] < y0) | (ny[quad[0]] > y0 + 1))
+    return np.asarray(np.where((v > 0) & (v < min(below, nav_field.EXACT_BELOW_M)) & ~col & ~row,
+                               np.minimum(v, exact), v))
+
+
 def poses(n: int, t: int, seed: int, off_map: bool) -> tuple[np.ndarray, ...]:
     rng = np.random.default_rng(seed)
     lo, hi = (-2.0, 8.0) if off_map else (1.0, 5.0)
@@ -82,8 +116,8 @@ def test_the_batched_footprint_clearance_is_the_plain_one() -> None:
             assert (got == 0.0).any() and (got > 0.0).any()
         # the in-place sampling of given outline points (its scratch overwritten)
         px, py = plain_place(fld.outline, x[:3], y[:3], yaw[:3])
-        assert np.array_equal(fld.outline_clearance(px.copy(), py.copy()), plain_bilinear(
-            fld.clearance, fld.map, px, py, 0.0).min(-1))
+        assert np.array_equal(fld.outline_clearance(px.copy(), py.copy()),
+                              plain_reading(fld, px, py).min(-1))
     # a single pose and a sweep of yaws at one point (broadcast) as before
     assert float(fld.footprint_clearance(2.0, 1.0, 0.3)) == float(plain_clearance(
         fld, np.array([2.0]), np.array([1.0]), np.array([0.3]))[0])
@@ -98,8 +132,8 @@ def test_reading_for_a_threshold_decides_as_reading_all() -> None:
     puts at `upto` or more, the fine outline everywhere puts there too."""
     fld = room()
     x, y, yaw = poses(400, 25, 5, False)
-    full = np.minimum(*(plain_bilinear(fld.clearance, fld.map, *plain_place(o, x, y, yaw),
-                                       0.0).min(-1) for o in (fld.outline, fld.outline_fine)))
+    full = np.minimum(*(plain_reading(fld, *plain_place(o, x, y, yaw)).min(-1)
+                        for o in (fld.outline, fld.outline_fine)))
     for need, upto in ((0.05, 0.05), (0.05, 0.09), (0.02, 0.02)):
         got = fld.footprint_clearance(x, y, yaw, need=need, upto=upto)
         assert ((full < need) & (full < got)).any()  # (coarse under need, left coarse)
@@ -111,10 +145,8 @@ def plain_clearance(fld: NavField, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
                     ) -> np.ndarray:
     """The two-tier outline clearance, written plainly: the coarse outline everywhere, the
     fine one too where the coarse reads under REFINE_BELOW_M."""
-    coarse = plain_bilinear(fld.clearance, fld.map, *plain_place(fld.outline, x, y, yaw),
-                            0.0).min(-1)
-    fine = plain_bilinear(fld.clearance, fld.map, *plain_place(fld.outline_fine, x, y, yaw),
-                          0.0).min(-1)
+    coarse = plain_reading(fld, *plain_place(fld.outline, x, y, yaw)).min(-1)
+    fine = plain_reading(fld, *plain_place(fld.outline_fine, x, y, yaw)).min(-1)
     return np.asarray(np.where(coarse < nav_field.REFINE_BELOW_M, np.minimum(coarse, fine),
                                coarse))
 
@@ -128,8 +160,11 @@ def test_people_distances_in_batches_are_the_plain_ones() -> None:
     d, near = mp.outline_distances(x, y, yaw, people, t)
     px, py = plain_place(fld.outline, x, y, yaw)
     # (the prediction's clearance: the coarse outline, NavField.footprint_clearance(fine=False))
-    assert np.array_equal(d, plain_bilinear(fld.clearance, fld.map, px, py, 0.0).min(-1))
-    assert np.array_equal(d, fld.footprint_clearance(x, y, yaw, fine=False))
+    # (read exactly under contact_m and half a cell: Mpepc.predict_below)
+    assert np.array_equal(d, plain_reading(fld, px, py, mp.predict_below).min(-1))
+    assert np.array_equal(d, fld.footprint_clearance(x, y, yaw, fine=False,
+                                                     below=mp.predict_below))
+    assert ((d > 0.0) & (d < mp.predict_below)).any()
     for p, (to_path, to_here) in zip(people, near, strict=True):
         cx, cy = p.x_m + p.vx_mps * t, p.y_m + p.vy_mps * t
         assert np.array_equal(to_path, np.hypot(px - cx[:, None], py - cy[:, None]).min(-1))

@@ -28,7 +28,15 @@ from autochair.geometry import Pose, along_lateral, compose
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav.field import CostToGo, Footprint, GridMap, NavField
 from autochair.nav.frames import MapFrame
-from autochair.nav.mpepc import ALIGNED_RAD, Chain, LawParams, MpepcParams, Person, Plan
+from autochair.nav.mpepc import (
+    ALIGNED_RAD,
+    GOAL_DROP_M,
+    Chain,
+    LawParams,
+    MpepcParams,
+    Person,
+    Plan,
+)
 from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
@@ -708,7 +716,7 @@ class ControlCore:
         self._plan_got_t = now
         if plan.is_goal and self.index == len(self.waypoints) - 1:
             self.final = True
-        elif self.final and (plan.goal_clearance_m < 0.02 or not (
+        elif self.final and (plan.goal_clearance_m < GOAL_DROP_M or not (
                 plan.goal_stop_clear or self.straight or self.aligning)):
             # Something stepped in; or the law's approach, which MPEPC checks only as it hands
             # the goal over, would commit the chair to a motion or a stop that does not keep

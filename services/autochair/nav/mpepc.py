@@ -291,6 +291,9 @@ class Plan:
     goal_stop_clear: bool = True
 
 
+# The core drops the goal on its own final approach where Plan.goal_clearance_m is under this
+# (control/core.py): the lowest margin the prediction's clearance is compared with.
+GOAL_DROP_M = 0.02
 # How fast a footprint reading can fall as the outline moves (per m): the bilinear reading of
 # a distance field, each partial derivative within ±1 (NavField.clearance_at).
 SLOPE = math.sqrt(2.0)
@@ -739,13 +742,17 @@ class Mpepc:
         xs, ys, yaws, vs, ws, brake, origin = self.simulate(pose, v0, w0, z, a0, q0, goal, last,
                                                             chain)
         t = np.asarray((np.arange(self.steps) + 1) * dt, dtype=np.float64)
-        d_static, to_people = self.outline_distances(xs, ys, yaws, people, t)  # (N, T)
-        pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
         # Already closer than `contact_m` (a noisy live map, a chair nudged to a wall): only
         # getting closer still counts as a hit, so the chair can move away instead of freezing.
         # (each read as what it is compared with: the prediction coarse, the committed fine)
-        hit = d_static < min(p.contact_m, float(fld.footprint_clearance(*pose, fine=False))
-                             - 0.005)
+        hit_under = min(p.contact_m, float(fld.footprint_clearance(
+            *pose, fine=False, below=self.predict_below)) - 0.005)
+        # (poses read under both it and the 0.02 m the core drops its own approach at,
+        # Plan.goal_clearance_m, decide alike whatever the exact reading: left bilinear)
+        d_static, to_people = self.outline_distances(xs, ys, yaws, people, t,
+                                                     min(hit_under, GOAL_DROP_M))  # (N, T)
+        pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
+        hit = d_static < hit_under
         d0 = float(fld.footprint_clearance(*pose))
         # A motion is only as safe as the stop after it: the next plan can brake the chair
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
@@ -877,17 +884,30 @@ class Mpepc:
                     need=need))
         return d
 
-    def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64
-                          ) -> tuple[F64, list[tuple[F64, F64]]]:
+    @property
+    def predict_below(self) -> float:
+        """Where the prediction's clearance is read exactly (NavField.outline_clearance):
+        under `contact_m` and half a cell, the most the bilinear reading is over the exact
+        one. A prediction pose within `contact_m` reads so wherever it is (its hit is
+        truthful, H47); farther out its cost (σ 0.1 m) is read as before (bilinear), as
+        H48 left it on the coarse outline: it is replanned every cycle, and what the chair
+        is committed to is read exactly up to EXACT_BELOW_M (`stop_clearance`)."""
+        return self.p.contact_m + self.field.map.resolution_m / 2
+
+    def outline_distances(self, xs: F64, ys: F64, yaws: F64, people: list[Person], t: F64,
+                          hit_under: float = 0.0) -> tuple[F64, list[tuple[F64, F64]]]:
         """At the predicted poses (N, T): the footprint's clearance on the coarse outline
         (NavField.footprint_clearance: the prediction's cost, replanned every cycle; what the
         chair is committed to, `stop_clearance`, is read on the fine one too) and per person
         the least distance of its outline to their centre predicted at constant velocity (at
         times `t`) and to where they stand now. In batches of candidates (field.BATCH_POINTS:
-        the temporaries stay in cache), the same numbers."""
+        the temporaries stay in cache), the same numbers. The clearance is read exactly under
+        `predict_below` but not at poses read under `hit_under` (hits, and under every margin
+        it is compared with, whatever it reads)."""
         fld = self.field
         if not people:
-            return fld.footprint_clearance(xs, ys, yaws, fine=False), []
+            return fld.footprint_clearance(xs, ys, yaws, fine=False, below=self.predict_below,
+                                           decided=hit_under), []
         d = np.empty(xs.shape)
         near = [(np.empty(xs.shape), np.empty(xs.shape)) for _ in people]
         rows = max(1, BATCH_POINTS // (xs.shape[1] * len(fld.outline)))
@@ -898,7 +918,8 @@ class Mpepc:
                 cx, cy = person.x_m + person.vx_mps * t, person.y_m + person.vy_mps * t
                 to_path[b] = np.hypot(px - cx[:, None], py - cy[:, None]).min(-1)
                 to_here[b] = np.hypot(px - person.x_m, py - person.y_m).min(-1)
-            d[b] = fld.outline_clearance(px, py)  # (last: px, py are its scratch)
+            d[b] = fld.outline_clearance(px, py, self.predict_below,
+                                         hit_under)  # (last: px, py are its scratch)
         return d, near
 
     def lattice_active(self, hf: HeadingField, pose: tuple[float, float, float],
