@@ -112,6 +112,38 @@ def test_the_exact_reading_is_the_distance_to_the_nearest_occupied_square(
     assert float((NavField(gm, FP).clearance_at(q) - brute)[sel].max()) > 0.005
 
 
+def test_the_reading_floor_is_under_the_fine_outlines_true_clearance() -> None:
+    """NavField.reading_floor, what stop_clearance decides which poses between two kept ones
+    to read by, is a lower bound of the fine outline's true clearance (the distance to the
+    occupied squares) at poses footprint_clearance read as `d`. Round one occupied cell, at
+    0.05 m cells: a pose whose least point reads 0.125-0.14 m exactly may have another point
+    read bilinear (at 0.14 or more) that is truly nearer (the floor was 2 mm over); at 0.1 m
+    cells the bilinear reading past 0.14 m was 2.6 cm over the exact one, not at most
+    BILINEAR_OVER_M (the floor 5.8 mm over here). Positive control: the floor is not
+    vacuous (within 1.5 cm of the truth somewhere, and readings under the bound checked)."""
+    rng = np.random.default_rng(0)
+    for res in (0.05, 0.1):
+        n = round(2.4 / res)
+        occ = np.zeros((n, n), dtype=np.bool_)
+        occ[n // 2, n // 2] = True
+        fld = NavField(GridMap(occ, res, 0.0, 0.0), FP)
+        x, y, yaw = rng.uniform(0.9, 1.5, 4000), rng.uniform(0.9, 1.5, 4000), \
+            rng.uniform(-math.pi, math.pi, 4000)
+        # (and at 0.05 m cells a pose found so: read 0.1373, truly 0.1131, its floor was 0.1150)
+        x, y, yaw = np.append(x, 1.35515), np.append(y, 0.90617), np.append(yaw, 2.59301)
+        pts = place(np.concatenate([fld.outline, fld.outline_fine]), x, y, yaw)
+        lo = n // 2 * res
+        gx = np.maximum(np.maximum(lo - pts[..., 0], pts[..., 0] - lo - res), 0.0)
+        gy = np.maximum(np.maximum(lo - pts[..., 1], pts[..., 1] - lo - res), 0.0)
+        truth = np.hypot(gx, gy).min(-1)
+        for need, upto in ((None, None), (0.05, 0.091), (0.02, 0.06)):
+            d = fld.footprint_clearance(x, y, yaw, need=need, upto=upto)
+            floor = fld.reading_floor(d.copy(), need, upto)
+            assert float((floor - truth).max()) <= 1e-9, (res, need)
+            assert float((floor - truth).max()) > -0.015
+            assert ((d > 0.125) & (d < 0.14)).sum() > 50
+
+
 def test_a_thin_pole_between_the_outlines_points_is_not_read_as_clear(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """H48: the footprint was read at outline points 0.14–0.15 m apart. A pole (a table or

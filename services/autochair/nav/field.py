@@ -55,6 +55,11 @@ EXACT_BLOCK = ((0, 0), (1, 0), (0, 1), (1, 1), (-1, 0), (-1, 1), (2, 0), (2, 1),
                (1, -1), (0, 2), (1, 2))
 EXACT_X = np.array([float(dx) for dx, _ in EXACT_BLOCK])
 EXACT_Y = np.array([float(dy) for _, dy in EXACT_BLOCK])
+# On coarser grids (a map saved or built at over 0.05 m), the same in cells: EXACT_BELOW_M is
+# 2.8 cells at 0.05 m and BILINEAR_OVER_M 0.3 (at 0.1 m cells the bilinear reading past 0.14 m
+# was 2.6 cm over the exact one; past 2.8 cells ≤ 0.27 cells at 0.025–0.2 m; measured)
+EXACT_BELOW_CELLS = 2.8
+BILINEAR_OVER_CELLS = 0.3
 SLOTS = 6  # distinct candidates kept per cell (NavField._candidates; more: all are read)
 
 
@@ -303,6 +308,9 @@ class NavField:
         self.clearance: F64 = np.maximum(np.asarray(edt, dtype=np.float64) - res / 2, 0.0)
         if not gm.occupied.any():
             self.clearance[:] = 1e3
+        # (EXACT_BELOW_M, BILINEAR_OVER_M for this grid's cells)
+        self.exact_below_m = max(EXACT_BELOW_M, EXACT_BELOW_CELLS * res)
+        self.bilinear_over_m = max(BILINEAR_OVER_M, BILINEAR_OVER_CELLS * res)
         exact = bool(gm.occupied.any()) and min(gm.occupied.shape) >= 2
         self._corner = self._corner_cells() if exact else None
         self._slots = self._candidates() if exact else None
@@ -346,7 +354,7 @@ class NavField:
         in place. (0 is left: outside the map, or amid four occupied cells, where the exact
         distance is 0 too.)"""
         if self._corner is not None:
-            sel = (v > 0.0) & (v < EXACT_BELOW_M)
+            sel = (v > 0.0) & (v < self.exact_below_m)
             sel &= self._corner.take(i)
             if sel.any():
                 v[sel] = np.minimum(v[sel], self._exact(i[sel], ax[sel], ay[sel]))
@@ -367,7 +375,7 @@ class NavField:
         span = np.full((h, w), np.inf)
         span[:-1, :-1] = np.minimum(np.minimum(c[:-1, :-1], c[:-1, 1:]),
                                     np.minimum(c[1:, :-1], c[1:, 1:]))
-        cells = np.flatnonzero(span.ravel() < EXACT_BELOW_M)
+        cells = np.flatnonzero(span.ravel() < self.exact_below_m)
         y0, x0 = cells // w, cells % w
         nx0, ny0 = nx[cells], ny[cells]
         same_col = (nx0 < x0) | (nx0 > x0 + 1)
@@ -529,12 +537,15 @@ class NavField:
         """A lower bound of the fine outline's clearance at poses that
         footprint_clearance(..., need=need, upto=upto) read as `d`: `d` where it was read on
         the fine outline, else the least the fine one can be beside that coarse reading (the
-        bound of `_refined`, inverted; past `EXACT_BELOW_M` the coarse reading is the bilinear
-        one, at most `BILINEAR_OVER_M` over the exact one)."""
+        bound of `_refined`, inverted). A pose's least reading is exact only under
+        EXACT_BELOW_M − BILINEAR_OVER_M: its points read EXACT_BELOW_M or more are read
+        bilinear, at most BILINEAR_OVER_M over the exact distance, so under the least `d`
+        read exactly at another point one of them can be (a reading of 0.138 m at 0.05 m cells
+        was 0.130 in truth on the coarse outline and its floor 2.4 mm over the fine one's)."""
         lo, hi = self._refine_range(need, upto)
-        exact = np.where(d < EXACT_BELOW_M, d, d - BILINEAR_OVER_M)
+        exact = np.minimum(d, np.maximum(d, self.exact_below_m) - self.bilinear_over_m)
         coarse = np.sqrt(np.maximum(exact ** 2 - (COARSE_SPACING_M / 2) ** 2, 0.0))
-        return np.asarray(np.where((d >= lo) & (d < hi), d, coarse), dtype=np.float64)
+        return np.asarray(np.where((d >= lo) & (d < hi), exact, coarse), dtype=np.float64)
 
     def _refine_range(self, need: float | None, upto: float | None) -> tuple[float, float]:
         """The coarse readings `_refined` reads on the fine outline too: [lo, hi)."""
@@ -542,7 +553,8 @@ class NavField:
             return -math.inf, REFINE_BELOW_M
         hi = math.hypot(need if upto is None else upto, COARSE_SPACING_M / 2) + 0.005
         # (a coarse reading past EXACT_BELOW_M is the bilinear one: up to BILINEAR_OVER_M over)
-        return need, hi + BILINEAR_OVER_M if hi + BILINEAR_OVER_M > EXACT_BELOW_M else hi
+        over = self.bilinear_over_m
+        return need, hi + over if hi + over > self.exact_below_m else hi
 
     def _clearance(self, outline: F64, xs: F64, ys: F64, yaws: F64,
                    below: float | None = None, decided: float = 0.0) -> F64:
@@ -578,7 +590,7 @@ class NavField:
         m = np.asarray(v.min(-1))
         if self._corner is None:
             return m
-        below = EXACT_BELOW_M if below is None else min(below, EXACT_BELOW_M)
+        below = self.exact_below_m if below is None else min(below, self.exact_below_m)
         mf = m.reshape(-1)  # (a view: the poses' readings, lowered in place)
         if not mf.size or mf.min() >= below:
             return m
