@@ -96,7 +96,11 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     # nav_eval seed 7 32/32, clearances 0.064 / 0.069 m, but its median time 1.60 → 1.755
     # (office A's far corner 4.5 → 6.9×, office A to B, clutter far side, room B's corner and,
     # from the approach rate, the overtaken person much slower) and seed 1 loses office A's far
-    # corner (blocked beside the goal). Off until MPEPC's hard cases are understood with it.
+    # corner (blocked beside the goal); with H47's exact reading and H50's chain sweep, seeds
+    # 7 / 1 / 2 arrive 31 / 31 / 32 (office B's desk, its last turn; office A's far corner)
+    # and seed 2's doorway reads 0.045 m. Line-ups judged on the measured pose, or turned onto
+    # when reached off heading, only moved which tight case fails (measured). Off until
+    # MPEPC's last manoeuvres in tight spots are understood with it.
     lead: bool = False
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
