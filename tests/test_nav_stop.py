@@ -8,6 +8,7 @@ comes to rest, along the path it really sweeps.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import replace
 
@@ -300,7 +301,7 @@ def test_the_committed_sweep_is_the_body_through_the_drive_chain() -> None:
     st = chair.state()
     v0, a0, w0, q0 = (float(st[i, 0]) for i in range(4))
     cv, cw = chair.core._chain
-    chain = Chain((chair.x, chair.y, chair.yaw), cv.copy(), cw.copy(), chair.h)
+    chain = Chain((chair.x, chair.y, chair.yaw), copy.deepcopy(cv), copy.deepcopy(cw), chair.h)
     n = len(chair.true)
     chair.drive(0.0, 0.0, 4.0)  # braked (the stop), to rest
     true = np.array(chair.true[n:])

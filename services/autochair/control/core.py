@@ -325,13 +325,6 @@ class ChainAxis:
         self.pipe.clear()
         self.x1 = self.x2 = value
 
-    def copy(self) -> ChainAxis:
-        """A snapshot (for a planning cycle run outside the core's lock)."""
-        c = ChainAxis(0.0, 0.0)
-        c.lag, c.delay, c.pipe, c.x1, c.x2 = self.lag, self.delay, deque(self.pipe), self.x1, \
-            self.x2
-        return c
-
     def push(self, dt: float, u: float) -> None:
         self.pipe.append((dt, u))
         while self.pipe and sum(p[0] for p in self.pipe) > self.delay + 1e-9:
@@ -702,7 +695,9 @@ class ControlCore:
         cv, cw = self._chain
         if self.cfg.lead or max(cv.delay, cw.delay, cv.lag, cw.lag) <= 0.0:
             return None
-        return Chain(self._now_pose(o, now), cv.copy(), cw.copy(), 1.0 / self.cfg.rate_hz)
+        # (snapshots: the plan runs outside the core's lock)
+        return Chain(self._now_pose(o, now), copy.deepcopy(cv), copy.deepcopy(cw),
+                     1.0 / self.cfg.rate_hz)
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""

@@ -215,9 +215,13 @@ def bilinear(grid: F64, gm: GridMap, pts: F64, outside: float) -> F64:
 
 def bilinear_xy(grid: F64, gm: GridMap, x: F64, y: F64, outside: float) -> F64:
     """`bilinear` at world points given as separate x and y arrays (...)."""
-    fx = (x - gm.origin_x_m) / gm.resolution_m - 0.5
-    fy = (y - gm.origin_y_m) / gm.resolution_m - 0.5
-    return _sample(grid, fx, fy, outside)
+    return _sample(grid, *_cell_xy(gm, x, y), outside)
+
+
+def _cell_xy(gm: GridMap, x: F64, y: F64) -> tuple[F64, F64]:
+    """World points as fractional indices of the cell-centred grid (what _sample reads)."""
+    return (np.asarray((x - gm.origin_x_m) / gm.resolution_m - 0.5, dtype=np.float64),
+            np.asarray((y - gm.origin_y_m) / gm.resolution_m - 0.5, dtype=np.float64))
 
 
 def _sample(grid: F64, fx: F64, fy: F64, outside: float,
@@ -342,10 +346,7 @@ class NavField:
 
     def clearance_xy(self, x: F64, y: F64) -> F64:
         """`clearance_at` for points given as separate x and y arrays (...)."""
-        gm = self.map
-        fx = np.asarray((x - gm.origin_x_m) / gm.resolution_m - 0.5, dtype=np.float64)
-        fy = np.asarray((y - gm.origin_y_m) / gm.resolution_m - 0.5, dtype=np.float64)
-        v, i, ax, ay = _sample_at(self.clearance, fx, fy, 0.0)
+        v, i, ax, ay = _sample_at(self.clearance, *_cell_xy(self.map, x, y), 0.0)
         return self._exactly(np.array(v, dtype=np.float64), i, np.asarray(ax), np.asarray(ay))
 
     def _exactly(self, v: F64, i: npt.NDArray[np.intp], ax: F64, ay: F64) -> F64:
