@@ -13,6 +13,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from autochair.control.core import ChainAxis, ControlConfig, ControlCore, OdomSample
 from autochair.control.limits import ComfortLimiter
@@ -334,3 +335,25 @@ def test_the_committed_sweep_is_the_body_through_the_drive_chain() -> None:
     # brakes the turn ~1° short of the core's at 0.02 s.)
     old, new, real = post(2.738, -0.921)
     assert new >= need and real >= need
+
+
+def test_parameters_that_would_leave_the_chain_out_of_the_committed_sweep_are_refused() -> None:
+    # Mpepc.chain_sweep takes the committed motion's commands at steps of exact_dt_s; where
+    # the committed motion (whole plan steps of dt_s) was not a whole number of them (0.6 s at
+    # 0.07 s), simulate silently swept the rollout instead (H50's weaker check) though the
+    # core had handed its chain over. Such parameters are refused.
+    with pytest.raises(ValueError, match="exact_dt_s"):
+        MpepcParams(exact_dt_s=0.07)
+    # Positive controls: whole steps are taken, and the chain is swept with them.
+    cfg = ControlConfig()
+    chair = LaggedChair(cfg)
+    chair.drive(0.8, 0.3, 1.0)
+    cv, cw = chair.core._chain
+    chain = Chain((chair.x, chair.y, chair.yaw), copy.deepcopy(cv), copy.deepcopy(cw), chair.h)
+    p, st = chair.predicted(), chair.state()
+    for params in (MpepcParams(), MpepcParams(exact_dt_s=0.1), MpepcParams(exact_dt_s=0.04)):
+        mp = Mpepc(free_field([(0.0, 0.0), (6.0, 3.0)], FP), cfg.law(0.025), params)
+        got = mp.simulate((p.x, p.y, p.yaw), float(st[0, 0]), float(st[2, 0]),
+                          np.array([[1.0, 0.0, 0.0, 0.0]]), float(st[1, 0]), float(st[3, 0]),
+                          chain=chain)
+        assert got[6] is not None

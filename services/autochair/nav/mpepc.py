@@ -254,6 +254,15 @@ class MpepcParams:
     local_rounds: int = 3
     seed: int = 7  # of the local sampler (bench nav_eval --seed: how much outcomes depend on it)
 
+    def __post_init__(self) -> None:
+        # Mpepc.chain_sweep takes the committed motion's commands (whole plan steps of dt_s)
+        # at steps of exact_dt_s: else the core's chain would go unused, silently (the
+        # rollout's own sweep instead: H50's weaker check).
+        k = round(self.dt_s / self.exact_dt_s)
+        if k < 1 or abs(k * self.exact_dt_s - self.dt_s) > 1e-9:
+            raise ValueError(f"dt_s ({self.dt_s:g}) must be a whole number of exact_dt_s "
+                             f"({self.exact_dt_s:g})")
+
 
 @dataclass(frozen=True)
 class Plan:
@@ -477,11 +486,9 @@ class Mpepc:
         every = max(1, round(0.5 * dt / self.p.exact_dt_s))  # poses kept: ~0.1 s
         n_b, j_b = self.brake_steps(), -1  # the stop's steps, the one done (-1: not braking)
         m, stopped = len(sched), False  # the steps simulated side by side; the stop done
-        h = self.p.exact_dt_s
-        # the commands of the committed motion and its stop, (v, ω) (2, N) after each step,
-        # for chain_sweep (which takes steps of one length: else the rollout's own sweep)
-        cmds: list[F64] | None = [] if chain is not None and abs(span / n_c - h) < 1e-9 \
-            else None
+        # the commands of the committed motion and its stop, (v, ω) (2, N) after each step of
+        # exact_dt_s, for chain_sweep
+        cmds: list[F64] | None = [] if chain is not None else None
         for j, (step_dt, k) in enumerate(sched):
             dts[:n] = step_dt
             xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
