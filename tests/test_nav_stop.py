@@ -258,18 +258,37 @@ def test_the_cores_own_approach_is_handed_back_when_its_committed_stop_would_tou
     planner._lattices.clear()
 
     def plan_from(pose: tuple[float, float, float], v: float, w: float,
-                  rates: tuple[float, float]) -> PlanResult:
+                  rates: tuple[float, float], chained: bool) -> PlanResult:
         return planner.compute(PlanRequest(1, 0, pose, v, w, goal, fld, None, None,
-                                           cfg.law(0.025), [], rates, True,
-                                           approaching=True), MpepcParams(seed=2))
+                                           cfg.law(0.025), [], rates, True, approaching=True,
+                                           chain=steady(pose, v, w) if chained else None),
+                               MpepcParams(seed=2))
 
-    tight = plan_from((2.5062, 1.0025, -0.2071), 0.1107, 0.0488, (0.64, 0.308))
-    assert tight.plan is not None
-    assert tight.plan.goal_clearance_m >= 0.02  # (what the core watched: it kept the goal)
-    assert not tight.plan.goal_stop_clear
-    # Positive control: through the door's middle, the approach is clear.
-    clear = plan_from((2.962, 0.9563, -0.0159), 0.5954, 0.1830, (0.0, -0.154))
-    assert clear.plan is not None and clear.plan.goal_stop_clear
+    def steady(pose: tuple[float, float, float], v: float, w: float) -> Chain:
+        """The core's drive chain after (v, ω) held, placed where its predictor puts the
+        chair (the plan's start) at `pose`."""
+        core = ControlCore(cfg)
+        cv, cw = core._chain
+        cv.reset(v)
+        cw.reset(w)
+        for _ in range(60):
+            cv.push(0.02, v)
+            cw.push(0.02, w)
+        now = pose
+        for _ in range(10):
+            p = core._predicted(OdomSample(*now, v, w, 0.0), 0.0)
+            now = (now[0] + pose[0] - p.x, now[1] + pose[1] - p.y, now[2] + pose[2] - p.yaw)
+        return Chain(now, cv, cw, 1.0 / cfg.rate_hz)
+
+    # (as MPEPC's rollout sweeps it, and as the core asks now: through its drive chain)
+    for chained in (False, True):
+        tight = plan_from((2.5062, 1.0025, -0.2071), 0.1107, 0.0488, (0.64, 0.308), chained)
+        assert tight.plan is not None
+        assert tight.plan.goal_clearance_m >= 0.02  # (what the core watched: it kept the goal)
+        assert not tight.plan.goal_stop_clear
+        # Positive control: through the door's middle, the approach is clear.
+        clear = plan_from((2.962, 0.9563, -0.0159), 0.5954, 0.1830, (0.0, -0.154), chained)
+        assert clear.plan is not None and clear.plan.goal_stop_clear
 
     core = ControlCore(cfg, footprint=FP)
     core.on_field(fld)
@@ -277,6 +296,7 @@ def test_the_cores_own_approach_is_handed_back_when_its_committed_stop_would_tou
     from autochair_msgs import GoalRequest, Pose2D
 
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+    assert clear.plan is not None  # (the plans through the chain, from here on)
     handed = replace(clear.plan, is_goal=True)
     for res, final in ((clear, True), (tight, False)):
         core.on_plan(PlanResult(core.goal_id, 0, fld, clear.ctg, handed), 0.0)
@@ -335,6 +355,44 @@ def test_the_committed_sweep_is_the_body_through_the_drive_chain() -> None:
     # brakes the turn ~1° short of the core's at 0.02 s.)
     old, new, real = post(2.738, -0.921)
     assert new >= need and real >= need
+
+
+def test_the_cores_plan_request_carries_a_snapshot_of_its_drive_chain() -> None:
+    # H50: MPEPC reads the committed sweep through the core's drive chain only if the core
+    # hands it over with the plan request (else the rollout's sweep, which the body strayed
+    # outside by up to 4.9 cm against 2.6). With the predictor on and the lead off it carries
+    # the odometry's pose moved on to now and both axes as the predictor holds them, a copy
+    # the commands sent while the plan is computed (outside the core's lock) leave alone.
+    from autochair_msgs import GoalRequest, Pose2D
+
+    def request(cfg: ControlConfig) -> tuple[ControlCore, Chain | None]:
+        core = ControlCore(cfg, footprint=FP)
+        core.inline_planning = False
+        core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(4.0, 1.0, 0.0)]), 0.0).ok
+        for k in range(40):  # (turning as it speeds up: both axes hold commands)
+            core._chain[0].push(0.02, 0.02 * k)
+            core._chain[1].push(0.02, 0.01 * k)
+        core.on_odom(OdomSample(1.0, 0.5, 0.2, 0.6, 0.3, 0.9, age_s=0.02))
+        req = core.plan_request(1.0)
+        assert req is not None
+        return core, req.chain
+
+    core, chain = request(ControlConfig())
+    assert chain is not None
+    age = 0.1 + 0.02  # (now − receipt, and the sample's own age)
+    mid = 0.2 + 0.5 * 0.3 * age
+    assert chain.pose == pytest.approx((1.0 + 0.6 * math.cos(mid) * age,
+                                        0.5 + 0.6 * math.sin(mid) * age, 0.2 + 0.3 * age))
+    for mine, live in zip((chain.v, chain.omega), core._chain, strict=True):
+        assert mine is not live and mine.future(0.1, 20) == live.future(0.1, 20)
+        before = mine.future(0.1, 20)
+        live.push(0.02, 1.0)  # (the 50 Hz loop goes on meanwhile)
+        assert mine.future(0.1, 20) == before != live.future(0.1, 20)
+    # Positive controls: with the lead (its commands are not the plan's), or the predictor
+    # off, it carries none and MPEPC sweeps its own rollout (as documented in H50).
+    assert request(ControlConfig(lead=True))[1] is None
+    assert request(ControlConfig(predict_s=0.0, predict_omega_s=0.0))[1] is None
 
 
 def test_parameters_that_would_leave_the_chain_out_of_the_committed_sweep_are_refused() -> None:
