@@ -21,6 +21,7 @@ from autochair.control.core import (
 )
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
 from autochair.geometry import wrap_angle as wrap
+from autochair.nav.mpepc import Person
 from autochair.pid.core import NEUTRAL_V, PidConfig
 from autochair.tune.lockstep import DT as LOCKSTEP_DT
 from autochair.tune.lockstep import Rig
@@ -210,6 +211,28 @@ def test_the_leads_forward_stop_lands_on_the_goal(monkeypatch: pytest.MonkeyPatc
     and the chair lands within 1 cm; without it 1.5 cm past (positive control)."""
     assert abs(lead_lands_past(3.0)) < 0.01
     assert lead_lands_past(3.0, monkeypatch) > 0.012
+
+
+@pytest.mark.parametrize("lead", [False, True])
+def test_people_are_moved_on_as_far_as_the_chair_lags_the_plan(lead: bool) -> None:
+    """The plan starts where the chair will be once the commands sent have acted, and people
+    are moved on as far: the predictor's window (0.67 s), or with the lead the dead time and
+    the lead's two lags only (0.49 s; moved by 0.69 s before, a person 0.2 m off at 1 m/s)."""
+    cfg = ControlConfig(lead=lead)
+    core = ControlCore(cfg)
+    core.on_odom(OdomSample(0, 0, 0, 0, 0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 0.0, 0.0)]), 0.0).ok
+    t = 0.0
+    while t < 2.0:  # (odometry at rest: only the commands' history matters here)
+        core.on_odom(OdomSample(0, 0, 0, 0, 0, t))
+        core.step(t)
+        t += 1.0 / cfg.rate_hz
+    core.people = [Person(3.0, 1.0, 1.0, 0.0, 0.3)]
+    core._plan_t = -math.inf
+    req = core.plan_request(t)
+    assert req is not None
+    lag = cfg.predict_s - 2 * cfg.predict_lag_s + 2 * LEAD_SMOOTH_S if lead else cfg.predict_s
+    assert req.people[0].x_m - 3.0 == pytest.approx(lag, abs=0.025)
 
 
 def test_predictor_defaults_are_the_identified_drive_chain() -> None:

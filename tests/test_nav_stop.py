@@ -360,7 +360,7 @@ def test_the_committed_sweep_is_the_body_through_the_drive_chain() -> None:
 def test_the_cores_plan_request_carries_a_snapshot_of_its_drive_chain() -> None:
     # H50: MPEPC reads the committed sweep through the core's drive chain only if the core
     # hands it over with the plan request (else the rollout's sweep, which the body strayed
-    # outside by up to 4.9 cm against 2.6). With the predictor on and the lead off it carries
+    # outside by up to 4.9 cm against 2.6). With the predictor on (the lead off) it carries
     # the odometry's pose moved on to now and both axes as the predictor holds them, a copy
     # the commands sent while the plan is computed (outside the core's lock) leave alone.
     from autochair_msgs import GoalRequest, Pose2D
@@ -389,9 +389,13 @@ def test_the_cores_plan_request_carries_a_snapshot_of_its_drive_chain() -> None:
         before = mine.future(0.1, 20)
         live.push(0.02, 1.0)  # (the 50 Hz loop goes on meanwhile)
         assert mine.future(0.1, 20) == before != live.future(0.1, 20)
-    # Positive controls: with the lead (its commands are not the plan's), or the predictor
-    # off, it carries none and MPEPC sweeps its own rollout (as documented in H50).
-    assert request(ControlConfig(lead=True))[1] is None
+    # With the lead the chair follows the plan's commands through the plan chain (dead time
+    # and the lead's lags), and that is what it carries; with the predictor off it carries
+    # none and MPEPC sweeps its own rollout (as documented in H50).
+    led, chain = request(ControlConfig(lead=True))
+    assert led._plan_chain is not None and chain is not None
+    for mine, live in zip((chain.v, chain.omega), led._plan_chain, strict=True):
+        assert mine is not live and mine.delay == live.delay and mine.lag == live.lag
     assert request(ControlConfig(predict_s=0.0, predict_omega_s=0.0))[1] is None
 
 
@@ -415,3 +419,61 @@ def test_parameters_that_would_leave_the_chain_out_of_the_committed_sweep_are_re
                           np.array([[1.0, 0.0, 0.0, 0.0]]), float(st[1, 0]), float(st[3, 0]),
                           chain=chain)
         assert got[6] is not None
+
+
+class LedChair(LaggedChair):
+    """A LaggedChair with the lead (`[control] lead`): the core's limiter's commands led past
+    the prefilter as the core sends them (_lead_out, forward-only clamp included), then the
+    chain; the core's plan chain is fed the limiter's commands, as its step does."""
+
+    def drive(self, v: float, w: float, seconds: float) -> None:
+        cv, cw = self.core._chain
+        assert self.core._plan_chain is not None
+        pv, pw = self.core._plan_chain
+        for _ in range(round(seconds / self.h)):
+            plan = self.lim.step(v, w, self.h)
+            pv.push(self.h, plan[0])
+            pw.push(self.h, plan[1])
+            sent = self.core._lead_out(*plan, self.h)
+            cv.push(self.h, sent[0])
+            cw.push(self.h, sent[1])
+            mid = self.yaw + 0.5 * cw.x2 * self.h
+            self.x += cv.x2 * math.cos(mid) * self.h
+            self.y += cv.x2 * math.sin(mid) * self.h
+            self.yaw += cw.x2 * self.h
+            self.true.append((self.x, self.y, self.yaw))
+
+
+def test_with_the_lead_the_committed_sweep_is_the_body_through_the_lead() -> None:
+    # H50's committed sweep passes MPEPC's commands (the plan's) through the drive chain.
+    # With the lead the chair does not get the plan's commands but the led ones, and follows
+    # the plan delayed by the dead time and the lead's smoothing only: the sweep must use
+    # that chain (it was skipped with the lead). The predictor's chain (dead time and the
+    # prefilter) puts the body 9 cm off its real path here (its sweep 1.6 cm).
+    cfg = ControlConfig(lead=True)
+    chair = LedChair(cfg)
+    chair.drive(1.0, 0.0, 2.0)
+    chair.drive(1.0, -0.9, 0.3)
+    p = chair.predicted()
+    pose = (p.x, p.y, p.yaw)
+    st = chair.state()
+    v0, a0, w0, q0 = (float(st[i, 0]) for i in range(4))
+    chain = chair.core._chain_now(OdomSample(chair.x, chair.y, chair.yaw, 1.0, 0.0, 0.0), 0.0)
+    assert chain is not None
+    n = len(chair.true)
+    chair.drive(0.0, 0.0, 4.0)  # braked (the stop), to rest
+    true = np.array(chair.true[n:])
+    segs = np.array([[-3.0, -4.0, 7.0, -4.0], [-3.0, 4.0, 7.0, 4.0]])
+    mp = Mpepc(NavField(GridMap.from_shapes(segs, np.zeros((0, 3)), resolution_m=0.02), FP),
+               cfg.law(0.025))
+    stop = np.array([[1.0, 0.0, 0.0, 0.0]])
+
+    def off(c: Chain) -> float:
+        """How far the sweep's poses lie from the body's true path (position, m)."""
+        sweep = mp.simulate(pose, v0, w0, stop, a0, q0, chain=c)[5][:, 0, :]
+        return float(np.hypot(sweep[0][:, None] - true[None, :, 0],
+                              sweep[1][:, None] - true[None, :, 1]).min(1).max())
+
+    assert off(chain) < 0.02
+    cv, cw = chair.core._chain  # (the led commands through the predictor's chain)
+    assert off(Chain(chain.pose, copy.deepcopy(cv), copy.deepcopy(cw), chair.h)) > 0.05
