@@ -300,7 +300,8 @@ def timing(fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig, t_goal: f
             "ref": {k: v for k, v in ref.items() if k != "time_s"},
             "bound_trapezoid_s": round(bound, 2),
             "time_ratio_trapezoid": round(t_goal / bound, 2) if bound > 0 else None,
-            "min_time_s": None if least is None else round(least.time_s, 2)}
+            "min_time_s": None if least is None else round(least.time_s, 2),
+            "min_time_ok": None if least is None else least.ok}
 
 
 def refusal(world_name: str, start: Pose, goal: Pose, cfg: ControlConfig,
@@ -342,9 +343,11 @@ def summarise(runs: list[dict[str, Any]], refused: list[dict[str, Any]], wall: f
         if any(r["arrived"] for r in ok) else None,
         "cases_time_ratio_trapezoid_over_1_5": sum(
             r["arrived"] and r["time_ratio_trapezoid"] > 1.5 for r in ok),
-        # the reference path's time is never under the least time without obstacles
-        "cases_ref_under_min_time": sum(r["min_time_s"] is not None
-                                        and r["ref_s"] < r["min_time_s"] for r in ok),
+        # the reference path's time is never under the least time without obstacles (by more
+        # than the 1 % its piecewise-constant jerks can add: an in-place half turn 4.183 s
+        # against the exact 4.170)
+        "cases_ref_under_min_time": sum(bool(r["min_time_ok"])
+                                        and r["ref_s"] < 0.99 * r["min_time_s"] for r in ok),
         "median_path_ratio": statistics.median(ratios) if (ratios := [
             r["path_ratio"] for r in ok if r["arrived"] and r["path_ratio"]]) else None,
         "max_peak_a_mps2": max(r["peak_a_mps2"] for r in ok),
