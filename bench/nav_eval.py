@@ -16,10 +16,10 @@ Time is compared with (`timing`):
   comfort limits, forward only (bench/path_time.py). The path: fast marching at uniform speed on
   the same grid and pass bound (the axle ≥ half width + 2 cm from obstacles), descended from the
   start. Its bends are smoothed as much as the geometry allows (`reference`): each turn spread
-  as a Gaussian of the largest σ (≤ 1 m) whose path keeps the axle at the pass bound near it, the
+  as a Gaussian of the largest σ (≤ 2 m) whose path keeps the axle at the pass bound near it, the
   turns in place at the start and end too (a chair may turn while it sets off), then spread to
   the curvature the shortest path itself has at most where it wraps an obstacle's corner
-  (1 / pass bound) and eased over 0.1 m; of σ capped at 1, 0.5 and 0.25 m the fastest is kept
+  (1 / pass bound) and eased over 0.1 m; of σ capped at 2, 1, 0.5 and 0.25 m the fastest is kept
   (more smoothing is not always faster). That path is timed: the turns in place left at its ends
   as jerk-limited S-curves, the drive as the least-time speed profile with v ≤ 1.2 m/s,
   |a| ≤ 1.0 m/s², |jerk| ≤ 2.0 m/s³ and ω = v·κ within |ω| ≤ 0.9 rad/s, |ω̇| ≤ 2.8 rad/s²,
@@ -71,8 +71,8 @@ Pose = tuple[float, float, float]
 F64 = np.ndarray[Any, np.dtype[np.float64]]
 # Smoothing of the shortest path's bends (σ, m), largest first: the largest whose path keeps the
 # axle at the pass bound (0 = the grid's path, its bends only spread to the curvature bound).
-SMOOTH_M = (1.0, 0.7, 0.5, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05, 0.0)
-SMOOTH_CAP_M = (1.0, 0.5, 0.25)  # ... each the most of SMOOTH_M tried, the fastest kept
+SMOOTH_M = (2.0, 1.5, 1.0, 0.7, 0.5, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05, 0.0)
+SMOOTH_CAP_M = (2.0, 1.0, 0.5, 0.25)  # ... each the most of SMOOTH_M tried, the fastest kept
 # (name, world file, start, goal, doorway: the clearance goal is 0.05 m instead of 0.2 m)
 CASES: list[tuple[str, str, Pose, Pose, bool]] = [
     ("hallway: into office A", "hallway", (0, 0, 0), (4.5, 3.0, D(90)), True),
