@@ -292,6 +292,13 @@ def cached(start: Pose, goal: Pose, lim: Limits, path: Path = CACHE) -> Result:
     return Result(**data[k])
 
 
+def lookup(start: Pose, goal: Pose, lim: Limits, path: Path = CACHE) -> Result | None:
+    """min_time from the cache file, None if this case and these limits were not solved."""
+    data = json.loads(path.read_text()) if path.exists() else {}
+    r = data.get(_key(start, goal, lim))
+    return None if r is None else Result(**r)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Solve (or read) the reference for the suite's cases whose names contain an argument."""
     import sys

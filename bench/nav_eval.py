@@ -8,9 +8,30 @@ field is the world rasterised at 0.05 m (what a perfect map would hold); people 
 planner from the world's ground truth (a perfect tracker: the stack has none yet). Metrics come
 from the simulator's ground truth: footprint clearance against the exact world (people included)
 every 0.05 s, collisions (any contact), the true final pose error, time and path length against the
-shortest feasible path (fast marching on the same grid at uniform speed, driven at the comfort
-limits: a trapezoid at vmax 1.2 m/s, 1.0 m/s²), comfort peaks from the odometry (as control_eval),
-and the wall time of each planning cycle. Goals that cannot be reached must be refused (< 1 s).
+shortest feasible path, comfort peaks from the odometry (as control_eval), and the wall time of
+each planning cycle. Goals that cannot be reached must be refused (< 1 s).
+
+Time is compared with (`timing`):
+- `ref_s` / `time_ratio` (the goal's measure, ≤ 1.5): the shortest feasible path driven at the
+  comfort limits, forward only (bench/path_time.py). The path: fast marching at uniform speed on
+  the same grid and pass bound (the axle ≥ half width + 2 cm from obstacles), descended from the
+  start. Its bends are smoothed as much as the geometry allows (`reference`): each turn spread
+  as a Gaussian of the largest σ (≤ 2 m) whose path keeps the axle at the pass bound near it, the
+  turns in place at the start and end too (a chair may turn while it sets off), then spread to
+  the curvature the shortest path itself has at most where it wraps an obstacle's corner
+  (1 / pass bound) and eased over 0.1 m; of σ capped at 2, 1, 0.5 and 0.25 m the fastest is kept
+  (more smoothing is not always faster). That path is timed: the turns in place left at its ends
+  as jerk-limited S-curves, the drive as the least-time speed profile with v ≤ 1.2 m/s,
+  |a| ≤ 1.0 m/s², |jerk| ≤ 2.0 m/s³ and ω = v·κ within |ω| ≤ 0.9 rad/s, |ω̇| ≤ 2.8 rad/s²,
+  |ω jerk| ≤ 7.7 rad/s³ (ControlConfig). It is the time of one good path, not a bound: a
+  controller that swings wider round a corner or blends its turns differently can beat it.
+- `bound_trapezoid_s` / `time_ratio_trapezoid` (the measure before session 17): max(trapezoid
+  over the path's length at v_max, a_max; trapezoid over |goal yaw − start yaw| at ω_max, ω̇_max),
+  which ignores the jerk limit, the turns onto and off the path and the curvature's limit on v.
+- `min_time_s`: the least time without obstacles (bench/min_time.py, forward only, all comfort
+  limits), read from its cache (`--min-time` solves what is missing, ~30 s a case): a lower
+  bound the reference should not undercut (`cases_ref_under_min_time`; it is a local optimum,
+  an upper bound on the true least time, and `ok` false where SLSQP did not converge).
 
     .venv/bin/python -m bench.nav_eval [--quick] [--only SUBSTRING]
 """
@@ -36,6 +57,8 @@ from autochair.nav.planner import compute
 from autochair.sim.world import DEFAULT_WORLD, World, load_world
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate
 from bench.control_eval import deriv, make_pid, smooth, trapezoid_time
+from bench.min_time import Limits, cached, lookup
+from bench.path_time import fit, path_time
 
 SETTLE_S = 1.5
 TIMEOUT_S = 90.0
@@ -45,6 +68,11 @@ RESULTS = Path(__file__).parent / "results" / "nav_eval.json"
 D = math.radians
 
 Pose = tuple[float, float, float]
+F64 = np.ndarray[Any, np.dtype[np.float64]]
+# Smoothing of the shortest path's bends (σ, m), largest first: the largest whose path keeps the
+# axle at the pass bound (0 = the grid's path, its bends only spread to the curvature bound).
+SMOOTH_M = (2.0, 1.5, 1.0, 0.7, 0.5, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05, 0.0)
+SMOOTH_CAP_M = (2.0, 1.0, 0.5, 0.25)  # ... each the most of SMOOTH_M tried, the fastest kept
 # (name, world file, start, goal, doorway: the clearance goal is 0.05 m instead of 0.2 m)
 CASES: list[tuple[str, str, Pose, Pose, bool]] = [
     ("hallway: into office A", "hallway", (0, 0, 0), (4.5, 3.0, D(90)), True),
@@ -104,11 +132,41 @@ def build(world_name: str, fp: Footprint) -> tuple[World, NavField]:
     return world, NavField(gm, fp)
 
 
-def shortest_path_m(fld: NavField, start: Pose, goal: Pose) -> float:
-    """Length of the shortest path the axle can take (uniform speed, the same pass bound)."""
+def shortest_path(fld: NavField, start: Pose, goal: Pose) -> tuple[float, F64 | None]:
+    """Length of the shortest path the axle can take (uniform speed, the same pass bound), and
+    that path: (N, 2) points from the start to the goal (None if there is none)."""
     uniform = NavField(fld.map, fld.footprint, slow_factor=1.0)
     ctg = uniform.cost_to_go(goal[0], goal[1])
-    return math.inf if ctg is None else uniform.start_cost(ctg, start[0], start[1])
+    length = math.inf if ctg is None else uniform.start_cost(ctg, start[0], start[1])
+    if ctg is None or not math.isfinite(length):
+        return length, None
+    # The descent ends in the goal's cell, up to half a cell off the goal, then jumps to it:
+    # that last step dropped, the path is sheared onto the goal (a kink of up to ~20° gone).
+    xy = uniform.descent_path(ctg, start[0], start[1])[:-1]
+    if len(xy) < 2:
+        return length, np.array([start[:2], goal[:2]], dtype=float)
+    along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    return length, xy + (along / along[-1])[:, None] * (np.array(goal[:2]) - xy[-1])
+
+
+def reference(fld: NavField, xy: F64 | None, start: Pose, goal: Pose, lim: Limits
+              ) -> dict[str, Any]:
+    """The time to drive the shortest path `xy` at the comfort limits (see the module doc)."""
+    if xy is None:
+        return {"time_s": math.inf}
+    floor = min(fld.pass_m, float(fld.clearance_at(xy).min()))
+    best: dict[str, Any] = {"time_s": math.inf}
+    for cap in SMOOTH_CAP_M:  # the fastest of these (more smoothing is not always faster)
+        turns, path, sigma = fit(xy, start[2], goal[2], 1.0 / fld.pass_m,
+                                 tuple(x for x in SMOOTH_M if x <= cap),
+                                 lambda p: fld.clearance_at(p) - floor)
+        r = path_time(path, start[2], goal[2], lim, turns)
+        if r["time_s"] < best["time_s"]:
+            best = {"time_s": r["time_s"], "smooth_m": [float(sigma.min()), float(sigma.max())],
+                    "drive_s": round(r["drive_s"], 2),
+                    "turns_deg": [round(math.degrees(r["turn_start_rad"])),
+                                  round(math.degrees(r["turn_end_rad"]))]}
+    return best
 
 
 def truth_clearance(world: World, fp: Footprint, outline: Any, x: float, y: float, yaw: float,
@@ -193,7 +251,6 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
 def metrics(rows: list[tuple[float, ...]], clear: list[float], plan_ms: list[float],
             core: ControlCore, start: Pose, goal: Pose, t_end: float | None, fld: NavField,
             states: set[str]) -> dict[str, Any]:
-    cfg = core.cfg
     a = np.array(rows)
     n, h = round(0.1 / DT), round(0.05 / DT)
     v, w = smooth(a[:, 4], n), smooth(a[:, 5], n)
@@ -202,18 +259,14 @@ def metrics(rows: list[tuple[float, ...]], clear: list[float], plan_ms: list[flo
     wdot = deriv(w, h)
     i_end = len(a) - 1 if t_end is None else round(t_end / DT)
     true_path = float(np.hypot(np.diff(a[:i_end + 1, 7]), np.diff(a[:i_end + 1, 8])).sum())
-    shortest = shortest_path_m(fld, start, goal)
-    turn = abs(wrap(goal[2] - start[2]))
-    bound = max(trapezoid_time(shortest, cfg.vmax_mps, cfg.a_max_mps2),
-                trapezoid_time(turn, cfg.omega_max_radps, cfg.omega_acc_max_radps2))
+    shortest, _ = shortest_path(fld, start, goal)
     t_goal = t_end if t_end is not None else TIMEOUT_S
     end = a[-1]
     cl = np.array(clear)
     return {
         "state": core.state, "reason": core.reason, "arrived": core.state == ARRIVED,
         "states_seen": sorted(states),
-        "time_s": round(t_goal, 2), "bound_s": round(bound, 2),
-        "time_ratio": round(t_goal / bound, 2) if bound > 0 else None,
+        "time_s": round(t_goal, 2),
         "path_m": round(true_path, 2), "shortest_m": round(shortest, 2),
         "path_ratio": round(true_path / shortest, 2) if shortest > 0.05 else None,
         "true_pos_error_m": round(math.hypot(goal[0] - end[7], goal[1] - end[8]), 4),
@@ -228,6 +281,27 @@ def metrics(rows: list[tuple[float, ...]], clear: list[float], plan_ms: list[flo
         "plan_ms_max": round(max(plan_ms), 1) if plan_ms else None,
         "plan_ms": plan_ms,
     }
+
+
+def timing(fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig, t_goal: float,
+           solve_min_time: bool) -> dict[str, Any]:
+    """The time against the references: the shortest path driven at the comfort limits (the
+    goal's measure), the old trapezoid bound, and the least time without obstacles."""
+    shortest, xy = shortest_path(fld, start, goal)
+    turn = abs(wrap(goal[2] - start[2]))
+    bound = max(trapezoid_time(shortest, cfg.vmax_mps, cfg.a_max_mps2),
+                trapezoid_time(turn, cfg.omega_max_radps, cfg.omega_acc_max_radps2))
+    lim = Limits.of(cfg)
+    ref = reference(fld, xy, start, goal, lim)
+    s, g = tuple(map(float, start)), tuple(map(float, goal))  # (the cache's key: floats)
+    least = (cached if solve_min_time else lookup)(s, g, lim)  # type: ignore[arg-type]
+    return {"ref_s": round(ref["time_s"], 2),
+            "time_ratio": round(t_goal / ref["time_s"], 2) if ref["time_s"] > 0 else None,
+            "ref": {k: v for k, v in ref.items() if k != "time_s"},
+            "bound_trapezoid_s": round(bound, 2),
+            "time_ratio_trapezoid": round(t_goal / bound, 2) if bound > 0 else None,
+            "min_time_s": None if least is None else round(least.time_s, 2),
+            "min_time_ok": None if least is None else least.ok}
 
 
 def refusal(world_name: str, start: Pose, goal: Pose, cfg: ControlConfig,
@@ -264,6 +338,16 @@ def summarise(runs: list[dict[str, Any]], refused: list[dict[str, Any]], wall: f
         "median_time_ratio": statistics.median(r["time_ratio"] for r in ok if r["arrived"])
         if any(r["arrived"] for r in ok) else None,
         "cases_time_ratio_over_1_5": sum(r["arrived"] and r["time_ratio"] > 1.5 for r in ok),
+        "median_time_ratio_trapezoid": statistics.median(
+            r["time_ratio_trapezoid"] for r in ok if r["arrived"])
+        if any(r["arrived"] for r in ok) else None,
+        "cases_time_ratio_trapezoid_over_1_5": sum(
+            r["arrived"] and r["time_ratio_trapezoid"] > 1.5 for r in ok),
+        # the reference path's time is never under the least time without obstacles (by more
+        # than the 1 % its piecewise-constant jerks can add: an in-place half turn 4.183 s
+        # against the exact 4.170)
+        "cases_ref_under_min_time": sum(bool(r["min_time_ok"])
+                                        and r["ref_s"] < 0.99 * r["min_time_s"] for r in ok),
         "median_path_ratio": statistics.median(ratios) if (ratios := [
             r["path_ratio"] for r in ok if r["arrived"] and r["path_ratio"]]) else None,
         "max_peak_a_mps2": max(r["peak_a_mps2"] for r in ok),
@@ -290,6 +374,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="MPEPC's sampler seed (another seed: the results file is not written)")
     ap.add_argument("--no-lattice", action="store_true",
                     help="MPEPC without the heading-aware lattice (nav/lattice.py), to compare")
+    ap.add_argument("--min-time", action="store_true",
+                    help="solve the least time without obstacles where bench/min_time.py's "
+                         "cache lacks it (~30 s a case; read from the cache in any case)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [control] setting")
     args = ap.parse_args(argv)
@@ -304,6 +391,7 @@ def main(argv: list[str] | None = None) -> int:
         cases = [c for c in cases if not (c[1] in seen or seen.add(c[1]))]  # type: ignore[func-returns-value]
     fields: dict[str, tuple[World, NavField]] = {}
     runs: list[dict[str, Any]] = []
+    ref_wall = 0.0
     t0 = time.perf_counter()
     for name, wname, start, goal, doorway in cases:
         if wname not in fields:
@@ -320,14 +408,18 @@ def main(argv: list[str] | None = None) -> int:
         if r["state"] == "refused":
             print(f"{name:34s} REFUSED {r['reason']}", flush=True)
             continue
+        t_ref = time.perf_counter()
+        r.update(timing(fld, start, goal, cfg, r["time_s"], args.min_time))
+        ref_wall += time.perf_counter() - t_ref  # (not the stack's: left out of wall_time_s)
         print(f"{name:34s} {r['state']:8s} t={r['time_s']:6.2f}s x{r['time_ratio']:<5} "
+              f"(trapezoid x{r['time_ratio_trapezoid']}) "
               f"path x{r['path_ratio']} err={r['true_pos_error_m'] * 100:4.1f}cm/"
               f"{r['true_yaw_error_deg']:4.1f}° clr={r['min_clearance_m']:.3f} "
               f"hits={r['collisions']}/{r['collisions_moving']} a={r['peak_a_mps2']:.2f} "
               f"j={r['peak_jerk_mps3']:.2f} "
               f"ω̇={r['peak_omega_dot_radps2']:.2f} plan={r['plan_ms_median']}ms "
               f"{r['reason']}", flush=True)
-    wall = time.perf_counter() - t0
+    wall = time.perf_counter() - t0 - ref_wall
     refused = []
     for name, wname, start, goal in ([] if args.only or args.quick else REFUSED):
         rr = refusal(wname, start, goal, cfg, fp)
