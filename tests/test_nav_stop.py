@@ -51,6 +51,21 @@ class LaggedChair:
             p = self.predicted()
             self.rest.append((p.x, p.y, p.yaw))
 
+    def turn(self, e: float, seconds: float) -> None:
+        """The core driving an in-place plan onto yaw + e (its predictor's yaw, which the
+        commands integrate to: control/core.py _follow_plan): the limiter's move, v braked."""
+        start = self.predicted().yaw
+        cv, cw = self.core._chain
+        for _ in range(round(seconds / self.h)):
+            v, w = self.lim.move(None, e - (self.predicted().yaw - start), self.h)
+            cv.push(self.h, v)
+            cw.push(self.h, w)
+            mid = self.yaw + 0.5 * cw.x2 * self.h
+            self.x += cv.x2 * math.cos(mid) * self.h
+            self.y += cv.x2 * math.sin(mid) * self.h
+            self.yaw += cw.x2 * self.h
+            self.true.append((self.x, self.y, self.yaw))
+
     def predicted(self) -> OdomSample:
         return self.core._predicted(OdomSample(self.x, self.y, self.yaw, 0.0, 0.0, 0.0), 0.0)
 
@@ -108,6 +123,40 @@ def test_the_stop_of_a_braked_turn_is_where_the_lagging_chair_comes_to_rest() ->
     assert float(cKDTree(points(chair.rest)).query(real)[0].max()) < 0.025
     lagless = points([(x, y, yaw + 0.35) for x, y, yaw in chair.true])  # (control: ~20° off)
     assert float(cKDTree(points(chair.rest)).query(lagless)[0].max()) > 0.1
+
+
+def test_an_in_place_plans_committed_sweep_covers_the_turn_the_core_drives() -> None:
+    # The core drives an in-place plan by the limiter's time-optimal move at its full limits
+    # (core.py _follow_plan), faster than the align law MPEPC once predicted it by: blocked
+    # after the committed span, the chair rested up to 10° past the committed sweep's end
+    # (20° from rest: 20.1° against 13.8°), the body's corner ~12 cm outside what was checked.
+    cfg = ControlConfig()
+    mp = Mpepc(free_field([(0.0, 0.0), (3.0, 0.0)], FP), cfg.law(0.025))
+    span = math.ceil(mp.law.commit_s / mp.p.dt_s - 1e-9) * mp.p.dt_s  # (simulate's)
+    worst = 0.0
+    for w0 in (0.0, 0.3, 0.6):
+        for deg in (10, 20, 35, 60, 90):
+            chair = LaggedChair(cfg)
+            chair.drive(0.0, w0, 1.0)  # (turning steadily at w0, or at rest)
+            p, st = chair.predicted(), chair.state()
+            cv, cw = chair.core._chain
+            chain = Chain((chair.x, chair.y, chair.yaw), copy.deepcopy(cv), copy.deepcopy(cw),
+                          chair.h)
+            e = math.radians(deg)
+            z = np.array([[0.0, e, 0.0, mp.p.v_min_mps]])  # (turn only)
+            # (as MPEPC's rollout sweeps it, and through the drive chain as the core asks)
+            swept = [float(np.max(np.unwrap(mp.simulate(
+                (p.x, p.y, p.yaw), float(st[0, 0]), float(st[2, 0]), z, float(st[1, 0]),
+                float(st[3, 0]), chain=c)[5][2, 0]))) for c in (None, chain)]
+            n = len(chair.true)
+            chair.turn(e, span)
+            chair.drive(0.0, 0.0, 4.0)  # blocked after it: braked to rest
+            furthest = max(yaw for _, _, yaw in chair.true[n:])
+            # covered (to 0.5°: the chain sweep's steps, 6 mm at the corner), not by much more
+            for got in swept:
+                assert -0.5 < math.degrees(got - furthest) < 2.0, (w0, deg, got, furthest)
+            worst = max(worst, furthest - p.yaw)
+    assert math.degrees(worst) > 30  # (positive control: it really turned on past commit)
 
 
 def test_no_contact_past_the_bench_where_a_braked_turn_swung_into_it() -> None:

@@ -38,7 +38,7 @@ import numpy.typing as npt
 from scipy.stats import qmc
 
 from autochair.control.law import Gains
-from autochair.control.limits import ComfortLimiter
+from autochair.control.limits import ComfortLimiter, SCurveAxis
 from autochair.geometry import along_lateral
 
 from .field import BATCH_POINTS, CostToGo, NavField, place_xy
@@ -308,6 +308,11 @@ GOAL_DROP_M = 0.02
 SLOPE = math.sqrt(2.0)
 
 
+# In-place candidates (indices), whether each turns only (no go after it), and the ω axis each
+# turns by in its committed motion (Mpepc.spin_step)
+Spin = tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_], list[SCurveAxis]]
+
+
 def wrap(a: F64) -> F64:
     return np.remainder(a + np.pi, 2 * np.pi) - np.pi
 
@@ -489,10 +494,15 @@ class Mpepc:
         # the commands of the committed motion and its stop, (v, ω) (2, N) after each step of
         # exact_dt_s, for chain_sweep
         cmds: list[F64] | None = [] if chain is not None else None
+        spin = self.spin(in_place, z, w0, q0)
         for j, (step_dt, k) in enumerate(sched):
             dts[:n] = step_dt
+            yaw_was = ww[n:].copy() if j_b < 0 and spin is not None else None
             xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
                                        dts, jerk_from=0 if self.p.v_jerk else n)
+            if yaw_was is not None and spin is not None:
+                ww[n:] = self.spin_step(spin, yaw_was, ww[n:], both[:, n:], tgt, turning2[n:],
+                                        span / n_c)
             if cmds is not None:
                 cmds.append(both[0::2, n:].copy())
             if k >= 0:
@@ -514,7 +524,7 @@ class Mpepc:
         side = (xx[n:], yy[n:], ww[n:], both[:, n:].copy())
         if j_b < 0:  # (the committed motion outlasts the prediction)
             sure = self.committed(*side, tgt, vmax, turning2[n:].copy(), arrived2[n:].copy(),
-                                  on_final, span, m, kept, cmds)
+                                  on_final, span, m, kept, cmds, spin)
         else:  # (the stop goes on alone where it outlasts the prediction)
             sure = np.concatenate([np.stack(kept, -1), np.stack(stop, -1) if stopped
                                    else self.braking(*side, j_b, stop, cmds)], -1)
@@ -537,11 +547,13 @@ class Mpepc:
     def committed(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                   turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
                   final: npt.NDArray[np.bool_] | None, span_s: float, start: int = 0,
-                  kept: list[F64] | None = None, cmds: list[F64] | None = None) -> F64:
+                  kept: list[F64] | None = None, cmds: list[F64] | None = None,
+                  spin: Spin | None = None) -> F64:
         """(3, N, B) poses of what a plan commits the chair to: its first `span_s` as the
         core's limiter drives it (v's jerk on, steps of `exact_dt_s`), then braking to rest from
         there (from its step `start` on, the poses kept before it in `kept`: simulate runs the
-        first steps alongside the prediction). The drive chain's lag (dead time, the PID's
+        first steps alongside the prediction; in-place candidates turned by the core's own
+        move, `spin`: spin_step). The drive chain's lag (dead time, the PID's
         prefilter: control/core.py ChainAxis) is in the start pose: the core plans from its
         chain predictor's pose (where the chair would stand once the commands already sent
         have acted), and what the chain passes on integrates to the commands, so the stop ends
@@ -553,13 +565,55 @@ class Mpepc:
         every = max(1, round(0.5 * self.p.dt_s / h))  # poses kept: the sweep at ~0.1 s
         kept = [] if kept is None else kept
         for k in range(start, n):
+            yaw_was = yaw.copy()
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
                                       span_s / n, True)
+            if spin is not None:
+                yaw = self.spin_step(spin, yaw_was, yaw, st, tgt, turning, span_s / n)
             if cmds is not None:
                 cmds.append(st[0::2].copy())
             if (k + 1) % every == 0 or k == n - 1:
                 kept.append(np.stack([x, y, yaw]))
         return np.concatenate([np.stack(kept, -1), self.braking(x, y, yaw, st, cmds=cmds)], -1)
+
+    def spin(self, in_place: npt.NDArray[np.bool_], z: F64, w0: float, q0: float
+             ) -> Spin | None:
+        """The in-place candidates (indices) and an ω axis each, at the limiter's (ω0, ω̇0),
+        for their committed motion (spin_step); None if there are none."""
+        idx = np.nonzero(in_place)[0]
+        if idx.size == 0:
+            return None
+        g = self.law
+        axes = []
+        for _ in idx:
+            a = SCurveAxis(g.omega_max_radps, g.omega_acc_radps2, g.omega_jerk_radps3)
+            a.reset(w0, q0)
+            axes.append(a)
+        return idx, z[idx, 3] <= self.p.v_min_mps + 0.01, axes  # (turn only: in_place_targets)
+
+    @staticmethod
+    def spin_step(spin: Spin, yaw_was: F64, yaw: F64,
+                  st: F64, tgt: F64, turning: npt.NDArray[np.bool_], dt: float) -> F64:
+        """The step of dt just taken (law_step) redone for the in-place candidates' ω as the
+        core turns them (control/core.py _follow_plan: while the turn is on, or the target
+        is the chair's own point): the limiter's time-optimal move onto the heading at its
+        full limits (limits.py SCurveAxis.move), not the align law, whose braking at a
+        fraction of ω̇ max and linear tail turn more slowly: its committed sweep ended up to
+        10° (12 cm at the body's corner) short of where the chair came to rest (blocked
+        after one plan; tests/test_nav_stop.py). The yaw by the command held over the step,
+        as the chain passes it on; v is the law's (0: braked). Only the committed motion:
+        the prediction (a cost, not the check) keeps the align law. The yaws returned; st's
+        ω, ω̇ set in place."""
+        idx, only, axes = spin
+        on = np.nonzero(only | turning[idx])[0]
+        if on.size == 0:
+            return yaw
+        i = idx[on]
+        e = wrap(tgt[i, 2] - yaw_was[i]).tolist()
+        w = np.array([axes[k].move(d, dt) for k, d in zip(on.tolist(), e, strict=True)])
+        st[2, i], st[3, i] = w, [axes[k].rate for k in on.tolist()]
+        yaw[i] = wrap(yaw_was[i] + w * dt)
+        return yaw
 
     def chain_sweep(self, chain: Chain, u: F64
                     ) -> tuple[F64, tuple[float, float, float]]:
