@@ -108,8 +108,10 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     # overtaken person 4.1×: at 0.7 it is 1.28× and control_eval 1.48×, seed 7 29/32). Office
     # A's far corner rests 0.030 m from the wall after an in-place plan: the core turns in
     # place by a time-optimal move at the full limits, which MPEPC predicts with the gentler
-    # align law (swept 7° short; a gap with the lead off too). Off until MPEPC's last
-    # manoeuvres in tight spots hold with it.
+    # align law (swept 7° short; a gap with the lead off too: H51, fixed). With that fix the
+    # far corner arrives with it (0.072 m), but seeds 7 / 1 at approach_rate_1ps 0.7 still
+    # lose office B's desk and the store room / the far corner and the store room (partial
+    # runs). Off until MPEPC's last manoeuvres in tight spots hold with it.
     lead: bool = False
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
