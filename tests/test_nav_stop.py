@@ -43,11 +43,7 @@ class LaggedChair:
         for _ in range(round(seconds / self.h)):
             cv.push(self.h, self.lim.step(v, w, self.h)[0])
             cw.push(self.h, self.lim.w.value)
-            mid = self.yaw + 0.5 * cw.x2 * self.h
-            self.x += cv.x2 * math.cos(mid) * self.h
-            self.y += cv.x2 * math.sin(mid) * self.h
-            self.yaw += cw.x2 * self.h
-            self.true.append((self.x, self.y, self.yaw))
+            self.step_pose(cv, cw)
             p = self.predicted()
             self.rest.append((p.x, p.y, p.yaw))
 
@@ -60,11 +56,15 @@ class LaggedChair:
             v, w = self.lim.move(None, e - (self.predicted().yaw - start), self.h)
             cv.push(self.h, v)
             cw.push(self.h, w)
-            mid = self.yaw + 0.5 * cw.x2 * self.h
-            self.x += cv.x2 * math.cos(mid) * self.h
-            self.y += cv.x2 * math.sin(mid) * self.h
-            self.yaw += cw.x2 * self.h
-            self.true.append((self.x, self.y, self.yaw))
+            self.step_pose(cv, cw)
+
+    def step_pose(self, v: ChainAxis, w: ChainAxis) -> None:
+        """One tick of the body moved on by what the chain axes pass on."""
+        mid = self.yaw + 0.5 * w.x2 * self.h
+        self.x += v.x2 * math.cos(mid) * self.h
+        self.y += v.x2 * math.sin(mid) * self.h
+        self.yaw += w.x2 * self.h
+        self.true.append((self.x, self.y, self.yaw))
 
     def predicted(self) -> OdomSample:
         return self.core._predicted(OdomSample(self.x, self.y, self.yaw, 0.0, 0.0, 0.0), 0.0)
@@ -202,11 +202,7 @@ class MisfitChair(LaggedChair):
             cw.push(self.h, sent[1])
             rv.push(self.h, sent[0])
             rw.push(self.h, sent[1])
-            mid = self.yaw + 0.5 * rw.x2 * self.h
-            self.x += rv.x2 * math.cos(mid) * self.h
-            self.y += rv.x2 * math.sin(mid) * self.h
-            self.yaw += rw.x2 * self.h
-            self.true.append((self.x, self.y, self.yaw))
+            self.step_pose(rv, rw)
 
 
 def test_the_committed_stop_is_checked_from_every_pose_a_chain_misfit_allows() -> None:
@@ -486,11 +482,7 @@ class LedChair(LaggedChair):
             sent = self.core._lead_out(*plan, self.h)
             cv.push(self.h, sent[0])
             cw.push(self.h, sent[1])
-            mid = self.yaw + 0.5 * cw.x2 * self.h
-            self.x += cv.x2 * math.cos(mid) * self.h
-            self.y += cv.x2 * math.sin(mid) * self.h
-            self.yaw += cw.x2 * self.h
-            self.true.append((self.x, self.y, self.yaw))
+            self.step_pose(cv, cw)
 
 
 def test_with_the_lead_the_committed_sweep_is_the_body_through_the_lead() -> None:
