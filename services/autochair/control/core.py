@@ -321,6 +321,14 @@ def validate(req: GoalRequest, cfg: ControlConfig, x: float = 0.0, y: float = 0.
     return ""
 
 
+def two_lags(x1: float, x2: float, dt: float, u: float, lag: float) -> tuple[float, float]:
+    """Exact step of two equal lags `lag` (outputs x1, then x2) for an input u held over dt."""
+    if lag <= 0.0:
+        return u, u
+    a = math.exp(-dt / lag)
+    return u + (x1 - u) * a, u + (x2 - u) * a + (x1 - u) * (dt / lag) * a
+
+
 class ChainAxis:
     """One axis of the drive chain as the velocity PID's feed-forward makes it: the command,
     delayed by `delay_s`, through two equal lags `lag_s` (the PID's prefilter). Mean lag
@@ -339,14 +347,8 @@ class ChainAxis:
     def push(self, dt: float, u: float) -> None:
         self.pipe.append((dt, u))
         while self.pipe and sum(p[0] for p in self.pipe) > self.delay + 1e-9:
-            self.x1, self.x2 = self.lags(self.x1, self.x2, *self.pipe.popleft())
-
-    def lags(self, x1: float, x2: float, dt: float, u: float) -> tuple[float, float]:
-        """Exact step of the two equal lags for an input held over dt."""
-        if self.lag <= 0.0:
-            return u, u
-        a = math.exp(-dt / self.lag)
-        return u + (x1 - u) * a, u + (x2 - u) * a + (x1 - u) * (dt / self.lag) * a
+            dt, u = self.pipe.popleft()
+            self.x1, self.x2 = two_lags(self.x1, self.x2, dt, u, self.lag)
 
     def future(self, h: float, n: int) -> list[float]:
         """The chair's mean velocity over each of the next n steps of h if no further
@@ -363,7 +365,7 @@ class ChainAxis:
             if k < len(queue):
                 u = queue[k][1]
             prev = x2
-            x1, x2 = self.lags(x1, x2, h, u)
+            x1, x2 = two_lags(x1, x2, h, u, self.lag)
             out.append(0.5 * (prev + x2))
         return out
 
@@ -404,12 +406,9 @@ class LeadAxis:
         d2 = min(max((d1 - self._d1) / dt, -jmax), jmax)
         self._r, self._d1 = r, d1
         y = [r, d1, d2]
-        if self.smooth_s > 0.0:
-            e = math.exp(-dt / self.smooth_s)
-            for i, s in enumerate(self._s):  # exact for an input held over dt (ChainAxis.lags)
-                u, x1, x2 = y[i], s[0], s[1]
-                s[0] = u + (x1 - u) * e
-                s[1] = y[i] = u + (x2 - u) * e + (x1 - u) * (dt / self.smooth_s) * e
+        for i, s in enumerate(self._s):
+            s[0], s[1] = two_lags(s[0], s[1], dt, y[i], self.smooth_s)
+            y[i] = s[1]
         c = y[0] + 2.0 * self.tau * y[1] + self.tau * self.tau * y[2]
         self.ahead += (c - r) * dt
         return c
