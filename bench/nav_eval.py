@@ -39,6 +39,7 @@ Time is compared with (`timing`):
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import statistics
@@ -132,9 +133,10 @@ def build(world_name: str, fp: Footprint) -> tuple[World, NavField]:
     return world, NavField(gm, fp)
 
 
+@functools.lru_cache(maxsize=2)  # (metrics and timing each ask for a case's: one solve)
 def shortest_path(fld: NavField, start: Pose, goal: Pose) -> tuple[float, F64 | None]:
     """Length of the shortest path the axle can take (uniform speed, the same pass bound), and
-    that path: (N, 2) points from the start to the goal (None if there is none)."""
+    that path: (N, 2) points from the start to the goal (None if there is none; read-only)."""
     uniform = NavField(fld.map, fld.footprint, slow_factor=1.0)
     ctg = uniform.cost_to_go(goal[0], goal[1])
     length = math.inf if ctg is None else uniform.start_cost(ctg, start[0], start[1])
@@ -144,9 +146,12 @@ def shortest_path(fld: NavField, start: Pose, goal: Pose) -> tuple[float, F64 | 
     # that last step dropped, the path is sheared onto the goal (a kink of up to ~20° gone).
     xy = uniform.descent_path(ctg, start[0], start[1])[:-1]
     if len(xy) < 2:
-        return length, np.array([start[:2], goal[:2]], dtype=float)
-    along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    return length, xy + (along / along[-1])[:, None] * (np.array(goal[:2]) - xy[-1])
+        path = np.array([start[:2], goal[:2]], dtype=float)
+    else:
+        along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+        path = xy + (along / along[-1])[:, None] * (np.array(goal[:2]) - xy[-1])
+    path.setflags(write=False)
+    return length, path
 
 
 def reference(fld: NavField, xy: F64 | None, start: Pose, goal: Pose, lim: Limits
