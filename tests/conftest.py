@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
 
 import pytest
@@ -47,9 +47,30 @@ def hub() -> str:
     return f"tcp/127.0.0.1:{free_port()}"
 
 
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item
+                               ) -> Generator[None, pytest.TestReport, pytest.TestReport]:
+    """Each phase's report on the test (`item.rep_call`), for fixtures that explain a failure."""
+    report = yield
+    setattr(item, f"rep_{report.when}", report)
+    return report
+
+
+def print_warnings(run_dir: Path, last: int = 12) -> None:
+    """Each service's last warnings and errors (its log in `run_dir`): shown with a failed
+    system test, so a rare failure (a safety stop nobody expected) names its cause."""
+    for log in sorted(run_dir.glob("*.log")):
+        lines = [ln for ln in log.read_text(errors="replace").splitlines()
+                 if " WARNING " in ln or " ERROR " in ln or "Traceback" in ln]
+        for ln in lines[-last:]:
+            print(f"[{log.stem}] {ln}")
+
+
 @pytest.fixture
-def stack_factory(tmp_path: Path, hub: str) -> Iterator[Callable[..., Launcher]]:
-    """Start a private stack (subset of the process list) on a free hub port; always stopped."""
+def stack_factory(request: pytest.FixtureRequest, tmp_path: Path, hub: str
+                  ) -> Iterator[Callable[..., Launcher]]:
+    """Start a private stack (subset of the process list) on a free hub port; always stopped
+    (and on a failure, each service's last warnings printed)."""
     launchers: list[Launcher] = []
 
     def start(names: list[str], restart: bool = False, **values: str) -> Launcher:
@@ -63,3 +84,6 @@ def stack_factory(tmp_path: Path, hub: str) -> Iterator[Callable[..., Launcher]]
     finally:
         for launcher in launchers:
             launcher.stop()
+        report = getattr(request.node, "rep_call", None)
+        if launchers and (report is None or report.failed):
+            print_warnings(tmp_path / "run")

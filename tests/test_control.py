@@ -421,7 +421,24 @@ def test_a_chair_that_does_not_follow_aborts_the_goal() -> None:
         core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))  # the chair stays at rest
         t += 0.02
     assert core.state == "aborted" and "does not follow" in core.reason
+    assert "velocity PID" not in core.reason  # (positive control for the PID's word below)
     assert 2.0 < t < 3.0
+
+
+def test_a_chair_that_does_not_follow_names_what_the_pid_said() -> None:
+    """The PID refuses a stream it once took for stale, for good (no unexpected start-up): the
+    abort names its reason, not a guess."""
+    core = fresh_core(ControlConfig(follow_timeout_s=2.0, lead=False))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+    t = 0.0
+    while core.active and t < 10:
+        core.step(t)
+        core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))
+        core.gates.pid_inhibit = "stopped (command stream stale): waiting for a command begun " \
+                                 "after the stop"
+        t += 0.02
+    assert "does not follow" in core.reason and "the velocity PID: stopped (command stream " \
+        "stale)" in core.reason, core.reason
 
 
 def test_a_goal_the_drive_chain_would_not_obey_is_refused_at_once_naming_why() -> None:

@@ -156,11 +156,14 @@ def test_a_goal_blocked_on_the_way_is_reported_then_aborted(
     stack_factory(STACK)
     session = client_session(hub)
     try:
+        pid = Recorder(session, keys.PID_STATUS)  # (for a failure: what held the chair)
         map_ready(session)
+        sent_ns = time.time_ns()
         states = drive_to(session, Pose2D(8.0, 7.5, math.radians(90)), 120)
         seen = [s.state for s in states]
         # On the way: it drove before it was blocked (not blocked where it started).
-        assert "driving" in seen and "blocked" in seen[seen.index("driving"):], story(states)
+        assert "driving" in seen and "blocked" in seen[seen.index("driving"):], \
+            f"{story(states)}; {held(pid, sent_ns)}"
         blocked = [s for s in states if s.state == "blocked"]
         assert blocked and blocked[0].reason, story(states)
         assert states[-1].state == "aborted", story(states)

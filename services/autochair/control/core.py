@@ -234,6 +234,9 @@ class DriveGates:
     limit_t: float = -math.inf  # when the last safety limit came
     limit_stop: str | None = None  # the monitor's reason while its limit says stop
     monitor_up: bool = False  # the monitor's token is alive: the PID requires its limit
+    # The velocity PID's own word on why it obeys nothing ("" while it obeys): named when a
+    # goal ends because the chair does not follow (e.g. a command stream it took for stale).
+    pid_inhibit: str = ""
 
     def why_not(self, now: float) -> str:
         """Why the PID would refuse a stream begun now ('' if it would obey one)."""
@@ -829,8 +832,10 @@ class ControlCore:
         elif self._still_since is None:
             self._still_since = now
         elif now - self._still_since > cfg.follow_timeout_s:
-            why = self.gates.why_not(now) or ("a safety stop, a stopped drive chain or a "
-                                               "blocked wheel?")
+            g = self.gates
+            why = g.why_not(now) or (f"the velocity PID: {g.pid_inhibit}" if g.pid_inhibit
+                                     else "a safety stop, a stopped drive chain or a blocked "
+                                          "wheel?")
             self._stopped(ABORTED, f"the chair does not follow: commanded to move, at rest for "
                                    f"{cfg.follow_timeout_s:g} s ({why})", now)
             return

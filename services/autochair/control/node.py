@@ -98,6 +98,7 @@ class ControlNode:
         # Its time stays when it arrived: a silent odometry service is still stale.
         self.odom_in: OdomSample | None = None
         self._taken: OdomSample | None = None
+        self.pid_status = node.latest(keys.PID_STATUS)
 
     @contextmanager
     def held(self) -> Iterator[None]:
@@ -280,7 +281,11 @@ class ControlNode:
                           reason=s.reason)
 
     def status_tick(self) -> None:
+        pid = self.pid_status()  # (its newest, read here: no thread woken at its 100 Hz)
         with self.held():
+            # What the PID says holds it (it stays so until a new stream): named if a goal
+            # ends because the chair does not follow.
+            self.core.gates.pid_inhibit = "" if pid is None else pid.inhibit
             why = self.core.why_not_ready(time.monotonic())
         # (`autochair status` shows it: why a goal would be refused now)
         self.node.health.detail = f"goals refused: {why}" if why else "ready for goals"
