@@ -4,6 +4,7 @@ the velocity PID's stale limit, and goals ended "the chair does not follow" at t
 
 from __future__ import annotations
 
+import io
 import itertools
 import math
 import os
@@ -13,6 +14,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +23,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from autochair.nav import gil
-from autochair.runtime.helper import HelperProcess
+from autochair.runtime.helper import HelperProcess, _receive, _send
 from tests.helpers import wait_for
 
 
@@ -80,6 +82,31 @@ def test_a_search_made_in_the_helper_leaves_the_threads_running(helper: HelperPr
     assert there_stall < 0.5 * here_s, (here_s, there_s, there_stall)
     print(f"\nhere {here_s:.3f} s, stalled {here_stall:.3f} s; in the helper {there_s:.3f} s, "
           f"stalled {there_stall:.3f} s")
+
+
+def test_big_arrays_go_through_the_pipe_out_of_band() -> None:
+    """Pickled in band, the 41 MB lattice graph of a goal's first plans held the lock 70-90 ms
+    in the control service (the 50 Hz stream stalled most just as driving began): the arrays'
+    memory is written to the pipe as it is (writes release the lock), the pickle stays small."""
+    graph = big_graph()
+    writes: list[int] = []
+
+    class Pipe(io.BytesIO):
+        def write(self, b: Any) -> int:
+            writes.append(memoryview(b).nbytes)
+            return super().write(b)
+
+    pipe = Pipe()
+    _send(pipe, (dijkstra, (graph,), {"indices": [0]}))
+    arrays = sorted(a.nbytes for a in (graph.data, graph.indices, graph.indptr))
+    assert sorted(writes)[-3:] == arrays, writes  # each array in one write of its own
+    assert sum(writes) - sum(arrays) < 2000, writes  # header + pickle
+    pipe.seek(0)
+    fn, (back,), kwargs = _receive(pipe)
+    assert fn is dijkstra and kwargs == {"indices": [0]}
+    assert (back != graph).nnz == 0 and back.data.flags.writeable
+    with pytest.raises(EOFError):
+        _receive(io.BytesIO(pipe.getvalue()[:-1]))  # a pipe closed mid-message
 
 
 def test_the_helpers_errors_come_back_and_a_killed_helper_is_started_again(
