@@ -54,7 +54,7 @@ from autochair.geometry import wrap_angle as wrap
 from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import MpepcParams, Person
-from autochair.nav.planner import compute
+from autochair.nav.planner import PlanResult, compute
 from autochair.sim.world import DEFAULT_WORLD, World, load_world
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate
 from bench.control_eval import deriv, make_pid, smooth, trapezoid_time
@@ -191,7 +191,11 @@ def people_at(world: World, t: float) -> list[Person]:
 
 
 def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig,
-             fp: Footprint, params: MpepcParams | None = None) -> dict[str, Any]:
+             fp: Footprint, params: MpepcParams | None = None, plan_delay_s: float = 0.0
+             ) -> dict[str, Any]:
+    """One goal in lockstep. `plan_delay_s`: each plan takes effect this long after it was
+    asked for (the node plans on its own thread meanwhile, the core driving the previous
+    plan; 0: at once, as the figures are made)."""
     from autochair_msgs import GoalRequest, Pose2D
 
     rig = Rig(make_pid("tuned"), start=start)  # the PID as the node configures it
@@ -208,6 +212,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     where: list[tuple[float, float, float]] = []  # true pose at each clearance sample
     states: set[str] = set()
     t_end: float | None = None
+    pending: tuple[PlanResult, float] | None = None  # a plan and when it takes effect
     k = 0
     while True:
         t = k * DT
@@ -220,12 +225,18 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         out = None
         if k % ctrl_every == 0:
             core.people = people_at(world, t)
-            req = core.plan_request(t)
+            if pending is not None and t >= pending[1] - 1e-9:
+                core.on_plan(pending[0], t)
+                pending = None
+            req = None if pending is not None else core.plan_request(t)
             if req is not None:
                 t0 = time.perf_counter()
                 res = compute(req, params)
                 plan_ms.append((time.perf_counter() - t0) * 1e3)
-                core.on_plan(res, t)
+                if plan_delay_s > 0.0:
+                    pending = (res, t + plan_delay_s)
+                else:
+                    core.on_plan(res, t)
             states.add(core.state)
             out = core.step(t)
         rig.act(t, st.v, st.omega, out)
@@ -384,6 +395,9 @@ def main(argv: list[str] | None = None) -> int:
                          "cache lacks it (~30 s a case; read from the cache in any case)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [control] setting")
+    ap.add_argument("--plan-delay-s", type=float, default=0.0,
+                    help="each plan takes effect this long after it was asked for, as in the "
+                         "node, where planning takes 50-100 ms (results file not written)")
     args = ap.parse_args(argv)
     from autochair.runtime.config import ChairGeometry, load_section
 
@@ -407,7 +421,7 @@ def main(argv: list[str] | None = None) -> int:
         r = run_case(world, fld, start, goal, cfg, fp,
                      MpepcParams(seed=args.seed,
                                  heading_lattice=MpepcParams().heading_lattice
-                                 and not args.no_lattice))
+                                 and not args.no_lattice), args.plan_delay_s)
         r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
         runs.append(r)
         if r["state"] == "refused":
@@ -438,7 +452,7 @@ def main(argv: list[str] | None = None) -> int:
     summary["seed"] = args.seed
     print(json.dumps(summary, indent=1))
     summary["heading_lattice"] = MpepcParams().heading_lattice and not args.no_lattice
-    if not (args.only or args.quick or args.no_save or args.no_lattice
+    if not (args.only or args.quick or args.no_save or args.no_lattice or args.plan_delay_s
             or args.seed != MpepcParams().seed):
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         for r in runs:
