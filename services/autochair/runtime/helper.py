@@ -40,8 +40,9 @@ def _send(stream: IO[bytes], obj: object) -> None:
     raws = [b.raw() for b in buffers]
     stream.write(b"".join(n.to_bytes(8, "little") for n in (len(data), len(raws),
                                                              *(r.nbytes for r in raws))))
-    for part in (data, *raws):
-        stream.write(part)
+    stream.write(data)
+    for raw in raws:
+        stream.write(raw)
     stream.flush()
 
 
