@@ -10,6 +10,7 @@ import math
 import pytest
 from bench.control_eval import make_pid, scurve_time
 from bench.min_time import Limits, min_time
+from ruckig import ControlInterface
 
 from autochair.control.core import (
     LEAD_SMOOTH_S,
@@ -71,6 +72,61 @@ def test_a_move_too_short_to_stop_on_brakes_without_turning_back() -> None:
     assert all(v >= 0.0 for v in ws) and ws[-1] == 0.0 and ax.rate == 0.0
     acc = [(b - a) / DT for a, b in itertools.pairwise([0.6, *ws])]
     assert max(map(abs, acc)) <= 1.0 + 1e-6
+
+
+def test_a_move_step_plans_as_a_fresh_axis_would_after_stops_and_reversals() -> None:
+    """`move` sets only the ruckig inputs that change each step (the rest once, in __init__):
+    through stops (ruckig's velocity interface: turning away) and moves either way, every
+    step equals that of a new axis put in the same state, whose inputs are all fresh."""
+    lim = ComfortLimits()
+
+    def axis() -> SCurveAxis:
+        return SCurveAxis(lim.omega_max_radps, lim.omega_acc_max_radps2,
+                          lim.omega_jerk_max_radps3)
+
+    ax = axis()
+    ax.reset(0.6, -1.0)  # turning left: a turn right begins by the stop
+    yaw, goal, stops = 0.0, -0.3, 0
+    for k in range(300):
+        twin = axis()
+        twin.value, twin.rate = ax.value, ax.rate
+        twin._plan_state, twin._left = ax._plan_state, ax._left
+        w = ax.move(goal - yaw, DT)
+        assert (w, ax.rate, ax._plan_state) == (twin.move(goal - yaw, DT), twin.rate,
+                                               twin._plan_state)
+        stops += ax._inp.control_interface == ControlInterface.Velocity
+        yaw += w * DT
+        if k == 150:
+            goal = 0.5  # and back the other way
+    assert stops >= 5 and yaw == pytest.approx(0.5, abs=1e-6)  # positive controls
+
+
+def test_moves_stepped_in_turn_on_one_axis_from_saved_states_are_an_axis_each() -> None:
+    """MPEPC steps its in-place candidates' moves on one axis, loading each one's state
+    (SCurveAxis.save / load) instead of making an axis each: the same numbers, a move
+    under way included (its profile's own state, not the tracker's)."""
+    lim = ComfortLimits()
+
+    def axis() -> SCurveAxis:
+        ax = SCurveAxis(lim.omega_max_radps, lim.omega_acc_max_radps2,
+                        lim.omega_jerk_max_radps3)
+        ax.reset(0.4, 1.5)
+        return ax
+
+    goals = [-1.0, 0.05, 0.6, 2.5]  # a stop then back; too short to stop on; two moves
+    own = [axis() for _ in goals]
+    one = axis()
+    states = [one.save()] * len(goals)
+    turned, moving = [0.0] * len(goals), 0
+    for _ in range(40):
+        for k, goal in enumerate(goals):
+            w = own[k].move(goal - turned[k], DT)
+            one.load(states[k])
+            assert (one.move(goal - turned[k], DT), one.rate) == (w, own[k].rate)
+            states[k] = one.save()
+            turned[k] += w * DT
+            moving += own[k].moving
+    assert moving > 40  # positive control: moves under way between their steps
 
 
 def test_limiter_move_brakes_the_axis_without_a_distance() -> None:

@@ -34,6 +34,11 @@ class ComfortLimits:
     omega_jerk_max_radps3: float = 7.7  # ω̈ bound of the 2011 wheelchair paper
 
 
+# An SCurveAxis's state: (value, rate), its move's profile state and what its last move step
+# left (SCurveAxis.save)
+AxisState = tuple[float, float, tuple[float, float], tuple[float, float]]
+
+
 class SCurveAxis:
     """One axis: |value| ≤ vmax, |rate| ≤ amax, |Δrate/dt| ≤ jmax."""
 
@@ -46,6 +51,12 @@ class SCurveAxis:
         self._otg = Ruckig(1)
         self._inp = InputParameter(1)
         self._traj = Trajectory(1)
+        # move's inputs that are the same every step, set once (setting ruckig's inputs is
+        # much of a move's cost: MPEPC steps hundreds a planning cycle, Mpepc.spin_step);
+        # amax and jmax are not changed after this (cap_omega changes vmax only)
+        inp = self._inp
+        inp.current_position, inp.target_velocity, inp.target_acceleration = [0.0], [0.0], [0.0]
+        inp.max_acceleration, inp.max_jerk = [amax], [jmax]
         # The profile's own (velocity, acceleration) at the end of the last move step, and the
         # (value, rate) that step left: the plan continues from the former while nothing else
         # has stepped the axis since.
@@ -55,6 +66,14 @@ class SCurveAxis:
     def reset(self, value: float = 0.0, rate: float = 0.0) -> None:
         self.value = max(-self.vmax, min(self.vmax, value))
         self.rate = max(-self.amax, min(self.amax, rate))
+
+    def save(self) -> AxisState:
+        """The axis's whole state (a move under way included), for `load`: one axis can
+        step many in turn (MPEPC's in-place candidates: making an axis costs ~5 moves)."""
+        return self.value, self.rate, self._plan_state, self._left
+
+    def load(self, state: AxisState) -> None:
+        self.value, self.rate, self._plan_state, self._left = state
 
     def braking_rate(self, error: float, dt: float) -> float:
         """Largest rate (signed as `error`) from which jerk-limited braking ends on the target.
@@ -102,11 +121,10 @@ class SCurveAxis:
         pv, pa = self._plan_state if self._left == (self.value, self.rate) else (
             self.value + 0.5 * self.rate * dt, self.rate)
         inp = self._inp
-        inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [pv], [pa]
-        inp.target_position, inp.target_velocity, inp.target_acceleration = [distance], [0.0], [0.0]
+        inp.current_velocity, inp.current_acceleration = [pv], [pa]
+        inp.target_position = [distance]
         # One-signed velocity: the profile never turns back (no overshoot reversal).
         inp.max_velocity, inp.min_velocity = ([vm], [0.0]) if distance >= 0 else ([0.0], [-vm])
-        inp.max_acceleration, inp.max_jerk = [self.amax], [self.jmax]
         inp.control_interface = ControlInterface.Position
         if distance * pv < 0.0 or not self._plan():
             # Too close to stop on it without turning back (the prediction moved the goal by

@@ -38,7 +38,7 @@ import numpy.typing as npt
 from scipy.stats import qmc
 
 from autochair.control.law import Gains
-from autochair.control.limits import ComfortLimiter, SCurveAxis
+from autochair.control.limits import AxisState, ComfortLimiter, SCurveAxis
 from autochair.geometry import along_lateral
 
 from .field import BATCH_POINTS, CostToGo, NavField, place_xy
@@ -308,9 +308,9 @@ GOAL_DROP_M = 0.02
 SLOPE = math.sqrt(2.0)
 
 
-# In-place candidates (indices), whether each turns only (no go after it), and the ω axis each
-# turns by in its committed motion (Mpepc.spin_step)
-Spin = tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_], list[SCurveAxis]]
+# In-place candidates (indices), whether each turns only (no go after it), the ω axis they
+# turn by in their committed motion and each one's state on it (Mpepc.spin_step)
+Spin = tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_], SCurveAxis, list[AxisState]]
 
 
 def wrap(a: F64) -> F64:
@@ -578,18 +578,16 @@ class Mpepc:
 
     def spin(self, in_place: npt.NDArray[np.bool_], z: F64, w0: float, q0: float
              ) -> Spin | None:
-        """The in-place candidates (indices) and an ω axis each, at the limiter's (ω0, ω̇0),
-        for their committed motion (spin_step); None if there are none."""
+        """The in-place candidates (indices), an ω axis and each one's state on it, at the
+        limiter's (ω0, ω̇0), for their committed motion (spin_step); None if none."""
         idx = np.nonzero(in_place)[0]
         if idx.size == 0:
             return None
         g = self.law
-        axes = []
-        for _ in idx:
-            a = SCurveAxis(g.omega_max_radps, g.omega_acc_radps2, g.omega_jerk_radps3)
-            a.reset(w0, q0)
-            axes.append(a)
-        return idx, z[idx, 3] <= self.p.v_min_mps + 0.01, axes  # (turn only: in_place_targets)
+        axis = SCurveAxis(g.omega_max_radps, g.omega_acc_radps2, g.omega_jerk_radps3)
+        axis.reset(w0, q0)
+        # (turn only: in_place_targets)
+        return idx, z[idx, 3] <= self.p.v_min_mps + 0.01, axis, [axis.save()] * idx.size
 
     @staticmethod
     def spin_step(spin: Spin, yaw_was: F64, yaw: F64,
@@ -603,16 +601,21 @@ class Mpepc:
         after one plan; tests/test_nav_stop.py). The yaw by the command held over the step,
         as the chain passes it on; v is the law's (0: braked). Only the committed motion:
         the prediction (a cost, not the check) keeps the align law. The yaws returned; st's
-        ω, ω̇ set in place."""
-        idx, only, axes = spin
+        ω, ω̇ set in place. Each candidate's move is stepped on the one axis, from its own
+        state (the same numbers as an axis each, without making one each)."""
+        idx, only, axis, states = spin
         on = np.nonzero(only | turning[idx])[0]
         if on.size == 0:
             return yaw
         i = idx[on]
-        e = wrap(tgt[i, 2] - yaw_was[i]).tolist()
-        w = np.array([axes[k].move(d, dt) for k, d in zip(on.tolist(), e, strict=True)])
-        st[2, i], st[3, i] = w, [axes[k].rate for k in on.tolist()]
-        yaw[i] = wrap(yaw_was[i] + w * dt)
+        w, rate = [], []
+        for k, d in zip(on.tolist(), wrap(tgt[i, 2] - yaw_was[i]).tolist(), strict=True):
+            axis.load(states[k])
+            w.append(axis.move(d, dt))
+            rate.append(axis.rate)
+            states[k] = axis.save()
+        st[2, i], st[3, i] = w, rate
+        yaw[i] = wrap(yaw_was[i] + np.array(w) * dt)
         return yaw
 
     def chain_sweep(self, chain: Chain, u: F64
