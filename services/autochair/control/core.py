@@ -113,6 +113,13 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     # lose office B's desk and the store room / the far corner and the store room (partial
     # runs). Off until MPEPC's last manoeuvres in tight spots hold with it.
     lead: bool = False
+    # Lead ω past the prefilter (LeadAxis) in the goal's own in-place turn (`_align`), even
+    # with `lead` off: after that turn the chain's tail is the last thing the goal waits for
+    # (from the turn's last command to the chair at rest 0.7-1.0 s, half of it the prefilter's
+    # 2τ; session 18's phase breakdown of control_eval's median cases). The turn sweeps the
+    # yaws from the chair's to the goal's, checked by `_room_to_turn`; the lead only makes the
+    # chair follow that move sooner. ω has no forward-only clamp, so no overrun to predict.
+    align_lead: bool = True
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
     # shows at the chair: with the exact lead (no smoothing) at the full limits it measured a
@@ -397,6 +404,12 @@ class LeadAxis:
         self._r, self._d1, self.ahead = value, 0.0, 0.0
         self._s = [[value, value], [0.0, 0.0], [0.0, 0.0]]
 
+    def start(self, value: float, rate: float, dt: float) -> None:
+        """Lead from now on an axis already at `value` (this step's), changing at `rate`: the
+        lead's part eases in through S instead of stepping the command by 2τ·rate."""
+        self.reset(value)
+        self._r, self._d1 = value - rate * dt, rate
+
     def step(self, r: float, dt: float, amax: float, jmax: float) -> float:
         if self.tau <= 0.0 or dt <= 0.0:
             return r
@@ -475,7 +488,11 @@ class ControlCore:
         self._chain = (ChainAxis(self.cfg.predict_s, self.cfg.predict_lag_s),
                        ChainAxis(self.cfg.predict_omega_s, self.cfg.predict_lag_s))
         lead_s = self.cfg.predict_lag_s if self.cfg.lead else 0.0
-        self._lead = (LeadAxis(lead_s), LeadAxis(lead_s))
+        turn_s = self.cfg.predict_lag_s if self.cfg.lead or self.cfg.align_lead else 0.0
+        self._lead = (LeadAxis(lead_s), LeadAxis(turn_s))
+        # ω is led: always with `lead`; with `align_lead` from the goal's in-place turn until ω
+        # has come to rest after it (_lead_out).
+        self._omega_led = self.cfg.lead
         # With the lead, the chair's response to the planned commands (before the lead): the
         # dead time, then the lead's own two lags (LeadAxis: the prefilter hands the PID S(r)).
         # What MPEPC's committed sweeps pass the plan's commands through (_chain_now).
@@ -583,8 +600,7 @@ class ControlCore:
             if self._plan_chain is not None:
                 self._plan_chain[0].reset(o.v)
                 self._plan_chain[1].reset(o.omega)
-            self._lead[0].reset(self.limiter.v.value)
-            self._lead[1].reset(self.limiter.w.value)
+            self._reset_leads()
         self.goal_id += 1
         self.map_waypoints, self._loc_lost = check.map_waypoints, False
         self._trusted = self.frames.correction
@@ -676,10 +692,26 @@ class ControlCore:
         changes is real motion, which the predictor sees (it is fed what is sent)."""
         lim = self.limiter.lim
         cv = self._lead[0].step(v, dt, lim.a_max_mps2, lim.jerk_max_mps3)
-        cw = self._lead[1].step(w, dt, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3)
+        lw, lead_w = self.limiter.w, self._lead[1]
+        if not self._omega_led and self.aligning and self.active and lead_w.tau > 0.0:
+            # (from the limiter's state: ω may still be braking from the approach)
+            lead_w.start(lw.value, lw.rate, dt)
+            self._omega_led = True
+        cw = lead_w.step(w, dt, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3) \
+            if self._omega_led else w
+        if self._omega_led and not self.cfg.lead and not (self.aligning and self.active) \
+                and lw.value == 0.0 and lw.rate == 0.0 and abs(cw) < 1e-5:
+            lead_w.reset(0.0)  # the turn and its lead have played out: unled again
+            self._omega_led = False
         vm = min(lim.v_max_mps, self.vmax)
         cv = min(max(cv, 0.0), vm) if v >= 0.0 else max(min(cv, 0.0), -vm)
         return cv, min(max(cw, -lim.omega_max_radps), lim.omega_max_radps)
+
+    def _reset_leads(self) -> None:
+        """Both leads from the limiter's values, ω led again only with `lead`."""
+        self._lead[0].reset(self.limiter.v.value)
+        self._lead[1].reset(self.limiter.w.value)
+        self._omega_led = self.cfg.lead
 
     # --- planning (MPEPC) -------------------------------------------------------------------
     def plan_request(self, now: float) -> PlanRequest | None:
@@ -853,8 +885,7 @@ class ControlCore:
         self._end(state, reason, now)
         if self.odom is not None:
             self.limiter.reset(self.odom.v, self.odom.omega)
-            self._lead[0].reset(self.limiter.v.value)
-            self._lead[1].reset(self.limiter.w.value)
+            self._reset_leads()
         self._count("stopped_" + state)
 
     def _predicted(self, o: OdomSample, now: float) -> OdomSample:
