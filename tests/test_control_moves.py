@@ -283,14 +283,14 @@ def test_in_place_turn_on_a_lagging_chair_lands_without_reversal(lead: bool) -> 
 def test_the_goals_in_place_turn_is_led_past_the_prefilter() -> None:
     """With the lead off, the goal's own in-place turn (`_align`) still leads ω past the PID's
     prefilter (`align_lead`): on the simulated chair in lockstep (the tuned PID, its
-    feed-forward and prefilter) a 90° goal is reached 3.50 s after it is sent (3.86 s unled,
+    feed-forward and prefilter) a 90° goal is reached 2.94 s after it is sent (3.52 s unled,
     the jerk-limited optimum 2.47 s; control_eval), within 3° and the chair's comfort limits."""
     cfg = ControlConfig()
     goal = (0.0, 0.0, math.pi / 2)
     led = run_case((0.0, 0.0, 0.0), goal, cfg)
     unled = run_case((0.0, 0.0, 0.0), goal, msgspec.structs.replace(cfg, align_lead=False))
     assert led["arrived"] and unled["arrived"]
-    assert led["time_s"] <= 3.6 < unled["time_s"]
+    assert led["time_s"] <= 3.0 and unled["time_s"] - led["time_s"] > 0.4
     assert led["yaw_error_deg"] <= 3.0 and led["true_yaw_error_deg"] <= 3.0
     assert led["truth_peak_omega_dot_radps2"] <= cfg.omega_acc_max_radps2
 
@@ -320,6 +320,38 @@ def test_the_in_place_turns_lead_ends_with_the_turn() -> None:
         rig.act(t, st.v, st.omega, out)
     assert led_at_turn and unled_after
     assert core.state == "arrived", core.reason
+
+
+def test_the_goals_in_place_turn_brakes_in_the_capture_band() -> None:
+    """Inside the capture band (half the yaw tolerance) the goal's in-place turn brakes to rest
+    and is not re-aimed at the predicted rest yaw, which wanders by ~0.5° as the drive chain
+    plays out: the plan's ω rises once and falls once, and a 45° goal on the simulated chair
+    (lockstep) is reached in 2.06 s, within the tolerance. Re-aimed, the move sent a second
+    hump of ω and the chair rested 0.5 s later (2.56 s; control_eval)."""
+    rig = Rig(make_pid("tuned"), start=(0.0, 0.0, 0.0))
+    cfg = ControlConfig()
+    core = ControlCore(cfg)
+    goal = -math.pi / 4
+    every = round(1.0 / (cfg.rate_hz * LOCKSTEP_DT))
+    plan: list[float] = []
+    t = 0.0
+    for k in range(round(5.0 / LOCKSTEP_DT)):
+        t = k * LOCKSTEP_DT
+        st = rig.sense()
+        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
+        if k == 0:
+            assert core.set_goal(GoalRequest(waypoints=[Pose2D(0.0, 0.0, goal)]), t).ok
+        out = core.step(t) if k % every == 0 else None
+        if out is not None:
+            plan.append(abs(core.limiter.w.value))
+        rig.act(t, st.v, st.omega, out)
+        if not core.active:
+            break
+    assert core.state == "arrived", core.reason
+    assert t <= 2.2, t
+    assert abs(wrap(goal - rig.chair.yaw)) <= math.radians(3)
+    peak = plan.index(max(plan))
+    assert all(b <= a + 1e-9 for a, b in itertools.pairwise(plan[peak:]))  # one hump
 
 
 # --- the minimum-time reference (bench/min_time.py) ----------------------------------------
