@@ -322,6 +322,32 @@ def test_the_in_place_turns_lead_ends_with_the_turn() -> None:
     assert core.state == "arrived", core.reason
 
 
+def test_an_in_place_turn_begun_while_turning_is_not_led() -> None:
+    """The goal's in-place turn is led from rest only: begun on a moving ω, the lead would keep
+    ~2τ·ω sent ahead of the plan that the plan never takes back, turned by the chair but not
+    by the predictor (nav_eval seed 2's L corner: arrived 8.7° off, 0.013 m from a wall). A
+    chair that follows through the predictor's own chain, already turning at 0.5 rad/s when
+    the goal beside it comes: it rests within 3° with nothing left ahead of the plan."""
+    cfg = ControlConfig()
+    core = ControlCore(cfg)
+    axes = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
+            ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
+    axes[1].reset(0.5)
+    yaw, goal, t = 0.0, math.radians(80), 0.0
+    core.on_odom(OdomSample(0, 0, 0, 0, 0.5, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(0.0, 0.0, goal)]), 0.0).ok
+    assert core.limiter.w.value == 0.5  # (the command goes on from the chair's own ω)
+    while (core.active or abs(axes[1].x2) > 1e-4) and t < 10:
+        core.on_odom(OdomSample(0, 0, yaw, 0, axes[1].x2, t))
+        w0 = axes[1].x2
+        axes[1].push(DT, (core.step(t) or (0.0, 0.0))[1])
+        yaw = wrap(yaw + 0.5 * (w0 + axes[1].x2) * DT)
+        t += DT
+    assert core.state == "arrived", core.reason
+    assert abs(wrap(goal - yaw)) <= math.radians(3), math.degrees(wrap(goal - yaw))
+    assert abs(core._lead[1].ahead) < 1e-3
+
+
 def test_the_goals_in_place_turn_brakes_in_the_capture_band() -> None:
     """Inside the capture band (half the yaw tolerance) the goal's in-place turn brakes to rest
     and is not re-aimed at the predicted rest yaw, which wanders by ~0.5° as the drive chain

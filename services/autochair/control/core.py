@@ -404,12 +404,6 @@ class LeadAxis:
         self._r, self._d1, self.ahead = value, 0.0, 0.0
         self._s = [[value, value], [0.0, 0.0], [0.0, 0.0]]
 
-    def start(self, value: float, rate: float, dt: float) -> None:
-        """Lead from now on an axis already at `value` (this step's), changing at `rate`: the
-        lead's part eases in through S instead of stepping the command by 2τ·rate."""
-        self.reset(value)
-        self._r, self._d1 = value - rate * dt, rate
-
     def step(self, r: float, dt: float, amax: float, jmax: float) -> float:
         if self.tau <= 0.0 or dt <= 0.0:
             return r
@@ -664,6 +658,15 @@ class ControlCore:
         if not self.active and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
             return None
+        lw = self.limiter.w
+        if not self._omega_led and self.aligning and self.active and self._lead[1].tau > 0.0 \
+                and lw.value == 0.0 and lw.rate == 0.0:
+            # The goal's in-place turn (align_lead), led from rest only: a rest-to-rest plan is
+            # led by motion it takes back (`ahead` returns to 0); begun on a moving ω the lead
+            # would keep ~2τ·ω turned but not predicted (nav_eval seed 2's L corner rested
+            # 8.7° off its goal, 0.013 m from a wall). Unled, that turn keeps its tail.
+            self._lead[1].reset(0.0)
+            self._omega_led = True
         if self._move is not None and self.active:
             v, w = self.limiter.move(*self._move, dt, vmax=self.vmax)
             if self._land_left is not None:
@@ -693,10 +696,6 @@ class ControlCore:
         lim = self.limiter.lim
         cv = self._lead[0].step(v, dt, lim.a_max_mps2, lim.jerk_max_mps3)
         lw, lead_w = self.limiter.w, self._lead[1]
-        if not self._omega_led and self.aligning and self.active and lead_w.tau > 0.0:
-            # (from the limiter's state: ω may still be braking from the approach)
-            lead_w.start(lw.value, lw.rate, dt)
-            self._omega_led = True
         cw = lead_w.step(w, dt, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3) \
             if self._omega_led else w
         if self._omega_led and not self.cfg.lead and not (self.aligning and self.active) \
