@@ -119,6 +119,7 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     # 2τ; session 18's phase breakdown of control_eval's median cases). The turn sweeps the
     # yaws from the chair's to the goal's, checked by `_room_to_turn`; the lead only makes the
     # chair follow that move sooner. ω has no forward-only clamp, so no overrun to predict.
+    # Only where the predictor's ω chain holds the prefilter (predict_omega_s ≥ 2·predict_lag_s).
     align_lead: bool = True
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
@@ -482,7 +483,11 @@ class ControlCore:
         self._chain = (ChainAxis(self.cfg.predict_s, self.cfg.predict_lag_s),
                        ChainAxis(self.cfg.predict_omega_s, self.cfg.predict_lag_s))
         lead_s = self.cfg.predict_lag_s if self.cfg.lead else 0.0
-        turn_s = self.cfg.predict_lag_s if self.cfg.lead or self.cfg.align_lead else 0.0
+        # (align_lead only where the predictor's ω chain holds the prefilter's two lags: a
+        # chair without them, led, overshoots the turn and reverses)
+        prefiltered = self._chain[1].lag == self.cfg.predict_lag_s > 0.0
+        turn_s = self.cfg.predict_lag_s if self.cfg.lead or (
+            self.cfg.align_lead and prefiltered) else 0.0
         self._lead = (LeadAxis(lead_s), LeadAxis(turn_s))
         # ω is led: always with `lead`; with `align_lead` from the goal's in-place turn until ω
         # has come to rest after it (_lead_out).
