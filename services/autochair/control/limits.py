@@ -56,6 +56,13 @@ class SCurveAxis:
         self.value = max(-self.vmax, min(self.vmax, value))
         self.rate = max(-self.amax, min(self.amax, rate))
 
+    def __deepcopy__(self, memo: dict[int, object]) -> SCurveAxis:
+        """The same axis state (ruckig's objects cannot be copied; each move re-plans anyway)."""
+        c = SCurveAxis(self.vmax, self.amax, self.jmax)
+        c.value, c.rate, c._plan_state, c._left = self.value, self.rate, self._plan_state, \
+            self._left
+        return c
+
     def braking_rate(self, error: float, dt: float) -> float:
         """Largest rate (signed as `error`) from which jerk-limited braking ends on the target.
 
