@@ -20,7 +20,7 @@ from autochair.control.limits import ComfortLimiter
 from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import Chain, Mpepc, MpepcParams
-from autochair.nav.planner import free_field
+from autochair.nav.planner import PlanRequest, free_field
 
 FP = Footprint()
 
@@ -518,3 +518,80 @@ def test_with_the_lead_the_committed_sweep_is_the_body_through_the_lead() -> Non
     assert off(chain) < 0.02
     cv, cw = chair.core._chain  # (the led commands through the predictor's chain)
     assert off(Chain(chain.pose, copy.deepcopy(cv), copy.deepcopy(cw), chair.h)) > 0.05
+
+
+def test_a_plan_is_asked_for_from_where_the_core_will_be_when_it_takes_effect() -> None:
+    # The node plans on its own thread: a plan asked for at t takes effect at t + Δ, the core
+    # driving the previous plan meanwhile. Asked for from the state at t, its start (and the
+    # committed sweep MPEPC checks from it) lagged the chair by v·Δ: ~10 cm at 1 m/s and
+    # 0.1 s (nav_eval seed 7 at 0.1 s lost 2 tight goals). With the latency measured on the
+    # plans before, the request is the core's own state at t + Δ: its predicted pose, its
+    # limiter, its drive chain and where the chair stands then.
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+    from autochair_msgs import GoalRequest, Pose2D
+
+    cfg = ControlConfig()
+    h = 1.0 / cfg.rate_hz
+    plan = Plan((3.0, 0.0, 0.0, 1.0), (6.0, 1.0, 0.3), 1.0, 0.0, 1.0, 1.0, 1.0,
+                np.zeros((1, 3)), False, math.nan, 0.0, 1)
+
+    fld = free_field([(0.0, 0.0), (9.0, 2.0)], FP)
+
+    def state(core: ControlCore, t: float) -> tuple[float, ...]:
+        """What a request carries: the predicted pose, the limiter's (v, ω)."""
+        assert core.odom is not None
+        p = core._predicted(core.odom, t)
+        return (p.x, p.y, p.yaw, core.limiter.v.value, core.limiter.w.value)
+
+    def drive(delay_ticks: int) -> tuple[PlanRequest, tuple[float, ...], tuple[float, ...],
+                                         tuple[float, float, float]]:
+        """The core driving `plan`, each plan applied delay_ticks after its request, against a
+        chair that is its own chain model: the first request from 2.5 s on, the core's state
+        when it was asked for and when it takes effect, and the chair's pose then."""
+        core = ControlCore(cfg, footprint=FP)
+        core.inline_planning = False
+        chair = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
+                 ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
+        x = y = yaw = 0.0
+        core.on_odom(OdomSample(x, y, yaw, 0.0, 0.0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(9.0, 2.0, 0.3)]), 0.0).ok
+        due: int | None = None
+        req: PlanRequest | None = None
+        asked_state: tuple[float, ...] = ()
+        for k in range(round(4.0 / h)):
+            t = k * h
+            core.on_odom(OdomSample(x, y, yaw, chair[0].x2, chair[1].x2, t))
+            if due == k:
+                if req is not None:
+                    return req, asked_state, state(core, t), (x, y, yaw)
+                core.on_plan(PlanResult(core.goal_id, core.index, fld, None, plan), t)
+                due = None
+            asked = core.plan_request(t) if due is None else None
+            if asked is not None:
+                due = k + delay_ticks
+                if t >= 2.5:
+                    req, asked_state = asked, state(core, t)
+                    if delay_ticks == 0:
+                        return req, asked_state, asked_state, (x, y, yaw)
+                elif delay_ticks == 0:
+                    core.on_plan(PlanResult(core.goal_id, core.index, fld, None, plan), t)
+                    due = None
+            v, w = core.step(t, h) or (0.0, 0.0)
+            v0, w0 = chair[0].x2, chair[1].x2
+            chair[0].push(h, v)
+            chair[1].push(h, w)
+            vm, wm = 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2)
+            mid = yaw + 0.5 * wm * h
+            x, y, yaw = x + vm * math.cos(mid) * h, y + vm * math.sin(mid) * h, yaw + wm * h
+        raise AssertionError("no request")
+
+    req, asked, at_effect, chair_then = drive(5)  # Δ = 0.1 s
+    assert req.chain is not None
+    assert (*req.pose, req.v, req.omega) == pytest.approx(at_effect, abs=1e-6)
+    assert req.chain.pose == pytest.approx(chair_then, abs=1e-6)
+    # positive controls: the chair moves ~10 cm meanwhile, so the state it was asked in is
+    # not it; and applied at once, the request is the core's state when asked, as before
+    assert math.hypot(at_effect[0] - asked[0], at_effect[1] - asked[1]) > 0.05
+    req, asked, _, _ = drive(0)
+    assert (*req.pose, req.v, req.omega) == pytest.approx(asked, abs=1e-9)

@@ -52,6 +52,10 @@ FINAL_MOVE_M, FINAL_LINE = MpepcParams().final_move_m, MpepcParams().final_line
 # The most a sample is moved on by its age (_predicted): older is stale odometry anyway (the
 # node's [stale] odometry_s, 0.3 s), and a wrong stamp must not throw the pose far.
 MAX_ODOM_AGE_S = 0.3
+# Planning latency (ControlCore.plan_request): the time from a plan's request to its taking
+# effect, measured on each plan (an EWMA of this weight), is driven ahead by at most this.
+LATENCY_WEIGHT = 0.3
+MAX_LATENCY_S = 0.3
 GOAL_SHIFT_M = 0.05  # a map goal moved this far in odom (the field's cell): new costs-to-go
 # A map goal moved further than this in odom by a localization that was lost and is tracking
 # again: the re-found place may be a look-alike (H33), so the goal is not resumed on it.
@@ -473,6 +477,8 @@ class ControlCore:
         self.inline_planning = True  # plan inside step(); the node plans in a thread instead
         self._plan_t = -math.inf
         self._plan_got_t = -math.inf  # when the current plan arrived
+        self._asked_t = -math.inf  # when the newest plan was asked for
+        self.latency_s: float | None = None  # request to effect, EWMA (plan_request)
         self._blocked_since: float | None = None
         self._replanned = False
         self._last_blocked = ("", -math.inf)  # the latest blocked reason of this goal, when
@@ -722,13 +728,57 @@ class ControlCore:
 
     # --- planning (MPEPC) -------------------------------------------------------------------
     def plan_request(self, now: float) -> PlanRequest | None:
-        """A snapshot for one planning cycle when one is due, else None (see nav/planner.py)."""
+        """A snapshot for one planning cycle when one is due, else None (see nav/planner.py).
+        The plan takes effect `latency_s` later (the node plans on its own thread, 50-190 ms,
+        the core driving the previous plan meanwhile): it is asked for from the state the
+        core will be in then (_ahead), as MPC compensates its computation delay. Planned from
+        now, its start and its committed sweep lagged the chair by v·latency (nav_eval seed 7
+        with 0.1 s: 2 of 32 tight goals lost)."""
         o = self.odom
         if not self.active or o is None or now - self._plan_t < 1.0 / self.cfg.plan_rate_hz:
             return None
         if self.map_waypoints is not None and (self._loc_lost or self.frames.why_not(now)):
             return None  # where the goal is in odom is unknown: nothing to plan to
-        self._plan_t = now
+        self._plan_t = self._asked_t = now
+        ahead = self._ahead(o, now)
+        if ahead is not None:
+            return ahead
+        return self._request(o, now)
+
+    def _ahead(self, o: OdomSample, now: float) -> PlanRequest | None:
+        """The request of a copy of this core driven on by the latency in whole ticks, its
+        odometry the predictor's chain (what the core plans with anyway); None without a
+        latency, or if the copy's goal ends meanwhile (then planned from now)."""
+        h = 1.0 / self.cfg.rate_hz
+        n = round((self.latency_s or 0.0) / h)
+        if n == 0:
+            return None
+        sim = copy.copy(self)
+        sim.limiter, sim._lead = copy.deepcopy(self.limiter), copy.deepcopy(self._lead)
+        sim._chain, sim._plan_chain = copy.deepcopy(self._chain), copy.deepcopy(self._plan_chain)
+        sim._history, sim.counters = copy.copy(self._history), dict(self.counters)
+        sim.waypoints, sim.inline_planning = list(self.waypoints), False
+        cv, cw = sim._chain
+        x, y, yaw = self._now_pose(o, now)
+        v, w = cv.x2, cw.x2
+        for k in range(n):
+            t = now + k * h
+            sim.odom = OdomSample(x, y, yaw, v, w, t)
+            sim.step(t, h)
+            if not sim.active:
+                return None
+            v0, w0, v, w = v, w, cv.x2, cw.x2  # (the chain's output over the tick, trapezoid)
+            mid = yaw + 0.25 * (w0 + w) * h
+            x += 0.5 * (v0 + v) * math.cos(mid) * h
+            y += 0.5 * (v0 + v) * math.sin(mid) * h
+            yaw += 0.5 * (w0 + w) * h
+        t = now + n * h
+        sim.odom = OdomSample(x, y, wrap(yaw), v, w, t)
+        sim.people = [replace(q, x_m=q.x_m + q.vx_mps * n * h, y_m=q.y_m + q.vy_mps * n * h)
+                      for q in self.people]
+        return sim._request(sim.odom, t)
+
+    def _request(self, o: OdomSample, now: float) -> PlanRequest:
         p = self._predicted(o, now)
         wp = self.waypoints[self.index]
         fld = self._field_for(o, self.waypoints) if self.field is None else self.field
@@ -768,6 +818,11 @@ class ControlCore:
 
     def on_plan(self, res: PlanResult, now: float) -> None:
         """Apply a planning cycle's result (ignored if the goal or waypoint changed since)."""
+        if self._asked_t > -math.inf:  # (it answers the newest request: one at a time)
+            late = min(max(now - self._asked_t, 0.0), MAX_LATENCY_S)
+            self._asked_t = -math.inf
+            self.latency_s = late if self.latency_s is None else \
+                self.latency_s + LATENCY_WEIGHT * (late - self.latency_s)
         if res.goal_id != self.goal_id or res.index != self.index or not self.active:
             return
         self.ctg, self._ctg_key = res.ctg, (id(res.field), res.index)

@@ -75,6 +75,12 @@ class SCurveAxis:
     def load(self, state: AxisState) -> None:
         self.value, self.rate, self._plan_state, self._left = state
 
+    def __deepcopy__(self, memo: dict[int, object]) -> SCurveAxis:
+        """The same axis state (ruckig's objects cannot be copied; each move re-plans anyway)."""
+        c = SCurveAxis(self.vmax, self.amax, self.jmax)
+        c.load(self.save())
+        return c
+
     def braking_rate(self, error: float, dt: float) -> float:
         """Largest rate (signed as `error`) from which jerk-limited braking ends on the target.
 
