@@ -595,3 +595,49 @@ def test_a_plan_is_asked_for_from_where_the_core_will_be_when_it_takes_effect() 
     assert math.hypot(at_effect[0] - asked[0], at_effect[1] - asked[1]) > 0.05
     req, asked, _, _ = drive(0)
     assert (*req.pose, req.v, req.omega) == pytest.approx(asked, abs=1e-9)
+
+
+def test_the_status_reads_the_costs_to_go_on_the_field_they_were_made_on() -> None:
+    # With no map the core plans on a free field round the chair and its goal, made anew for
+    # each request; asked for from where the core will be (latency compensation), the request
+    # was made by a copy, whose field the plan's costs-to-go are on while the core's status
+    # read them on its own older one: an IndexError on `autochair goal` through the processes.
+    from autochair.nav.planner import PlanResult, compute
+    from autochair_msgs import GoalRequest, Pose2D
+
+    cfg = ControlConfig()
+    h = 1.0 / cfg.rate_hz
+    core = ControlCore(cfg, footprint=FP)
+    core.inline_planning = False
+    chair = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
+             ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
+    x = y = yaw = 0.0
+    core.on_odom(OdomSample(x, y, yaw, 0.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 1.0, 0.5)]), 0.0).ok
+    due: int | None = None
+    res: PlanResult | None = None
+    fields: set[int] = set()
+    left: list[float] = []
+    for k in range(round(12.0 / h)):
+        t = k * h
+        core.on_odom(OdomSample(x, y, yaw, chair[0].x2, chair[1].x2, t))
+        if due == k and res is not None:
+            core.on_plan(res, t)
+            due = None
+        req = core.plan_request(t) if due is None else None
+        if req is not None:
+            res, due = compute(req), k + 5  # (applied 0.1 s later, as the node's thread does)
+            fields.add(id(req.field))
+        left.append(core.status().distance_left_m)
+        v, w = core.step(t, h) or (0.0, 0.0)
+        v0, w0 = chair[0].x2, chair[1].x2
+        chair[0].push(h, v)
+        chair[1].push(h, w)
+        vm, wm = 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2)
+        mid = yaw + 0.5 * wm * h
+        x, y, yaw = x + vm * math.cos(mid) * h, y + vm * math.sin(mid) * h, yaw + wm * h
+        if not core.active:
+            break
+    assert core.latency_s == pytest.approx(0.1)  # positive controls: the requests were ahead,
+    assert len(fields) > 3  # each on a field of its own
+    assert core.state == "arrived" and max(left) > 6.0 and left[-1] < 0.05, (core.reason, left)

@@ -460,8 +460,8 @@ class ControlCore:
         # to the waypoint planned to, MPEPC's last plan, moving people.
         self.footprint = footprint or Footprint()
         self.field: NavField | None = None
-        self._free: NavField | None = None
         self.ctg: CostToGo | None = None
+        self._ctg_field: NavField | None = None  # the field ctg was made on (status reads it)
         self._ctg_key: tuple[int, int] = (0, -1)  # (id of its field, waypoint index)
         self.given_up: GridMap | None = None  # cells kept out of ctg (nav/planner.give_up)
         self.plan: Plan | None = None
@@ -622,7 +622,8 @@ class ControlCore:
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
         self.aligning = self.straight = self.final = False
         self._land_left = None
-        self.ctg, self._ctg_key, self.plan = ctg, (id(check.fld), 0), None
+        self.ctg, self._ctg_field = ctg, check.fld
+        self._ctg_key, self.plan = (id(check.fld), 0), None
         self.given_up = None
         self._plan_t, self._blocked_since = -math.inf, None
         self._last_blocked = ("", -math.inf)
@@ -634,9 +635,7 @@ class ControlCore:
     def _field_for(self, o: OdomSample, waypoints: list[Pose2D]) -> NavField:
         if self.field is not None:
             return self.field
-        pts = [(o.x, o.y)] + [(p.x_m, p.y_m) for p in waypoints]
-        self._free = free_field(pts, self.footprint)
-        return self._free
+        return free_field([(o.x, o.y)] + [(p.x_m, p.y_m) for p in waypoints], self.footprint)
 
     def cancel(self, now: float) -> GoalReply:
         if not self.active:
@@ -825,7 +824,10 @@ class ControlCore:
                 self.latency_s + LATENCY_WEIGHT * (late - self.latency_s)
         if res.goal_id != self.goal_id or res.index != self.index or not self.active:
             return
-        self.ctg, self._ctg_key = res.ctg, (id(res.field), res.index)
+        # (with the field they were made on: a request made ahead (_ahead) made its own free
+        # field, and a map may have come since)
+        self.ctg, self._ctg_field = res.ctg, res.field
+        self._ctg_key = (id(res.field), res.index)
         self.given_up = res.given_up
         if res.error or res.plan is None:
             # The map closed the way: blocked (at rest) while the path is recomputed each
@@ -1241,7 +1243,7 @@ class ControlCore:
         if self.waypoints and o is not None and self.active:
             wps = self.waypoints[self.index:]
             first = math.hypot(wps[0].x_m - o.x, wps[0].y_m - o.y)
-            fld = self.field or self._free
+            fld = self._ctg_field
             if self.ctg is not None and fld is not None and first > self.tol_m:
                 # along the path, not as the crow flies (ctg is built for this waypoint)
                 first = max(first, min(fld.start_cost(self.ctg, o.x, o.y), 1e3))
