@@ -25,6 +25,18 @@ from autochair.nav.planner import PlanRequest, free_field
 FP = Footprint()
 
 
+def chain_step(chair: tuple[ChainAxis, ChainAxis], pose: tuple[float, float, float],
+               cmd: tuple[float, float], h: float) -> tuple[float, float, float]:
+    """One tick of a chair that is its own chain model: the command pushed through both axes,
+    the pose moved on by their output's mean over the tick."""
+    (x, y, yaw), (v0, w0) = pose, (chair[0].x2, chair[1].x2)
+    chair[0].push(h, cmd[0])
+    chair[1].push(h, cmd[1])
+    vm, wm = 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2)
+    mid = yaw + 0.5 * wm * h
+    return x + vm * math.cos(mid) * h, y + vm * math.sin(mid) * h, yaw + wm * h
+
+
 class LaggedChair:
     """The chair behind the identified drive chain: the core's limiter's commands through the
     core's own chain model (ChainAxis per axis: dead time, then the PID prefilter's two lags),
@@ -577,13 +589,7 @@ def test_a_plan_is_asked_for_from_where_the_core_will_be_when_it_takes_effect() 
                 elif delay_ticks == 0:
                     core.on_plan(PlanResult(core.goal_id, core.index, fld, None, plan), t)
                     due = None
-            v, w = core.step(t, h) or (0.0, 0.0)
-            v0, w0 = chair[0].x2, chair[1].x2
-            chair[0].push(h, v)
-            chair[1].push(h, w)
-            vm, wm = 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2)
-            mid = yaw + 0.5 * wm * h
-            x, y, yaw = x + vm * math.cos(mid) * h, y + vm * math.sin(mid) * h, yaw + wm * h
+            x, y, yaw = chain_step(chair, (x, y, yaw), core.step(t, h) or (0.0, 0.0), h)
         raise AssertionError("no request")
 
     req, asked, at_effect, chair_then = drive(5)  # Δ = 0.1 s
@@ -629,13 +635,7 @@ def test_the_status_reads_the_costs_to_go_on_the_field_they_were_made_on() -> No
             res, due = compute(req), k + 5  # (applied 0.1 s later, as the node's thread does)
             fields.add(id(req.field))
         left.append(core.status().distance_left_m)
-        v, w = core.step(t, h) or (0.0, 0.0)
-        v0, w0 = chair[0].x2, chair[1].x2
-        chair[0].push(h, v)
-        chair[1].push(h, w)
-        vm, wm = 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2)
-        mid = yaw + 0.5 * wm * h
-        x, y, yaw = x + vm * math.cos(mid) * h, y + vm * math.sin(mid) * h, yaw + wm * h
+        x, y, yaw = chain_step(chair, (x, y, yaw), core.step(t, h) or (0.0, 0.0), h)
         if not core.active:
             break
     assert core.latency_s == pytest.approx(0.1)  # positive controls: the requests were ahead,
