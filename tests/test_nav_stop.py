@@ -21,6 +21,7 @@ from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import Chain, Mpepc, MpepcParams
 from autochair.nav.planner import PlanRequest, free_field
+from autochair_msgs import GoalRequest
 
 FP = Footprint()
 
@@ -35,6 +36,18 @@ def chain_step(chair: tuple[ChainAxis, ChainAxis], pose: tuple[float, float, flo
     vm, wm = 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2)
     mid = yaw + 0.5 * wm * h
     return x + vm * math.cos(mid) * h, y + vm * math.sin(mid) * h, yaw + wm * h
+
+
+def chained_core(cfg: ControlConfig, goal: GoalRequest
+                 ) -> tuple[ControlCore, tuple[ChainAxis, ChainAxis]]:
+    """A core planned outside its step (as the node does), at rest at the origin with `goal`
+    taken, and a chair that is its own chain model (for `chain_step`)."""
+    core = ControlCore(cfg, footprint=FP)
+    core.inline_planning = False
+    core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert core.set_goal(goal, 0.0).ok
+    return core, (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
+                  ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
 
 
 class LaggedChair:
@@ -561,13 +574,8 @@ def test_a_plan_is_asked_for_from_where_the_core_will_be_when_it_takes_effect() 
         """The core driving `plan`, each plan applied delay_ticks after its request, against a
         chair that is its own chain model: the first request from 2.5 s on, the core's state
         when it was asked for and when it takes effect, and the chair's pose then."""
-        core = ControlCore(cfg, footprint=FP)
-        core.inline_planning = False
-        chair = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
-                 ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
+        core, chair = chained_core(cfg, GoalRequest(waypoints=[Pose2D(9.0, 2.0, 0.3)]))
         x = y = yaw = 0.0
-        core.on_odom(OdomSample(x, y, yaw, 0.0, 0.0, 0.0))
-        assert core.set_goal(GoalRequest(waypoints=[Pose2D(9.0, 2.0, 0.3)]), 0.0).ok
         due: int | None = None
         req: PlanRequest | None = None
         asked_state: tuple[float, ...] = ()
@@ -613,13 +621,8 @@ def test_the_status_reads_the_costs_to_go_on_the_field_they_were_made_on() -> No
 
     cfg = ControlConfig()
     h = 1.0 / cfg.rate_hz
-    core = ControlCore(cfg, footprint=FP)
-    core.inline_planning = False
-    chair = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
-             ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
+    core, chair = chained_core(cfg, GoalRequest(waypoints=[Pose2D(6.0, 1.0, 0.5)]))
     x = y = yaw = 0.0
-    core.on_odom(OdomSample(x, y, yaw, 0.0, 0.0, 0.0))
-    assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 1.0, 0.5)]), 0.0).ok
     due: int | None = None
     res: PlanResult | None = None
     fields: set[int] = set()

@@ -453,8 +453,10 @@ class ControlCore:
         self.footprint = footprint or Footprint()
         self.field: NavField | None = None
         self.ctg: CostToGo | None = None
-        self._ctg_field: NavField | None = None  # the field ctg was made on (status reads it)
-        self._ctg_key: tuple[int, int] = (0, -1)  # (id of its field, waypoint index)
+        # ctg's field and waypoint: reused only for the same two (-1: made anew next cycle);
+        # the status reads ctg on that field
+        self._ctg_field: NavField | None = None
+        self._ctg_index = -1
         self.given_up: GridMap | None = None  # cells kept out of ctg (nav/planner.give_up)
         self.plan: Plan | None = None
         self.lineups = 0  # line-up poses before doors, inserted ahead of the goal's waypoints
@@ -607,8 +609,7 @@ class ControlCore:
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
         self.aligning = self.straight = self.final = False
         self._land_left = None
-        self.ctg, self._ctg_field = ctg, check.fld
-        self._ctg_key, self.plan = (id(check.fld), 0), None
+        self.ctg, self._ctg_field, self._ctg_index, self.plan = ctg, check.fld, 0, None
         self.given_up = None
         self._plan_t, self._blocked_since = -math.inf, None
         self._last_blocked = ("", -math.inf)
@@ -745,7 +746,7 @@ class ControlCore:
         p = self._predicted(o, now)
         wp = self.waypoints[self.index]
         fld = self._field_for(o, self.waypoints) if self.field is None else self.field
-        ctg = self.ctg if self._ctg_key == (id(fld), self.index) else None
+        ctg = self.ctg if self._ctg_field is fld and self._ctg_index == self.index else None
         prev = None if self.plan is None else (*self.plan.target, self.plan.vmax_mps)
         # The plan starts from the pose predicted `ahead` s ahead; people are moved on as far
         # (else the chair is planned past a crossing person it has not yet passed). With the
@@ -790,8 +791,7 @@ class ControlCore:
             return
         # (with the field they were made on: a request made ahead (_ahead) made its own free
         # field, and a map may have come since)
-        self.ctg, self._ctg_field = res.ctg, res.field
-        self._ctg_key = (id(res.field), res.index)
+        self.ctg, self._ctg_field, self._ctg_index = res.ctg, res.field, res.index
         self.given_up = res.given_up
         if res.error or res.plan is None:
             # The map closed the way: blocked (at rest) while the path is recomputed each
@@ -860,7 +860,7 @@ class ControlCore:
                     for q, w in zip(now_odom, before, strict=True))
         self.waypoints[len(self.waypoints) - n:] = now_odom
         if moved > GOAL_SHIFT_M:  # the correction jumped (a relocalization): plan anew
-            self._ctg_key, self.plan = (0, -1), None
+            self._ctg_index, self.plan = -1, None
             self._count("map_goal_shifts")
         return True
 
@@ -877,7 +877,7 @@ class ControlCore:
             # (the chair follows its commands: it brakes through the limiter, no reset)
             self._end(ABORTED, f"{why} (for {waited:.0f} s)", now)
         elif waited >= self.cfg.blocked_wait_s and not self._replanned:
-            self._replanned, self._ctg_key = True, (0, -1)  # next cycle: a new path
+            self._replanned, self._ctg_index = True, -1  # next cycle: a new path
 
     def _watch_progress(self, o: OdomSample, now: float) -> None:
         """Abort a goal the chair does not follow, or that makes no progress."""
