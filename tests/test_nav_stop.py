@@ -17,6 +17,7 @@ import pytest
 
 from autochair.control.core import ChainAxis, ControlConfig, ControlCore, OdomSample
 from autochair.control.limits import ComfortLimiter
+from autochair.geometry import advance
 from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import Chain, Mpepc, MpepcParams
@@ -30,12 +31,10 @@ def chain_step(chair: tuple[ChainAxis, ChainAxis], pose: tuple[float, float, flo
                cmd: tuple[float, float], h: float) -> tuple[float, float, float]:
     """One tick of a chair that is its own chain model: the command pushed through both axes,
     the pose moved on by their output's mean over the tick."""
-    (x, y, yaw), (v0, w0) = pose, (chair[0].x2, chair[1].x2)
+    v0, w0 = chair[0].x2, chair[1].x2
     chair[0].push(h, cmd[0])
     chair[1].push(h, cmd[1])
-    vm, wm = 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2)
-    mid = yaw + 0.5 * wm * h
-    return x + vm * math.cos(mid) * h, y + vm * math.sin(mid) * h, yaw + wm * h
+    return advance(*pose, 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2), h)
 
 
 def chained_core(cfg: ControlConfig, goal: GoalRequest

@@ -29,6 +29,12 @@ def along_lateral(pose: Pose, px: float, py: float) -> tuple[float, float]:
     return dx * c + dy * s, dy * c - dx * s
 
 
+def advance(x: float, y: float, yaw: float, v: float, w: float, dt: float) -> Pose:
+    """The pose after dt at (v, ω), heading taken at the step's middle (unwrapped yaw)."""
+    mid = yaw + 0.5 * w * dt
+    return x + v * math.cos(mid) * dt, y + v * math.sin(mid) * dt, yaw + w * dt
+
+
 def compose(a: Pose, b: Pose) -> Pose:
     """a ∘ b: pose b, given in a's frame, in a's parent frame."""
     c, s = math.cos(a[2]), math.sin(a[2])

@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import msgspec
 import numpy as np
 
-from autochair.geometry import Pose, along_lateral, compose
+from autochair.geometry import Pose, advance, along_lateral, compose
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav.field import CostToGo, Footprint, GridMap, NavField
 from autochair.nav.frames import MapFrame
@@ -732,10 +732,7 @@ class ControlCore:
             if not sim.active:
                 return None
             v0, w0, v, w = v, w, cv.x2, cw.x2  # (the chain's output over the tick, trapezoid)
-            mid = yaw + 0.25 * (w0 + w) * h
-            x += 0.5 * (v0 + v) * math.cos(mid) * h
-            y += 0.5 * (v0 + v) * math.sin(mid) * h
-            yaw += 0.5 * (w0 + w) * h
+            x, y, yaw = advance(x, y, yaw, 0.5 * (v0 + v), 0.5 * (w0 + w), h)
         t = now + n * h
         sim.odom = OdomSample(x, y, wrap(yaw), v, w, t)
         sim.people = [replace(q, x_m=q.x_m + q.vx_mps * n * h, y_m=q.y_m + q.vy_mps * n * h)
@@ -745,7 +742,7 @@ class ControlCore:
     def _request(self, o: OdomSample, now: float) -> PlanRequest:
         p = self._predicted(o, now)
         wp = self.waypoints[self.index]
-        fld = self._field_for(o, self.waypoints) if self.field is None else self.field
+        fld = self._field_for(o, self.waypoints)
         ctg = self.ctg if self._ctg_field is fld and self._ctg_index == self.index else None
         prev = None if self.plan is None else (*self.plan.target, self.plan.vmax_mps)
         # The plan starts from the pose predicted `ahead` s ahead; people are moved on as far
@@ -937,10 +934,7 @@ class ControlCore:
         if n == 0:
             return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
         for v, w in zip(cv.future(h, n), cw.future(h, n), strict=True):
-            yaw_mid = yaw + 0.5 * w * h
-            x += v * math.cos(yaw_mid) * h
-            y += v * math.sin(yaw_mid) * h
-            yaw += w * h
+            x, y, yaw = advance(x, y, yaw, v, w, h)
         dv, dw = self._lead[0].ahead, self._lead[1].ahead
         dv -= self._stop_overrun()
         yaw -= dw
@@ -974,14 +968,10 @@ class ControlCore:
     @staticmethod
     def _now_pose(o: OdomSample, now: float) -> tuple[float, float, float]:
         """The odometry's pose moved on to `now` at its own velocity over its age (_predicted)."""
-        x, y, yaw = o.x, o.y, o.yaw
         age = min(max(now - o.t, 0.0) + o.age_s, MAX_ODOM_AGE_S)
         if age > 0.0:
-            yaw_mid = yaw + 0.5 * o.omega * age
-            x += o.v * math.cos(yaw_mid) * age
-            y += o.v * math.sin(yaw_mid) * age
-            yaw += o.omega * age
-        return x, y, yaw
+            return advance(o.x, o.y, o.yaw, o.v, o.omega, age)
+        return o.x, o.y, o.yaw
 
     def _desired(self, o: OdomSample, now: float) -> tuple[float, float]:
         cfg = self.cfg
