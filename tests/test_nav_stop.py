@@ -97,6 +97,14 @@ class LaggedChair:
         lim = self.lim
         return np.array([[lim.v.value], [lim.v.rate], [lim.w.value], [lim.w.rate]])
 
+    def braked_turn(self) -> tuple[tuple[float, float, float], tuple[float, ...]]:
+        """2 s straight at 1 m/s, then 0.3 s into a turn at -0.9 rad/s: the predicted pose and
+        the limiter's (v, v̇, ω, ω̇) there, where a plan that brakes now starts from."""
+        self.drive(1.0, 0.0, 2.0)
+        self.drive(1.0, -0.9, 0.3)
+        p = self.predicted()
+        return (p.x, p.y, p.yaw), tuple(float(x) for x in self.state()[:, 0])
+
 
 def stop_of(mp: Mpepc, pose: tuple[float, float, float], st: np.ndarray
             ) -> tuple[float, float, float]:
@@ -384,18 +392,14 @@ def test_the_committed_sweep_is_the_body_through_the_drive_chain() -> None:
     # chain (Mpepc.chain_sweep) the committed sweep is the body's own.
     cfg = ControlConfig()
     chair = LaggedChair(cfg)
-    chair.drive(1.0, 0.0, 2.0)
-    chair.drive(1.0, -0.9, 0.3)
-    p = chair.predicted()
-    pose = (p.x, p.y, p.yaw)
-    st = chair.state()
-    v0, a0, w0, q0 = (float(st[i, 0]) for i in range(4))
+    pose, (v0, a0, w0, q0) = chair.braked_turn()
     cv, cw = chair.core._chain
     chain = Chain((chair.x, chair.y, chair.yaw), copy.deepcopy(cv), copy.deepcopy(cw), chair.h)
     n = len(chair.true)
     chair.drive(0.0, 0.0, 4.0)  # braked (the stop), to rest
     true = np.array(chair.true[n:])
-    true = true[int(np.argmin(np.hypot(true[:, 0] - p.x, true[:, 1] - p.y))):]  # (from p on)
+    # (the truth from the predicted pose on)
+    true = true[int(np.argmin(np.hypot(true[:, 0] - pose[0], true[:, 1] - pose[1]))):]
     stop = np.array([[1.0, 0.0, 0.0, 0.0]])  # (vmax 0: the law's v and ω 0, the limiter brakes)
     need = 0.05
 
@@ -517,12 +521,7 @@ def test_with_the_lead_the_committed_sweep_is_the_body_through_the_lead() -> Non
     # prefilter) puts the body 9 cm off its real path here (its sweep 1.6 cm).
     cfg = ControlConfig(lead=True)
     chair = LedChair(cfg)
-    chair.drive(1.0, 0.0, 2.0)
-    chair.drive(1.0, -0.9, 0.3)
-    p = chair.predicted()
-    pose = (p.x, p.y, p.yaw)
-    st = chair.state()
-    v0, a0, w0, q0 = (float(st[i, 0]) for i in range(4))
+    pose, (v0, a0, w0, q0) = chair.braked_turn()
     chain = chair.core._chain_now(OdomSample(chair.x, chair.y, chair.yaw, 1.0, 0.0, 0.0), 0.0)
     assert chain is not None
     n = len(chair.true)
