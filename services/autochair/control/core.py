@@ -117,6 +117,14 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     # lose office B's desk and the store room / the far corner and the store room (partial
     # runs). Off until MPEPC's last manoeuvres in tight spots hold with it.
     lead: bool = False
+    # Lead ω past the prefilter (LeadAxis) in the goal's own in-place turn (`_align`), even
+    # with `lead` off: after that turn the chain's tail is the last thing the goal waits for
+    # (from the turn's last command to the chair at rest 0.7-1.0 s, half of it the prefilter's
+    # 2τ; session 18's phase breakdown of control_eval's median cases). The turn sweeps the
+    # yaws from the chair's to the goal's, checked by `_room_to_turn`; the lead only makes the
+    # chair follow that move sooner. ω has no forward-only clamp, so no overrun to predict.
+    # Only where the predictor's ω chain holds the prefilter (predict_omega_s ≥ 2·predict_lag_s).
+    align_lead: bool = True
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
     # shows at the chair: with the exact lead (no smoothing) at the full limits it measured a
@@ -486,7 +494,15 @@ class ControlCore:
         self._chain = (ChainAxis(self.cfg.predict_s, self.cfg.predict_lag_s),
                        ChainAxis(self.cfg.predict_omega_s, self.cfg.predict_lag_s))
         lead_s = self.cfg.predict_lag_s if self.cfg.lead else 0.0
-        self._lead = (LeadAxis(lead_s), LeadAxis(lead_s))
+        # (align_lead only where the predictor's ω chain holds the prefilter's two lags: a
+        # chair without them, led, overshoots the turn and reverses)
+        prefiltered = self._chain[1].lag == self.cfg.predict_lag_s > 0.0
+        turn_s = self.cfg.predict_lag_s if self.cfg.lead or (
+            self.cfg.align_lead and prefiltered) else 0.0
+        self._lead = (LeadAxis(lead_s), LeadAxis(turn_s))
+        # ω is led: always with `lead`; with `align_lead` from the goal's in-place turn until ω
+        # has come to rest after it (_lead_out).
+        self._omega_led = self.cfg.lead
         # With the lead, the chair's response to the planned commands (before the lead): the
         # dead time, then the lead's own two lags (LeadAxis: the prefilter hands the PID S(r)).
         # What MPEPC's committed sweeps pass the plan's commands through (_chain_now).
@@ -594,8 +610,7 @@ class ControlCore:
             if self._plan_chain is not None:
                 self._plan_chain[0].reset(o.v)
                 self._plan_chain[1].reset(o.omega)
-            self._lead[0].reset(self.limiter.v.value)
-            self._lead[1].reset(self.limiter.w.value)
+            self._reset_leads()
         self.goal_id += 1
         self.map_waypoints, self._loc_lost = check.map_waypoints, False
         self._trusted = self.frames.correction
@@ -657,6 +672,15 @@ class ControlCore:
         if not self.active and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
             return None
+        lw = self.limiter.w
+        if not self._omega_led and self.aligning and self.active and self._lead[1].tau > 0.0 \
+                and lw.value == 0.0 and lw.rate == 0.0:
+            # The goal's in-place turn (align_lead), led from rest only: a rest-to-rest plan is
+            # led by motion it takes back (`ahead` returns to 0); begun on a moving ω the lead
+            # would keep ~2τ·ω turned but not predicted (nav_eval seed 2's L corner rested
+            # 8.7° off its goal, 0.013 m from a wall). Unled, that turn keeps its tail.
+            self._lead[1].reset(0.0)
+            self._omega_led = True
         if self._move is not None and self.active:
             v, w = self.limiter.move(*self._move, dt, vmax=self.vmax)
             if self._land_left is not None:
@@ -685,10 +709,22 @@ class ControlCore:
         changes is real motion, which the predictor sees (it is fed what is sent)."""
         lim = self.limiter.lim
         cv = self._lead[0].step(v, dt, lim.a_max_mps2, lim.jerk_max_mps3)
-        cw = self._lead[1].step(w, dt, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3)
+        lw, lead_w = self.limiter.w, self._lead[1]
+        cw = lead_w.step(w, dt, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3) \
+            if self._omega_led else w
+        if self._omega_led and not self.cfg.lead and not (self.aligning and self.active) \
+                and lw.value == 0.0 and lw.rate == 0.0 and abs(cw) < 1e-5:
+            lead_w.reset(0.0)  # the turn and its lead have played out: unled again
+            self._omega_led = False
         vm = min(lim.v_max_mps, self.vmax)
         cv = min(max(cv, 0.0), vm) if v >= 0.0 else max(min(cv, 0.0), -vm)
         return cv, min(max(cw, -lim.omega_max_radps), lim.omega_max_radps)
+
+    def _reset_leads(self) -> None:
+        """Both leads from the limiter's values, ω led again only with `lead`."""
+        self._lead[0].reset(self.limiter.v.value)
+        self._lead[1].reset(self.limiter.w.value)
+        self._omega_led = self.cfg.lead
 
     # --- planning (MPEPC) -------------------------------------------------------------------
     def plan_request(self, now: float) -> PlanRequest | None:
@@ -912,8 +948,7 @@ class ControlCore:
         self._end(state, reason, now)
         if self.odom is not None:
             self.limiter.reset(self.odom.v, self.odom.omega)
-            self._lead[0].reset(self.limiter.v.value)
-            self._lead[1].reset(self.limiter.w.value)
+            self._reset_leads()
         self._count("stopped_" + state)
 
     def _predicted(self, o: OdomSample, now: float) -> OdomSample:
@@ -1126,11 +1161,14 @@ class ControlCore:
         if self._land_left is None:
             self._land_left = max(along, 0.0) if lv.moving else 0.0
         v_to = max(self._land_left, 0.0) if lv.moving else None
-        # In the capture band the turn finishes its landing but starts nothing new (no
-        # reversal, no creeping after a residue); at rest anywhere in tolerance the goal is
-        # reached.
+        # In the capture band the turn brakes to rest and starts nothing new (no reversal,
+        # no creeping after a residue); at rest anywhere in tolerance the goal is reached.
+        # (Not chasing the band's residue with the move: the predicted rest yaw wanders by
+        # ~0.5° as the chain plays out, and a move re-aimed at it near its end sent a second
+        # hump of ω that the chair took ~0.5 s longer to rest from; session 18, a 45° turn
+        # 2.56 -> 2.06 s, resting 1.2° short of the goal instead of 0.1° past.)
         band = abs(e) <= self.tol_rad * cfg.capture_fraction
-        if (band and not (lw.moving and lw.value * e > 0.0)) or (
+        if band or (
                 abs(e) <= self.tol_rad and lw.value == 0.0 and lw.rate == 0.0):
             # Arrived once the chair itself is at rest, not just the command: the drive chain
             # still coasts for ~0.5 s after the last non-zero command.
