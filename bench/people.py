@@ -95,7 +95,8 @@ def run_case(world: World, path: Callable[[float], Pose], duration: float, off_m
         t0 = time.perf_counter()
         pts = scan_points(r, float(angles[0]), float(angles[1] - angles[0]), 0.02, 5.6,
                           (lx, ly, yaw + mount[2]))
-        tracks = tracker.update(pts, (lx, ly), t)
+        rays = (np.full(r.size, lx), np.full(r.size, ly), yaw + mount[2] + angles)
+        tracks = tracker.update(pts, (lx, ly), t, rays)
         times.append(time.perf_counter() - t0)
         for tr in tracks:
             born.setdefault(tr.track_id, t)
