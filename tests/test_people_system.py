@@ -114,11 +114,13 @@ def test_driving_round_a_corner_makes_no_people_of_walls(
                        for m in people.messages() for q in m.people)
 
         def instead() -> str:  # for a failure: how the drive ended, what was reported
-            seen = [(round(q.x_m, 1), round(q.y_m, 1)) for m in people.messages()
-                    for q in m.people]
+            # (when, too: the cabinet reported before the goal was once read as a wall
+            # reported instead of the walker)
+            seen = [(round(q.x_m, 1), round(q.y_m, 1), round((m.stamp_ns - sent_ns) / 1e9, 1))
+                    for m in people.messages() for q in m.people]
             return (f"the walker at the far end reported; the goal: {story(states)}; "
-                    f"{len(people.messages())} reports, the last people {seen[-6:]}; "
-                    f"{held(pid, sent_ns)}")
+                    f"{len(people.messages())} reports, the last people (x, y, s after the "
+                    f"goal) {seen[-6:]}; {held(pid, sent_ns)}")
 
         wait_for(walker, 10, instead)
         wrong = [(round(q.x_m, 2), round(q.y_m, 2), round((m.stamp_ns - sent_ns) / 1e9, 2))
