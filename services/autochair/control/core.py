@@ -496,13 +496,12 @@ class ControlCore:
         lead_s = self.cfg.predict_lag_s if self.cfg.lead else 0.0
         # (align_lead only where the predictor's ω chain holds the prefilter's two lags: a
         # chair without them, led, overshoots the turn and reverses)
-        prefiltered = self._chain[1].lag == self.cfg.predict_lag_s > 0.0
-        turn_s = self.cfg.predict_lag_s if self.cfg.lead or (
-            self.cfg.align_lead and prefiltered) else 0.0
-        self._lead = (LeadAxis(lead_s), LeadAxis(turn_s))
-        # ω is led: always with `lead`; with `align_lead` from the goal's in-place turn until ω
-        # has come to rest after it (_lead_out).
-        self._omega_led = self.cfg.lead
+        self._lead = tuple(LeadAxis(self.cfg.predict_lag_s if self.cfg.lead or (
+            self.cfg.align_lead and c.lag == self.cfg.predict_lag_s > 0.0) else 0.0)
+            for c in self._chain)
+        # each axis is led: always with `lead`; with `align_lead` from the goal's straight final
+        # (v) and in-place turn (ω), from rest, until the axis has come to rest after it
+        self._led = [self.cfg.lead, self.cfg.lead]
         # With the lead, the chair's response to the planned commands (before the lead): the
         # dead time, then the lead's own two lags (LeadAxis: the prefilter hands the PID S(r)).
         # What MPEPC's committed sweeps pass the plan's commands through (_chain_now).
@@ -672,17 +671,18 @@ class ControlCore:
         if not self.active and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
             return None
-        lw = self.limiter.w
-        if not self._omega_led and self.aligning and self.active and self._lead[1].tau > 0.0 \
-                and lw.value == 0.0 and lw.rate == 0.0:
-            # The goal's in-place turn (align_lead), led from rest only: a rest-to-rest plan is
-            # led by motion it takes back (`ahead` returns to 0); begun on a moving ω the lead
-            # would keep ~2τ·ω turned but not predicted (nav_eval seed 2's L corner rested
-            # 8.7° off its goal, 0.013 m from a wall). Unled, that turn keeps its tail.
-            self._lead[1].reset(0.0)
-            self._omega_led = True
+        for i, (ax, phase) in enumerate(((self.limiter.v, self.straight),
+                                         (self.limiter.w, self.aligning))):
+            if not self._led[i] and phase and self.active and self._lead[i].tau > 0.0 \
+                    and ax.value == 0.0 and ax.rate == 0.0:
+                # The goal's in-place turn (align_lead), led from rest only: a rest-to-rest plan is
+                # led by motion it takes back (`ahead` returns to 0); begun on a moving ω the lead
+                # would keep ~2τ·ω turned but not predicted (nav_eval seed 2's L corner rested
+                # 8.7° off its goal, 0.013 m from a wall). Unled, that turn keeps its tail.
+                self._lead[i].reset(0.0)
+                self._led[i] = True
         if self._move is not None and self.active:
-            v, w = self.limiter.move(*self._move, dt, vmax=self.vmax)
+            v, w = self.limiter.move(*self._move, dt, vmax=self.vmax, v_lim=self._v_lim())
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
@@ -708,14 +708,18 @@ class ControlCore:
         would clamp a reverse command to the safety monitor's 0 and stop the chair. What a clamp
         changes is real motion, which the predictor sees (it is fed what is sent)."""
         lim = self.limiter.lim
-        cv = self._lead[0].step(v, dt, lim.a_max_mps2, lim.jerk_max_mps3)
-        lw, lead_w = self.limiter.w, self._lead[1]
-        cw = lead_w.step(w, dt, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3) \
-            if self._omega_led else w
-        if self._omega_led and not self.cfg.lead and not (self.aligning and self.active) \
-                and lw.value == 0.0 and lw.rate == 0.0 and abs(cw) < 1e-5:
-            lead_w.reset(0.0)  # the turn and its lead have played out: unled again
-            self._omega_led = False
+        out = []
+        for i, (r, ax, phase, amax, jmax) in enumerate((
+                (v, self.limiter.v, self.straight, lim.a_max_mps2, lim.jerk_max_mps3),
+                (w, self.limiter.w, self.aligning, lim.omega_acc_max_radps2,
+                 lim.omega_jerk_max_radps3))):
+            c = self._lead[i].step(r, dt, amax, jmax) if self._led[i] else r
+            if self._led[i] and not self.cfg.lead and not (phase and self.active) \
+                    and ax.value == 0.0 and ax.rate == 0.0 and abs(c) < 1e-5:
+                self._lead[i].reset(0.0)  # the move and its lead have played out: unled again
+                self._led[i] = False
+            out.append(c)
+        cv, cw = out
         vm = min(lim.v_max_mps, self.vmax)
         cv = min(max(cv, 0.0), vm) if v >= 0.0 else max(min(cv, 0.0), -vm)
         return cv, min(max(cw, -lim.omega_max_radps), lim.omega_max_radps)
@@ -724,7 +728,7 @@ class ControlCore:
         """Both leads from the limiter's values, ω led again only with `lead`."""
         self._lead[0].reset(self.limiter.v.value)
         self._lead[1].reset(self.limiter.w.value)
-        self._omega_led = self.cfg.lead
+        self._led = [self.cfg.lead, self.cfg.lead]
 
     # --- planning (MPEPC) -------------------------------------------------------------------
     def plan_request(self, now: float) -> PlanRequest | None:
@@ -755,6 +759,7 @@ class ControlCore:
             return None
         sim = copy.copy(self)
         sim.limiter, sim._lead = copy.deepcopy(self.limiter), copy.deepcopy(self._lead)
+        sim._led = list(self._led)
         sim._chain, sim._plan_chain = copy.deepcopy(self._chain), copy.deepcopy(self._plan_chain)
         sim._history, sim.counters = copy.copy(self._history), dict(self.counters)
         sim.waypoints, sim.inline_planning = list(self.waypoints), False
@@ -977,6 +982,14 @@ class ControlCore:
         y -= dv * math.sin(yaw)
         return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
 
+    def _v_lim(self) -> tuple[float, float]:
+        """v's acceleration and jerk bounds as planned now: led, at the fractions of the
+        comfort limits that `limits` gives the lead (with `lead` the limiter's own)."""
+        lv, cfg = self.limiter.v, self.cfg
+        if self._led[0] and not cfg.lead:
+            return cfg.plan_fraction_a * lv.amax, cfg.plan_fraction_jerk * lv.jmax
+        return lv.amax, lv.jmax
+
     def _stop_overrun(self) -> float:
         """With the lead: the motion the forward-only clamp (_lead_out) adds to v's stop if the
         plan braked to rest now. To stop the prefilter on time the led command goes below 0 in
@@ -984,16 +997,17 @@ class ControlCore:
         forward stop by ~1.1 cm (straight goals landed 1.5-1.8 cm past). The braking is the
         limiter's (SCurveAxis.step to 0), the lead a copy of the live one."""
         lv = self.limiter.v
-        if not self.cfg.lead or lv.value <= 0.0:
+        if not self._led[0] or lv.value <= 0.0:
             return 0.0
-        ax = SCurveAxis(lv.vmax, lv.amax, lv.jmax)
+        amax, jmax = self._v_lim()
+        ax = SCurveAxis(lv.vmax, amax, jmax)
         ax.reset(lv.value, lv.rate)
         lead = copy.deepcopy(self._lead[0])
         h = 1.0 / self.cfg.rate_hz
         over = 0.0
         for _ in range(400):
             r = ax.step(0.0, h)
-            c = lead.step(r, h, lv.amax, lv.jmax)
+            c = lead.step(r, h, amax, jmax)
             if c < 0.0:
                 over -= c * h
             if r == 0.0 and ax.rate == 0.0 and abs(c) < 1e-5:
