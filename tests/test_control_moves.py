@@ -367,7 +367,7 @@ def test_the_in_place_turns_lead_ends_with_the_turn() -> None:
         core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
         if goals and not core.active and abs(rig.chair.omega) < 1e-4:
             if len(goals) == 1:  # the first goal reached and played out
-                unled_after = not core._omega_led and core._lead[1].ahead == 0.0
+                unled_after = not core._led[1] and core._lead[1].ahead == 0.0
             assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goals.pop(0))]), t).ok
         out = core.step(t) if k % every == 0 else None
         if out is not None and not goals and core.active and not core.aligning:

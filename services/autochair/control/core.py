@@ -365,6 +365,15 @@ class ChainAxis:
             dt, u = self.pipe.popleft()
             self.x1, self.x2 = two_lags(self.x1, self.x2, dt, u, self.lag)
 
+    def now(self) -> tuple[float, float]:
+        """The lags' outputs once the commands in the delay have passed them: the state of the
+        PID's prefilter now, which acts before the dead time (the order of the two does not
+        change the chain)."""
+        x1, x2 = self.x1, self.x2
+        for dt, u in self.pipe:
+            x1, x2 = two_lags(x1, x2, dt, u, self.lag)
+        return x1, x2
+
     def future(self, h: float, n: int) -> list[float]:
         """The chair's mean velocity over each of the next n steps of h if no further
         command came (trapezoidal: its integral is the motion still to come)."""
@@ -411,6 +420,18 @@ class LeadAxis:
     def reset(self, value: float) -> None:
         self._r, self._d1, self.ahead = value, 0.0, 0.0
         self._s = [[value, value], [0.0, 0.0], [0.0, 0.0]]
+
+    def start(self, x1: float, x2: float) -> tuple[float, float]:
+        """Lead from the prefilter's state (x1, x2): the (value, rate) the plan goes on from,
+        so that the prefilter's output goes on as it is (S's states those of a plan at that
+        rate, S(r) = x2 and S(r)' its rate; no jolt), and `ahead` the motion the prefilter
+        holds beyond what S holds: it returns to 0 as the plan comes to rest. From rest, reset."""
+        sig, d = self.smooth_s, (x1 - x2) / self.tau
+        r = x2 + 2.0 * sig * d
+        self._r, self._d1 = r, d
+        self._s = [[r - sig * d, x2], [d, d], [0.0, 0.0]]
+        self.ahead = self.tau * (x1 + x2) - sig * (r - sig * d + x2)
+        return r, d
 
     def step(self, r: float, dt: float, amax: float, jmax: float) -> float:
         if self.tau <= 0.0 or dt <= 0.0:
@@ -673,14 +694,13 @@ class ControlCore:
             return None
         for i, (ax, phase) in enumerate(((self.limiter.v, self.straight),
                                          (self.limiter.w, self.aligning))):
-            if not self._led[i] and phase and self.active and self._lead[i].tau > 0.0 \
-                    and ax.value == 0.0 and ax.rate == 0.0:
-                # The goal's in-place turn (align_lead), led from rest only: a rest-to-rest plan is
-                # led by motion it takes back (`ahead` returns to 0); begun on a moving ω the lead
-                # would keep ~2τ·ω turned but not predicted (nav_eval seed 2's L corner rested
-                # 8.7° off its goal, 0.013 m from a wall). Unled, that turn keeps its tail.
-                self._lead[i].reset(0.0)
-                self._led[i] = True
+            if not self._led[i] and phase and self.active and self._lead[i].tau > 0.0:
+                r, d = self._lead[i].start(*self._chain[i].now())
+                if i == 1 or r >= 0.0:  # (v: forward only)
+                    ax.reset(r, d)
+                    self._led[i] = True
+                else:
+                    self._lead[i].reset(0.0)
         if self._move is not None and self.active:
             v, w = self.limiter.move(*self._move, dt, vmax=self.vmax, v_lim=self._v_lim())
             if self._land_left is not None:
