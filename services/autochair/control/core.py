@@ -117,13 +117,15 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     # lose office B's desk and the store room / the far corner and the store room (partial
     # runs). Off until MPEPC's last manoeuvres in tight spots hold with it.
     lead: bool = False
-    # Lead ω past the prefilter (LeadAxis) in the goal's own in-place turn (`_align`), even
-    # with `lead` off: after that turn the chain's tail is the last thing the goal waits for
-    # (from the turn's last command to the chair at rest 0.7-1.0 s, half of it the prefilter's
-    # 2τ; session 18's phase breakdown of control_eval's median cases). The turn sweeps the
-    # yaws from the chair's to the goal's, checked by `_room_to_turn`; the lead only makes the
-    # chair follow that move sooner. ω has no forward-only clamp, so no overrun to predict.
-    # Only where the predictor's ω chain holds the prefilter (predict_omega_s ≥ 2·predict_lag_s).
+    # Lead the goal's own last moves past the prefilter (LeadAxis), even with `lead` off: the
+    # straight final (v) and the in-place turn (ω). After them the chain's tail is the last
+    # thing the goal waits for (from the last command to the chair at rest 0.55-1.0 s, half of
+    # it the prefilter's 2τ; session 18's phase breakdown). Each is led from its start, at rest
+    # or moving (LeadAxis.start: the plan goes on from the prefilter's state), until the axis
+    # has come to rest after it; v then planned at the lead's fractions of a and jerk (below).
+    # Both moves go where they went (the turn's sweep checked by `_room_to_turn`, the straight
+    # by the plan that handed the goal over); the lead only makes the chair follow them sooner.
+    # Only where the predictor's chain holds the prefilter (predict_s ≥ 2·predict_lag_s).
     align_lead: bool = True
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
@@ -421,16 +423,21 @@ class LeadAxis:
         self._r, self._d1, self.ahead = value, 0.0, 0.0
         self._s = [[value, value], [0.0, 0.0], [0.0, 0.0]]
 
-    def start(self, x1: float, x2: float) -> tuple[float, float]:
-        """Lead from the prefilter's state (x1, x2): the (value, rate) the plan goes on from,
-        so that the prefilter's output goes on as it is (S's states those of a plan at that
-        rate, S(r) = x2 and S(r)' its rate; no jolt), and `ahead` the motion the prefilter
-        holds beyond what S holds: it returns to 0 as the plan comes to rest. From rest, reset."""
+    def start(self, x1: float, x2: float, dt: float) -> tuple[float, float]:
+        """Lead from the prefilter's state (x1, x2) (ChainAxis.now), at rest or moving.
+        Returns the (value, rate) the plan is to go on from: S's states are set as a plan at
+        that rate leaves them, with S(r) = x2 and S(r)' = ẋ2, so that the prefilter's output
+        goes on as it is (no jolt; only the jerk may step). `ahead` starts at the motion the
+        prefilter holds beyond what S holds, τ(x1 + x2) − σ(s1 + s2): it returns to 0 as the
+        plan comes to rest (what made a lead begun mid-motion by `reset` land off by
+        ~2(τ − σ)·r). From rest all is 0, as `reset(0)`."""
         sig, d = self.smooth_s, (x1 - x2) / self.tau
         r = x2 + 2.0 * sig * d
         self._r, self._d1 = r, d
         self._s = [[r - sig * d, x2], [d, d], [0.0, 0.0]]
-        self.ahead = self.tau * (x1 + x2) - sig * (r - sig * d + x2)
+        # (+ dt·(x2/2 + τ·d): the commands are sent as the filters stand at each step's end)
+        self.ahead = self.tau * (x1 + x2) - sig * (r - sig * d + x2) \
+            + dt * (0.5 * x2 + self.tau * d)
         return r, d
 
     def step(self, r: float, dt: float, amax: float, jmax: float) -> float:
@@ -514,14 +521,13 @@ class ControlCore:
         self._history: deque[tuple[float, float, float]] = deque()  # (dt, v, ω) sent
         self._chain = (ChainAxis(self.cfg.predict_s, self.cfg.predict_lag_s),
                        ChainAxis(self.cfg.predict_omega_s, self.cfg.predict_lag_s))
-        lead_s = self.cfg.predict_lag_s if self.cfg.lead else 0.0
-        # (align_lead only where the predictor's ω chain holds the prefilter's two lags: a
-        # chair without them, led, overshoots the turn and reverses)
-        self._lead = tuple(LeadAxis(self.cfg.predict_lag_s if self.cfg.lead or (
-            self.cfg.align_lead and c.lag == self.cfg.predict_lag_s > 0.0) else 0.0)
-            for c in self._chain)
-        # each axis is led: always with `lead`; with `align_lead` from the goal's straight final
-        # (v) and in-place turn (ω), from rest, until the axis has come to rest after it
+        # (align_lead only where the predictor's chain holds the prefilter's two lags: a chair
+        # without them, led, overshoots the turn and reverses)
+        lag = self.cfg.predict_lag_s
+        self._lead = tuple(LeadAxis(lag if self.cfg.lead or (
+            self.cfg.align_lead and c.lag == lag > 0.0) else 0.0) for c in self._chain)
+        # (v, ω) led: always with `lead`; with `align_lead` from the goal's straight final (v)
+        # and in-place turn (ω) until the axis has come to rest after it (_lead_out)
         self._led = [self.cfg.lead, self.cfg.lead]
         # With the lead, the chair's response to the planned commands (before the lead): the
         # dead time, then the lead's own two lags (LeadAxis: the prefilter hands the PID S(r)).
@@ -695,8 +701,11 @@ class ControlCore:
         for i, (ax, phase) in enumerate(((self.limiter.v, self.straight),
                                          (self.limiter.w, self.aligning))):
             if not self._led[i] and phase and self.active and self._lead[i].tau > 0.0:
-                r, d = self._lead[i].start(*self._chain[i].now())
-                if i == 1 or r >= 0.0:  # (v: forward only)
+                # (align_lead) Led from the prefilter's state: begun on a moving axis with the
+                # lead reset to the plan, the motion the prefilter held was never taken back
+                # (nav_eval seed 2's L corner rested 8.7° off, 0.013 m from a wall; session 18).
+                r, d = self._lead[i].start(*self._chain[i].now(), dt)
+                if i == 1 or r >= 0.0:  # (v forward only: braking hard near rest, not led)
                     ax.reset(r, d)
                     self._led[i] = True
                 else:
@@ -1003,8 +1012,9 @@ class ControlCore:
         return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
 
     def _v_lim(self) -> tuple[float, float]:
-        """v's acceleration and jerk bounds as planned now: led, at the fractions of the
-        comfort limits that `limits` gives the lead (with `lead` the limiter's own)."""
+        """v's acceleration and jerk bounds for its moves now: led by align_lead, at the
+        fractions of the comfort limits that `limits` plans the lead at (led at the full jerk
+        the straight final measured 2.013 m/s³ at the chair; control_eval's ahead 1 m)."""
         lv, cfg = self.limiter.v, self.cfg
         if self._led[0] and not cfg.lead:
             return cfg.plan_fraction_a * lv.amax, cfg.plan_fraction_jerk * lv.jmax
