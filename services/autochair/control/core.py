@@ -1021,11 +1021,12 @@ class ControlCore:
         return lv.amax, lv.jmax
 
     def _stop_overrun(self) -> float:
-        """With the lead: the motion the forward-only clamp (_lead_out) adds to v's stop if the
-        plan braked to rest now. To stop the prefilter on time the led command goes below 0 in
-        the last 0.1-0.5 s of a stop (down to −jerk·τ²); clamped to 0, the chair overran every
-        forward stop by ~1.1 cm (straight goals landed 1.5-1.8 cm past). The braking is the
-        limiter's (SCurveAxis.step to 0), the lead a copy of the live one."""
+        """With v led (`lead`, or align_lead's straight final): the motion the forward-only
+        clamp (_lead_out) adds to v's stop if the plan braked to rest now. To stop the
+        prefilter on time the led command goes below 0 in the last 0.1-0.5 s of a stop (down
+        to −jerk·τ²); clamped to 0, the chair overran every forward stop by ~1.1 cm (straight
+        goals landed 1.5-1.8 cm past). The braking is the limiter's (SCurveAxis.step to 0), the
+        lead a copy of the live one."""
         lv = self.limiter.v
         if not self._led[0] or lv.value <= 0.0:
             return 0.0
