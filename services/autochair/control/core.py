@@ -117,13 +117,15 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     # lose office B's desk and the store room / the far corner and the store room (partial
     # runs). Off until MPEPC's last manoeuvres in tight spots hold with it.
     lead: bool = False
-    # Lead ω past the prefilter (LeadAxis) in the goal's own in-place turn (`_align`), even
-    # with `lead` off: after that turn the chain's tail is the last thing the goal waits for
-    # (from the turn's last command to the chair at rest 0.7-1.0 s, half of it the prefilter's
-    # 2τ; session 18's phase breakdown of control_eval's median cases). The turn sweeps the
-    # yaws from the chair's to the goal's, checked by `_room_to_turn`; the lead only makes the
-    # chair follow that move sooner. ω has no forward-only clamp, so no overrun to predict.
-    # Only where the predictor's ω chain holds the prefilter (predict_omega_s ≥ 2·predict_lag_s).
+    # Lead the goal's own last moves past the prefilter (LeadAxis), even with `lead` off: the
+    # straight final (v) and the in-place turn (ω). After them the chain's tail is the last
+    # thing the goal waits for (from the last command to the chair at rest 0.55-1.0 s, half of
+    # it the prefilter's 2τ; session 18's phase breakdown). Each is led from its start, at rest
+    # or moving (LeadAxis.start: the plan goes on from the prefilter's state), until the axis
+    # has come to rest after it; v then planned at the lead's fractions of a and jerk (below).
+    # Both moves go where they went (the turn's sweep checked by `_room_to_turn`, the straight
+    # by the plan that handed the goal over); the lead only makes the chair follow them sooner.
+    # Only where the predictor's chain holds the prefilter (predict_s ≥ 2·predict_lag_s).
     align_lead: bool = True
     # With the lead the chair reproduces the plan, and what the SOPDT model does not explain
     # (the chair's third lag, the feedback; through the processes the commands' timing too)
@@ -365,6 +367,15 @@ class ChainAxis:
             dt, u = self.pipe.popleft()
             self.x1, self.x2 = two_lags(self.x1, self.x2, dt, u, self.lag)
 
+    def now(self) -> tuple[float, float]:
+        """The lags' outputs once the commands in the delay have passed them: the state of the
+        PID's prefilter now, which acts before the dead time (the order of the two does not
+        change the chain)."""
+        x1, x2 = self.x1, self.x2
+        for dt, u in self.pipe:
+            x1, x2 = two_lags(x1, x2, dt, u, self.lag)
+        return x1, x2
+
     def future(self, h: float, n: int) -> list[float]:
         """The chair's mean velocity over each of the next n steps of h if no further
         command came (trapezoidal: its integral is the motion still to come)."""
@@ -411,6 +422,23 @@ class LeadAxis:
     def reset(self, value: float) -> None:
         self._r, self._d1, self.ahead = value, 0.0, 0.0
         self._s = [[value, value], [0.0, 0.0], [0.0, 0.0]]
+
+    def start(self, x1: float, x2: float, dt: float) -> tuple[float, float]:
+        """Lead from the prefilter's state (x1, x2) (ChainAxis.now), at rest or moving.
+        Returns the (value, rate) the plan is to go on from: S's states are set as a plan at
+        that rate leaves them, with S(r) = x2 and S(r)' = ẋ2, so that the prefilter's output
+        goes on as it is (no jolt; only the jerk may step). `ahead` starts at the motion the
+        prefilter holds beyond what S holds, τ(x1 + x2) − σ(s1 + s2): it returns to 0 as the
+        plan comes to rest (what made a lead begun mid-motion by `reset` land off by
+        ~2(τ − σ)·r). From rest all is 0, as `reset(0)`."""
+        sig, d = self.smooth_s, (x1 - x2) / self.tau
+        r = x2 + 2.0 * sig * d
+        self._r, self._d1 = r, d
+        self._s = [[r - sig * d, x2], [d, d], [0.0, 0.0]]
+        # (+ dt·(x2/2 + τ·d): the commands are sent as the filters stand at each step's end)
+        self.ahead = self.tau * (x1 + x2) - sig * (r - sig * d + x2) \
+            + dt * (0.5 * x2 + self.tau * d)
+        return r, d
 
     def step(self, r: float, dt: float, amax: float, jmax: float) -> float:
         if self.tau <= 0.0 or dt <= 0.0:
@@ -493,16 +521,14 @@ class ControlCore:
         self._history: deque[tuple[float, float, float]] = deque()  # (dt, v, ω) sent
         self._chain = (ChainAxis(self.cfg.predict_s, self.cfg.predict_lag_s),
                        ChainAxis(self.cfg.predict_omega_s, self.cfg.predict_lag_s))
-        lead_s = self.cfg.predict_lag_s if self.cfg.lead else 0.0
-        # (align_lead only where the predictor's ω chain holds the prefilter's two lags: a
-        # chair without them, led, overshoots the turn and reverses)
-        prefiltered = self._chain[1].lag == self.cfg.predict_lag_s > 0.0
-        turn_s = self.cfg.predict_lag_s if self.cfg.lead or (
-            self.cfg.align_lead and prefiltered) else 0.0
-        self._lead = (LeadAxis(lead_s), LeadAxis(turn_s))
-        # ω is led: always with `lead`; with `align_lead` from the goal's in-place turn until ω
-        # has come to rest after it (_lead_out).
-        self._omega_led = self.cfg.lead
+        # (align_lead only where the predictor's chain holds the prefilter's two lags: a chair
+        # without them, led, overshoots the turn and reverses)
+        lag = self.cfg.predict_lag_s
+        self._lead = tuple(LeadAxis(lag if self.cfg.lead or (
+            self.cfg.align_lead and c.lag == lag > 0.0) else 0.0) for c in self._chain)
+        # (v, ω) led: always with `lead`; with `align_lead` from the goal's straight final (v)
+        # and in-place turn (ω) until the axis has come to rest after it (_lead_out)
+        self._led = [self.cfg.lead, self.cfg.lead]
         # With the lead, the chair's response to the planned commands (before the lead): the
         # dead time, then the lead's own two lags (LeadAxis: the prefilter hands the PID S(r)).
         # What MPEPC's committed sweeps pass the plan's commands through (_chain_now).
@@ -672,17 +698,20 @@ class ControlCore:
         if not self.active and self.limiter.at_rest \
                 and now - self._ended_t > self.cfg.stop_burst_s:
             return None
-        lw = self.limiter.w
-        if not self._omega_led and self.aligning and self.active and self._lead[1].tau > 0.0 \
-                and lw.value == 0.0 and lw.rate == 0.0:
-            # The goal's in-place turn (align_lead), led from rest only: a rest-to-rest plan is
-            # led by motion it takes back (`ahead` returns to 0); begun on a moving ω the lead
-            # would keep ~2τ·ω turned but not predicted (nav_eval seed 2's L corner rested
-            # 8.7° off its goal, 0.013 m from a wall). Unled, that turn keeps its tail.
-            self._lead[1].reset(0.0)
-            self._omega_led = True
+        for i, (ax, phase) in enumerate(((self.limiter.v, self.straight),
+                                         (self.limiter.w, self.aligning))):
+            if not self._led[i] and phase and self.active and self._lead[i].tau > 0.0:
+                # (align_lead) Led from the prefilter's state: begun on a moving axis with the
+                # lead reset to the plan, the motion the prefilter held was never taken back
+                # (nav_eval seed 2's L corner rested 8.7° off, 0.013 m from a wall; session 18).
+                r, d = self._lead[i].start(*self._chain[i].now(), dt)
+                if i == 1 or r >= 0.0:  # (v forward only: braking hard near rest, not led)
+                    ax.reset(r, d)
+                    self._led[i] = True
+                else:
+                    self._lead[i].reset(0.0)
         if self._move is not None and self.active:
-            v, w = self.limiter.move(*self._move, dt, vmax=self.vmax)
+            v, w = self.limiter.move(*self._move, dt, vmax=self.vmax, v_lim=self._v_lim())
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
@@ -708,14 +737,18 @@ class ControlCore:
         would clamp a reverse command to the safety monitor's 0 and stop the chair. What a clamp
         changes is real motion, which the predictor sees (it is fed what is sent)."""
         lim = self.limiter.lim
-        cv = self._lead[0].step(v, dt, lim.a_max_mps2, lim.jerk_max_mps3)
-        lw, lead_w = self.limiter.w, self._lead[1]
-        cw = lead_w.step(w, dt, lim.omega_acc_max_radps2, lim.omega_jerk_max_radps3) \
-            if self._omega_led else w
-        if self._omega_led and not self.cfg.lead and not (self.aligning and self.active) \
-                and lw.value == 0.0 and lw.rate == 0.0 and abs(cw) < 1e-5:
-            lead_w.reset(0.0)  # the turn and its lead have played out: unled again
-            self._omega_led = False
+        out = []
+        for i, (r, ax, phase, amax, jmax) in enumerate((
+                (v, self.limiter.v, self.straight, lim.a_max_mps2, lim.jerk_max_mps3),
+                (w, self.limiter.w, self.aligning, lim.omega_acc_max_radps2,
+                 lim.omega_jerk_max_radps3))):
+            c = self._lead[i].step(r, dt, amax, jmax) if self._led[i] else r
+            if self._led[i] and not self.cfg.lead and not (phase and self.active) \
+                    and ax.value == 0.0 and ax.rate == 0.0 and abs(c) < 1e-5:
+                self._lead[i].reset(0.0)  # the move and its lead have played out: unled again
+                self._led[i] = False
+            out.append(c)
+        cv, cw = out
         vm = min(lim.v_max_mps, self.vmax)
         cv = min(max(cv, 0.0), vm) if v >= 0.0 else max(min(cv, 0.0), -vm)
         return cv, min(max(cw, -lim.omega_max_radps), lim.omega_max_radps)
@@ -724,7 +757,7 @@ class ControlCore:
         """Both leads from the limiter's values, ω led again only with `lead`."""
         self._lead[0].reset(self.limiter.v.value)
         self._lead[1].reset(self.limiter.w.value)
-        self._omega_led = self.cfg.lead
+        self._led = [self.cfg.lead, self.cfg.lead]
 
     # --- planning (MPEPC) -------------------------------------------------------------------
     def plan_request(self, now: float) -> PlanRequest | None:
@@ -755,6 +788,7 @@ class ControlCore:
             return None
         sim = copy.copy(self)
         sim.limiter, sim._lead = copy.deepcopy(self.limiter), copy.deepcopy(self._lead)
+        sim._led = list(self._led)
         sim._chain, sim._plan_chain = copy.deepcopy(self._chain), copy.deepcopy(self._plan_chain)
         sim._history, sim.counters = copy.copy(self._history), dict(self.counters)
         sim.waypoints, sim.inline_planning = list(self.waypoints), False
@@ -977,23 +1011,34 @@ class ControlCore:
         y -= dv * math.sin(yaw)
         return OdomSample(x, y, wrap(yaw), o.v, o.omega, o.t)
 
+    def _v_lim(self) -> tuple[float, float]:
+        """v's acceleration and jerk bounds for its moves now: led by align_lead, at the
+        fractions of the comfort limits that `limits` plans the lead at (led at the full jerk
+        the straight final measured 2.013 m/s³ at the chair; control_eval's ahead 1 m)."""
+        lv, cfg = self.limiter.v, self.cfg
+        if self._led[0] and not cfg.lead:
+            return cfg.plan_fraction_a * lv.amax, cfg.plan_fraction_jerk * lv.jmax
+        return lv.amax, lv.jmax
+
     def _stop_overrun(self) -> float:
-        """With the lead: the motion the forward-only clamp (_lead_out) adds to v's stop if the
-        plan braked to rest now. To stop the prefilter on time the led command goes below 0 in
-        the last 0.1-0.5 s of a stop (down to −jerk·τ²); clamped to 0, the chair overran every
-        forward stop by ~1.1 cm (straight goals landed 1.5-1.8 cm past). The braking is the
-        limiter's (SCurveAxis.step to 0), the lead a copy of the live one."""
+        """With v led (`lead`, or align_lead's straight final): the motion the forward-only
+        clamp (_lead_out) adds to v's stop if the plan braked to rest now. To stop the
+        prefilter on time the led command goes below 0 in the last 0.1-0.5 s of a stop (down
+        to −jerk·τ²); clamped to 0, the chair overran every forward stop by ~1.1 cm (straight
+        goals landed 1.5-1.8 cm past). The braking is the limiter's (SCurveAxis.step to 0), the
+        lead a copy of the live one."""
         lv = self.limiter.v
-        if not self.cfg.lead or lv.value <= 0.0:
+        if not self._led[0] or lv.value <= 0.0:
             return 0.0
-        ax = SCurveAxis(lv.vmax, lv.amax, lv.jmax)
+        amax, jmax = self._v_lim()
+        ax = SCurveAxis(lv.vmax, amax, jmax)
         ax.reset(lv.value, lv.rate)
         lead = copy.deepcopy(self._lead[0])
         h = 1.0 / self.cfg.rate_hz
         over = 0.0
         for _ in range(400):
             r = ax.step(0.0, h)
-            c = lead.step(r, h, lv.amax, lv.jmax)
+            c = lead.step(r, h, amax, jmax)
             if c < 0.0:
                 over -= c * h
             if r == 0.0 and ax.rate == 0.0 and abs(c) < 1e-5:

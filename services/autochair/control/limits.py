@@ -57,6 +57,7 @@ class SCurveAxis:
         inp = self._inp
         inp.current_position, inp.target_velocity, inp.target_acceleration = [0.0], [0.0], [0.0]
         inp.max_acceleration, inp.max_jerk = [amax], [jmax]
+        self._move_lim = (amax, jmax)  # what move's inputs hold
         # The profile's own (velocity, acceleration) at the end of the last move step, and the
         # (value, rate) that step left: the plan continues from the former while nothing else
         # has stepped the axis since.
@@ -114,14 +115,20 @@ class SCurveAxis:
         """A move (below) is under way: the axis was last stepped by it and it has not ended."""
         return self._left == (self.value, self.rate) and self._plan_state != (0.0, 0.0)
 
-    def move(self, distance: float, dt: float, vmax: float | None = None) -> float:
+    def move(self, distance: float, dt: float, vmax: float | None = None,
+             lim: tuple[float, float] | None = None) -> float:
         """One step of the time-optimal move that covers `distance` from the current (value,
         rate) and ends at rest, never moving against `distance` (|value| ≤ `vmax`, default the
-        axis's bound). Moving away from it, or unable to stop on it without turning back, it
-        brakes to rest by the shortest jerk-limited stop (and never turns back)."""
+        axis's bound; |rate|, |jerk| ≤ `lim`, default the axis's). Moving away from it, or
+        unable to stop on it without turning back, it brakes to rest by the shortest
+        jerk-limited stop (and never turns back)."""
         if dt <= 0.0:
             return self.value
         vm = min(self.vmax, self.vmax if vmax is None else vmax)
+        lim = (self.amax, self.jmax) if lim is None else lim
+        if lim != self._move_lim:
+            self._inp.max_acceleration, self._inp.max_jerk = [lim[0]], [lim[1]]
+            self._move_lim = lim
         # From the tracker (values held over a step, rate = their difference): the velocity at
         # the step's end is half a step of rate beyond the value held over it.
         pv, pa = self._plan_state if self._left == (self.value, self.rate) else (
@@ -194,10 +201,12 @@ class ComfortLimiter:
             and self.w.rate == 0.0
 
     def move(self, v_to: float | None, w_to: float | None, dt: float,
-             vmax: float | None = None) -> tuple[float, float]:
+             vmax: float | None = None, v_lim: tuple[float, float] | None = None
+             ) -> tuple[float, float]:
         """Point-to-point: an axis given a distance covers it time-optimally and ends at rest
-        (SCurveAxis.move; v at most `vmax`); an axis given None brakes to rest."""
-        v = self.v.step(0.0, dt) if v_to is None else self.v.move(v_to, dt, vmax)
+        (SCurveAxis.move; v at most `vmax`, its acceleration and jerk within `v_lim`); an axis
+        given None brakes to rest."""
+        v = self.v.step(0.0, dt) if v_to is None else self.v.move(v_to, dt, vmax, v_lim)
         w = self.w.step(0.0, dt) if w_to is None else self.w.move(w_to, dt)
         return v, w
 
