@@ -354,6 +354,32 @@ def test_a_chair_blocked_a_few_degrees_off_a_doors_axis_turns_in_place_first() -
     assert on.plan.progress_m > 2.0 and on.plan.min_clearance_m >= 0.05
 
 
+def test_a_turn_from_a_blocked_chair_is_not_one_its_next_plan_undoes() -> None:
+    # nav_eval seed 2, office A's far corner, 0.1 s plan latency, turn_first's first version:
+    # blocked at rest at 48°, it offered a turn onto 80°, where the lattice's costs-to-go are
+    # 0.74 m higher; from there MPEPC's "progress" was turning back onto 48°: 48° to 80°
+    # and back for 13 s. The turn and the plan after it are judged from standing here.
+    from autochair.nav import planner as nav_planner
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD)
+    fld = NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+    goal, pose = (5.5, 3.5, math.pi), (5.40, 2.62, math.radians(48))
+    res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, None, None, LAW))
+    assert res.plan is not None and res.ctg is not None
+    hf = nav_planner.lattice_for(fld, goal, res.ctg, pose)
+    assert hf is not None
+
+    def cost(yaw: float) -> float:
+        c, ok = hf.at(np.array(pose[0]), np.array(pose[1]), np.array(yaw))
+        assert bool(ok)
+        return float(c)
+
+    if res.plan.final_turn:
+        assert cost(res.plan.target[2]) <= cost(pose[2])
+    assert cost(math.radians(80)) > cost(pose[2]) + 0.5  # (the turn it was)
+
+
 def test_the_straight_final_is_not_handed_back_for_the_laws_approach_it_does_not_drive() -> None:
     # nav_eval seed 7, "L: round the corner", 0.1 s plan latency: the core on its straight
     # final 0.6 m before the goal at 0.77 m/s. Row 0 (the law towards the goal at full speed)

@@ -1375,17 +1375,24 @@ class Mpepc:
             e = float(wrap(np.array(w - yaw)))
             if abs(e) >= ALIGNED_RAD and all(abs(e - o) > 0.5 * ALIGNED_RAD for o in offs):
                 offs.append(e)
-        best: tuple[float, float] | None = None  # (cost from the turned chair, turn)
+        # Both steps against standing here: progress from here (near the goal, on the
+        # lattice, a turn onto a worse heading "progressed" by turning back: a limit cycle,
+        # 48° to 80° and back in office A, nav_eval seed 2), the turned plan's cost with
+        # the turn's own change of the costs-to-go added.
+        stop, here = self._costs(pose, 0.0, 0.0, np.zeros((1, 4)), ctg, people, goal,
+                                 final=final, heading=hf)
+        phi = float(here["phi0"][0])
+        best: tuple[float, float] | None = None  # (cost of turning, then the plan; turn)
         for e in offs:
             turned = (x, y, float(wrap(np.array(yaw + e))))
             rows, _ = self.seeds(turned, goal, None, ctg, hf)
             cost, info = self._costs(turned, 0.0, 0.0, rows, ctg, people, goal, final=final,
                                      heading=hf)
-            stop = float(cost[np.all(rows == 0.0, axis=1)][0])
-            ok = (info["hit"] == 0.0) & (info["phi0"] - info["phi_end"] >= progress_m) \
-                & (cost < stop - gain)
-            if ok.any() and (best is None or float(cost[ok].min()) < best[0]):
-                best = (float(cost[ok].min()), e)
+            total = cost + info["phi0"] - phi
+            ok = (info["hit"] == 0.0) & (phi - info["phi_end"] >= progress_m) \
+                & (total < float(stop[0]) - gain)
+            if ok.any() and (best is None or float(total[ok].min()) < best[0]):
+                best = (float(total[ok].min()), e)
         if best is None:
             return None
         e = best[1]
