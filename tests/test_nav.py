@@ -332,6 +332,77 @@ def test_blocked_names_only_an_obstacle_that_is_there() -> None:
     assert why.startswith("blocked by an obstacle at (4.0"), why
 
 
+def test_a_chair_blocked_a_few_degrees_off_a_doors_axis_turns_in_place_first() -> None:
+    # nav_eval seed 7, "door: through to room B", plans taking effect 0.1 s after they were
+    # asked for: at rest 0.24 m before the 0.9 m door (0.1 m a side), 4.3° off its axis, the
+    # lattice's window (2 m of the goal) far away. Every candidate through the door touches
+    # its frame (an in-place candidate turns only from 2·ALIGNED_RAD on; the law's heading
+    # correction towards a far target takes metres): blocked till aborted. Now the turn in
+    # place onto the heading from which MPEPC's own plan goes through.
+    segs = np.array([[-1.0, -2.0, 9.0, -2.0], [-1.0, 2.0, 9.0, 2.0], [-1.0, -2.0, -1.0, 2.0],
+                     [9.0, -2.0, 9.0, 2.0], [4.0, -2.0, 4.0, 0.55], [4.0, 1.45, 4.0, 2.0]])
+    fld = NavField(GridMap.from_shapes(segs, np.zeros((0, 3)), resolution_m=0.05), FP)
+    goal, pose = (6.5, 0.0, 0.0), (2.81, 0.986, math.radians(4.3))
+    res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, None, None, LAW))
+    assert res.plan is not None and res.blocked_by == "", res.blocked_by
+    assert res.plan.final_turn and res.plan.z[0] == 0.0  # (a turn only: no translation)
+    psi = res.plan.target[2]
+    assert -math.radians(6.0) < psi < math.radians(1.0)  # onto the door's axis (0°)
+    # From the turned chair MPEPC's plan goes through the door, clear of its frame.
+    on = compute(PlanRequest(1, 0, (*pose[:2], psi), 0.0, 0.0, goal, fld, None, None, LAW))
+    assert on.plan is not None and on.blocked_by == ""
+    assert on.plan.progress_m > 2.0 and on.plan.min_clearance_m >= 0.05
+
+
+def test_a_turn_from_a_blocked_chair_is_not_one_its_next_plan_undoes() -> None:
+    # nav_eval seed 2, office A's far corner, 0.1 s plan latency, turn_first's first version:
+    # blocked at rest at 48°, it offered a turn onto 80°, where the lattice's costs-to-go are
+    # 0.74 m higher; from there MPEPC's "progress" was turning back onto 48°: 48° to 80°
+    # and back for 13 s. The turn and the plan after it are judged from standing here.
+    from autochair.nav import planner as nav_planner
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD)
+    fld = NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+    goal, pose = (5.5, 3.5, math.pi), (5.40, 2.62, math.radians(48))
+    res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, None, None, LAW))
+    assert res.plan is not None and res.ctg is not None
+    hf = nav_planner.lattice_for(fld, goal, res.ctg, pose)
+    assert hf is not None
+
+    def cost(yaw: float) -> float:
+        c, ok = hf.at(np.array(pose[0]), np.array(pose[1]), np.array(yaw))
+        assert bool(ok)
+        return float(c)
+
+    if res.plan.final_turn:
+        assert cost(res.plan.target[2]) <= cost(pose[2])
+    assert cost(math.radians(80)) > cost(pose[2]) + 0.5  # (the turn it was)
+
+
+def test_the_straight_final_is_not_handed_back_for_the_laws_approach_it_does_not_drive() -> None:
+    # nav_eval seed 7, "L: round the corner", 0.1 s plan latency: the core on its straight
+    # final 0.6 m before the goal at 0.77 m/s. Row 0 (the law towards the goal at full speed)
+    # swings to 0.005 m of the corner: the core dropped the goal (under GOAL_DROP_M), the law
+    # turned the braking chair to 108° and it stood 7 cm / 18° off, blocked till aborted.
+    # The straight final itself (no steering, then the checked turn) keeps its margin.
+    from autochair.nav.mpepc import GOAL_DROP_M
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD.parent / "l_corridor.world")
+    fld = NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+    goal, pose = (8.0, 4.0, math.pi / 2), (8.005, 3.398, 1.539)
+
+    def clearance(straight: bool) -> float:
+        res = compute(PlanRequest(1, 0, pose, 0.774, 0.0, goal, fld, None, None, LAW,
+                                  approaching=True, straight_final=straight))
+        assert res.plan is not None
+        return res.plan.goal_clearance_m
+
+    assert clearance(True) >= GOAL_DROP_M
+    assert clearance(False) < GOAL_DROP_M  # (the law's approach, which the core then drives)
+
+
 # --- goal handling in the core ---------------------------------------------------------------
 def core_with(fld: NavField, x: float, y: float, yaw: float = 0.0,
               cfg: ControlConfig | None = None) -> ControlCore:

@@ -1355,6 +1355,59 @@ class Mpepc:
                     (x + dist * math.cos(psi), y + dist * math.sin(psi))
                     if turn and dist > 0.0 else None)
 
+    def turn_first(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                   ctg: CostToGo, people: list[Person], final: bool,
+                   hf: HeadingField | None, progress_m: float, gain: float) -> Plan | None:
+        """For a chair at rest that no plan moves on (blocked) where the lattice has no stage:
+        an in-place turn onto a heading from which a plan does make progress (at least
+        `progress_m`, and `gain` cheaper than standing there), judged by MPEPC's own seeds
+        from the turned chair. The candidates cannot express a small exact turn: an in-place
+        candidate turns only from 2·ALIGNED_RAD on, the law's heading correction towards a far
+        target takes metres, and 0.24 m before a 0.9 m door a chair 4° off the door's axis
+        had every way through touch its frame (nav_eval seed 7 at a 0.1 s plan latency:
+        blocked till aborted, 1.2 m before the door). The headings tried: down the
+        navigation function and towards points along its descent. None: no such turn."""
+        x, y, yaw = pose
+        want = [float(ctg.descent(self.field.map, np.array([x, y])))]
+        want += [math.atan2(py - y, px - x) for px, py, _ in self.descent_path(pose, ctg, goal)]
+        offs: list[float] = []
+        for w in want:
+            e = float(wrap(np.array(w - yaw)))
+            if abs(e) >= ALIGNED_RAD and all(abs(e - o) > 0.5 * ALIGNED_RAD for o in offs):
+                offs.append(e)
+        # Both steps against standing here: progress from here (near the goal, on the
+        # lattice, a turn onto a worse heading "progressed" by turning back: a limit cycle,
+        # 48° to 80° and back in office A, nav_eval seed 2), the turned plan's cost with
+        # the turn's own change of the costs-to-go added.
+        stop, here = self._costs(pose, 0.0, 0.0, np.zeros((1, 4)), ctg, people, goal,
+                                 final=final, heading=hf)
+        phi = float(here["phi0"][0])
+        best: tuple[float, float] | None = None  # (cost of turning, then the plan; turn)
+        for e in offs:
+            turned = (x, y, float(wrap(np.array(yaw + e))))
+            rows, _ = self.seeds(turned, goal, None, ctg, hf)
+            cost, info = self._costs(turned, 0.0, 0.0, rows, ctg, people, goal, final=final,
+                                     heading=hf)
+            total = cost + info["phi0"] - phi
+            ok = (info["hit"] == 0.0) & (phi - info["phi_end"] >= progress_m) \
+                & (total < float(stop[0]) - gain)
+            if ok.any() and (best is None or float(total[ok].min()) < best[0]):
+                best = (float(total[ok].min()), e)
+        if best is None:
+            return None
+        e = best[1]
+        zz = np.array([[0.0, e, 0.0, self.p.v_min_mps], [0.0, 0.0, 0.0, 0.0]])
+        cost, info = self._costs(pose, 0.0, 0.0, zz, ctg, people, goal, final=final,
+                                 heading=hf)
+        if float(info["hit"][0]) != 0.0:
+            return None
+        path = np.stack([info["x"][0], info["y"][0], info["yaw"][0]], -1)
+        return Plan((0.0, e, 0.0, self.p.v_min_mps), (x, y, float(wrap(np.array(yaw + e)))),
+                    self.p.v_min_mps, float(cost[0]),
+                    float(info["phi0"][0] - info["phi_end"][0]), float(info["survival"][0]),
+                    float(info["clearance"][0]), path, False, math.nan, float(cost[1]),
+                    len(zz), final_turn=True)
+
     def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
                         goal: tuple[float, float, float]) -> bool:
         """From rest within `final_move_m` the core drives its straight final wherever the
@@ -1500,7 +1553,7 @@ class Mpepc:
              previous_target: tuple[float, float, float, float] | None = None,
              rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
              heading: HeadingField | None = None, goal_turn: bool = True,
-             chain: Chain | None = None) -> Plan:
+             chain: Chain | None = None, on_line: bool = False) -> Plan:
         """The best z from the chair at `pose` (v0, ω0: the command it is tracking; `rates`:
         the limiter's dv/dt and dω/dt; `final`: `goal` is the last waypoint, which the core
         approaches on its braking curve once it is the target; an intermediate one it passes).
@@ -1509,7 +1562,8 @@ class Mpepc:
         clear and ends on it (the final approach is then the control law's own), and, with
         `goal_turn`, the core's turn onto the goal's yaw keeps `contact_m`
         (goal_turn_clearance). `chain`: the core's drive chain, through which the committed
-        sweeps are checked (chain_sweep)."""
+        sweeps are checked (chain_sweep). `on_line`: the core drives its straight final onto
+        the goal (no steering), which row 0, the law's approach, does not predict."""
         people = people or []
         lo, hi = self.bounds()
         prev = None
@@ -1549,7 +1603,12 @@ class Mpepc:
             # turn in place the other way); a chair already turning into an obstacle must
             # not be left to it, nor one for which every motion touches (contacts with the
             # bench, measured).
-            goal_clear = min(float(info["clearance"][0]), float(info["clearance"][1]),
+            # (not row 0 while the core drives its straight final: the law from 0.6 m out at
+            # 0.77 m/s swung to 0.004 m in the L's corner where the straight keeps 0.18; the
+            # goal handed back there, braked while the law turned the chair, stood 7 cm / 18°
+            # off, blocked; nav_eval seed 7 at a 0.1 s plan latency)
+            goal_clear = min(math.inf if on_line else float(info["clearance"][0]),
+                             float(info["clearance"][1]),
                              float(best["clearance"]))  # (< contact_m: every motion touches)
             ends = math.hypot(float(info["x"][0, -1]) - goal[0], float(info["y"][0, -1]) - goal[1])
             # In the position tolerance only the goal's turn is left: it is taken whenever its

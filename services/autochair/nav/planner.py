@@ -42,6 +42,7 @@ class PlanRequest:
     # the core's drive chain (its pose predictor's), through which the committed sweeps are
     # checked (Mpepc.chain_sweep); None: as the rollout drives them from `pose`
     chain: Chain | None = None
+    straight_final: bool = False  # the core drives its straight final (ControlCore.straight)
 
 
 @dataclass(frozen=True)
@@ -246,7 +247,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         return lattice_for(fld, req.goal, ctg, req.pose)
 
     plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
-                    req.rates, req.final, hf, chain=req.chain)
+                    req.rates, req.final, hf, chain=req.chain, on_line=req.straight_final)
     r_goal = math.hypot(req.goal[0] - req.pose[0], req.goal[1] - req.pose[1])
     at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
     if plan.goal_withheld and stuck(plan) and at_rest:
@@ -285,5 +286,11 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
                              req.previous, req.rates, req.final, hf, chain=req.chain)
             if not stuck(plan2):
                 return PlanResult(req.goal_id, req.index, fld, alt[0], plan2, given_up=alt[1])
+    if blocked and at_rest:
+        # ... else an in-place turn from which MPEPC's own plan moves on (Mpepc.turn_first)
+        turn = mpc.turn_first(req.pose, req.goal, ctg, req.people, req.final, hf,
+                              blocked_progress_m, blocked_gain)
+        if turn is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, turn, given_up=given_up)
     return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked,
                       given_up=given_up)
