@@ -393,14 +393,17 @@ def test_the_straight_final_is_not_handed_back_for_the_laws_approach_it_does_not
     fld = NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
     goal, pose = (8.0, 4.0, math.pi / 2), (8.005, 3.398, 1.539)
 
-    def clearance(straight: bool) -> float:
+    def clearance(straight: bool, people: list[Person] | None = None) -> float:
         res = compute(PlanRequest(1, 0, pose, 0.774, 0.0, goal, fld, None, None, LAW,
-                                  approaching=True, straight_final=straight))
+                                  people or [], approaching=True, straight_final=straight))
         assert res.plan is not None
         return res.plan.goal_clearance_m
 
     assert clearance(True) >= GOAL_DROP_M
     assert clearance(False) < GOAL_DROP_M  # (the law's approach, which the core then drives)
+    # The straight itself is still checked, people and all: someone standing where it ends
+    # (1.7 m ahead) drops the goal (with the law's approach merely left out it read clear).
+    assert clearance(True, [Person(8.0, 5.1)]) < GOAL_DROP_M
 
 
 # --- goal handling in the core ---------------------------------------------------------------

@@ -1603,12 +1603,20 @@ class Mpepc:
             # turn in place the other way); a chair already turning into an obstacle must
             # not be left to it, nor one for which every motion touches (contacts with the
             # bench, measured).
-            # (not row 0 while the core drives its straight final: the law from 0.6 m out at
-            # 0.77 m/s swung to 0.004 m in the L's corner where the straight keeps 0.18; the
-            # goal handed back there, braked while the law turned the chair, stood 7 cm / 18°
-            # off, blocked; nav_eval seed 7 at a 0.1 s plan latency)
-            goal_clear = min(math.inf if on_line else float(info["clearance"][0]),
-                             float(info["clearance"][1]),
+            # While the core drives its straight final, the way is that straight, not row 0:
+            # the law from 0.6 m out at 0.77 m/s swung to 0.004 m in the L's corner where the
+            # straight keeps 0.18; the goal handed back there, braked while the law turned
+            # the chair, stood 7 cm / 18° off, blocked (nav_eval seed 7 at a 0.1 s plan
+            # latency). The straight is checked, people and the stop too, as the law along
+            # the line (as final_heading's straight below).
+            way = float(info["clearance"][0])
+            if on_line:
+                along = max(along_lateral(pose, goal[0], goal[1])[0], 0.0)
+                vmax = min(max(abs(v0), self.p.v_min_mps), float(hi[3]))
+                _, line = self._costs(pose, v0, w0, np.array([[along, 0.0, 0.0, vmax]]), ctg,
+                                      people, goal, rates, final, heading, chain)
+                way = float(line["clearance"][0])
+            goal_clear = min(way, float(info["clearance"][1]),
                              float(best["clearance"]))  # (< contact_m: every motion touches)
             ends = math.hypot(float(info["x"][0, -1]) - goal[0], float(info["y"][0, -1]) - goal[1])
             # In the position tolerance only the goal's turn is left: it is taken whenever its
