@@ -22,6 +22,7 @@ from autochair.control.core import (
     OdomSample,
 )
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
+from autochair.geometry import advance
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav.mpepc import Person
 from autochair.pid.core import NEUTRAL_V, PidConfig
@@ -524,3 +525,39 @@ def test_min_time_forward_only_versus_reversing() -> None:
     assert back.ok and back.time_s == pytest.approx(scurve_time(0.5, 1.2, 1.0, 2.0), rel=0.03)
     fwd = min_time((0, 0, 0), (-0.5, 0, 0))
     assert fwd.ok and fwd.time_s >= 2 * math.pi / 0.9
+
+
+def test_a_led_v_given_up_mid_move_is_braked_within_the_leads_limits() -> None:
+    """align_lead plans v's led moves at the lead's fractions of a and jerk (led at the full
+    jerk the chair measured 2.013 m/s³). A straight final given up mid-move (someone steps in:
+    MPEPC's plan drops the goal) leaves v led until it rests; the law's braking then comes
+    from the limiter's step, which must keep those fractions too (it braked at the full jerk)."""
+    cfg = ControlConfig()
+    core = ControlCore(cfg)
+    h = 1.0 / cfg.rate_hz
+    chair = (ChainAxis(cfg.predict_s, cfg.predict_lag_s),
+             ChainAxis(cfg.predict_omega_s, cfg.predict_lag_s))
+    pose, t = (0.0, 0.0, 0.0), 0.0
+    core.on_odom(OdomSample(*pose, 0.0, 0.0, t))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(3.0, 0.0, 0.0)]), t).ok
+    rates: list[float] = []
+    for _ in range(400):
+        core.on_odom(OdomSample(*pose, chair[0].x2, chair[1].x2, t))
+        cmd = core.step(t, h)
+        assert cmd is not None
+        if rates or (core.straight and core._led[0] and core.limiter.v.value > 0.5):
+            if not rates:  # given up: no plan, no goal handed over (the law brakes to rest)
+                core.final = core.straight = False
+                core.plan, core.inline_planning = None, False
+            if not core._led[0]:
+                break
+            rates.append(core.limiter.v.rate)
+        v0, w0 = chair[0].x2, chair[1].x2
+        chair[0].push(h, cmd[0])
+        chair[1].push(h, cmd[1])
+        pose = advance(*pose, 0.5 * (v0 + chair[0].x2), 0.5 * (w0 + chair[1].x2), h)
+        t += h
+    assert len(rates) > 20 and min(rates) < -0.5 * cfg.a_max_mps2  # (it braked, led)
+    jerk = max(abs(b - a) / h for a, b in itertools.pairwise(rates))
+    assert jerk <= cfg.plan_fraction_jerk * cfg.jerk_max_mps3 + 1e-9, jerk
+    assert -min(rates) <= cfg.plan_fraction_a * cfg.a_max_mps2 + 1e-9

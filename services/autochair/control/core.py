@@ -715,7 +715,9 @@ class ControlCore:
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
-            v, w = self.limiter.step(v_des, w_des, dt)
+            # (led v within the lead's limits also once its move is over or given up: someone
+            # stepped in on the straight final and the law brakes it, or the final turn's stop)
+            v, w = self.limiter.step(v_des, w_des, dt, v_lim=self._v_lim())
         if self._plan_chain is not None and dt > 0.0:
             self._plan_chain[0].push(dt, v)
             self._plan_chain[1].push(dt, w)

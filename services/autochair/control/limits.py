@@ -82,30 +82,35 @@ class SCurveAxis:
         c.load(self.save())
         return c
 
-    def braking_rate(self, error: float, dt: float) -> float:
-        """Largest rate (signed as `error`) from which jerk-limited braking ends on the target.
+    def braking_rate(self, error: float, dt: float,
+                     lim: tuple[float, float] | None = None) -> float:
+        """Largest rate (signed as `error`) from which jerk-limited braking ends on the target
+        (|rate|, |jerk| ≤ `lim`, default the axis's).
 
         Applying rate m·J·dt, then (m−1)·J·dt, … 0 moves the value by J·dt²·m(m+1)/2; solve for m.
         """
+        amax, jmax = (self.amax, self.jmax) if lim is None else lim
         e = abs(error)
-        jd = self.jmax * dt
+        jd = jmax * dt
         # whole steps (floor): a fractional last step would overshoot the target slightly
         m = math.floor(-0.5 + math.sqrt(0.25 + 2.0 * e / (jd * dt)) + 1e-9)
-        return math.copysign(min(self.amax, m * jd), error)
+        return math.copysign(min(amax, m * jd), error)
 
-    def step(self, target: float, dt: float) -> float:
+    def step(self, target: float, dt: float, lim: tuple[float, float] | None = None) -> float:
+        """One step towards `target` (|rate|, |jerk| ≤ `lim`, default the axis's)."""
         if dt <= 0.0:
             return self.value
+        amax, jmax = (self.amax, self.jmax) if lim is None else lim
         target = max(-self.vmax, min(self.vmax, target))
         e = target - self.value
-        jd = self.jmax * dt
+        jd = jmax * dt
         land = e / dt  # the rate that lands exactly on the target this step
         if abs(land) <= jd and abs(land - self.rate) <= jd:
             self.value, self.rate = target, land  # the next step then takes the rate to 0
             return self.value
-        want = self.braking_rate(e, dt)
+        want = self.braking_rate(e, dt, (amax, jmax))
         rate = self.rate + max(-jd, min(jd, want - self.rate))
-        self.rate = max(-self.amax, min(self.amax, rate))
+        self.rate = max(-amax, min(amax, rate))
         self.value = max(-self.vmax, min(self.vmax, self.value + self.rate * dt))
         return self.value
 
@@ -206,11 +211,14 @@ class ComfortLimiter:
         """Point-to-point: an axis given a distance covers it time-optimally and ends at rest
         (SCurveAxis.move; v at most `vmax`, its acceleration and jerk within `v_lim`); an axis
         given None brakes to rest."""
-        v = self.v.step(0.0, dt) if v_to is None else self.v.move(v_to, dt, vmax, v_lim)
+        v = self.v.step(0.0, dt, v_lim) if v_to is None else self.v.move(v_to, dt, vmax, v_lim)
         w = self.w.step(0.0, dt) if w_to is None else self.w.move(w_to, dt)
         return v, w
 
-    def step(self, v_des: float, omega_des: float, dt: float) -> tuple[float, float]:
+    def step(self, v_des: float, omega_des: float, dt: float,
+             v_lim: tuple[float, float] | None = None) -> tuple[float, float]:
+        """(v, ω) one step towards (v_des, ω_des) within the limits (v's acceleration and jerk
+        within `v_lim`, default its axis's)."""
         # Over the speed or turn-rate bound: scale both, so the curvature is unchanged.
         s = 1.0
         if abs(omega_des) > self.lim.omega_max_radps:
@@ -227,7 +235,7 @@ class ComfortLimiter:
                 + self.w.amax * self.lookahead_s
             s = min(s, max(reach, 0.0) / abs(kappa) / abs(v_des))
         v_des, omega_des = v_des * s, omega_des * s
-        v = self.v.step(v_des, dt)
+        v = self.v.step(v_des, dt, v_lim)
         # Keep κ = ω/v while v is still ramping (start, braking); in-place turns (v_des ≈ 0)
         # track ω directly.
         w_t = omega_des * (v / v_des) if abs(v_des) > 1e-3 else omega_des
