@@ -53,7 +53,8 @@ class SCurveAxis:
         self._traj = Trajectory(1)
         # move's inputs that are the same every step, set once (setting ruckig's inputs is
         # much of a move's cost: MPEPC steps hundreds a planning cycle, Mpepc.spin_step);
-        # amax and jmax are not changed after this (cap_omega changes vmax only)
+        # amax and jmax are not changed after this (cap_omega changes vmax only); the bounds
+        # are set again only when a move's `lim` differs from what they hold (_move_lim)
         inp = self._inp
         inp.current_position, inp.target_velocity, inp.target_acceleration = [0.0], [0.0], [0.0]
         inp.max_acceleration, inp.max_jerk = [amax], [jmax]

@@ -1336,24 +1336,37 @@ class Mpepc:
             if got is None:
                 return None
             psi, dist = got
-        vmin = self.p.v_min_mps
         turn = psi != yaw
         # (the straight predicted as the law along the line; shorter than in_place_r_m it is
         # predicted standing: its sweep is checked above, people from where it stands)
-        zz = np.array([[0.0, float(wrap(np.array(psi - yaw))), 0.0, vmin] if turn
-                       else [dist, 0.0, 0.0, vmin], [0.0, 0.0, 0.0, 0.0]])
-        cost, info = self._costs(pose, v0, 0.0, zz, ctg, people, goal, rates, True, hf)
+        return self._one_stage(
+            pose, (0.0, float(wrap(np.array(psi - yaw)))) if turn else (dist, 0.0),
+            (x, y, psi) if turn else (x + dist * c, y + dist * s, yaw), turn, ctg, people,
+            goal, hf, rates, v0, True,
+            straight_to if straight_to is not None else
+            (x + dist * math.cos(psi), y + dist * math.sin(psi)) if turn and dist > 0.0
+            else None)
+
+    def _one_stage(self, pose: tuple[float, float, float], rz: tuple[float, float],
+                   tgt: tuple[float, float, float], turn: bool, ctg: CostToGo,
+                   people: list[Person], goal: tuple[float, float, float],
+                   hf: HeadingField | None, rates: tuple[float, float] = (0.0, 0.0),
+                   v0: float = 0.0, final: bool = True,
+                   then: tuple[float, float] | None = None) -> Plan | None:
+        """One stage as a plan: the law's target `rz` (r, θ; a turn in place: r 0) at the
+        least speed, `tgt` its pose, `turn` whether it turns (else a straight of r), `then`
+        where a turn's straight lands. Evaluated as MPEPC's candidates are (`_costs`: people,
+        the stop after the plan period); None if that predicts a hit."""
+        vmin = self.p.v_min_mps
+        zz = np.array([[rz[0], rz[1], 0.0, vmin], [0.0, 0.0, 0.0, 0.0]])
+        cost, info = self._costs(pose, v0, 0.0, zz, ctg, people, goal, rates, final, hf)
         if float(info["hit"][0]) != 0.0:
             return None
-        tgt = (x, y, psi) if turn else (x + dist * c, y + dist * s, yaw)
         path = np.stack([info["x"][0], info["y"][0], info["yaw"][0]], -1)
         return Plan((float(zz[0, 0]), float(zz[0, 1]), 0.0, vmin), tgt, vmin, float(cost[0]),
                     float(info["phi0"][0] - info["phi_end"][0]), float(info["survival"][0]),
                     float(info["clearance"][0]), path, False, math.nan, float(cost[1]),
-                    len(zz), final_turn=turn, straight_m=0.0 if turn else dist,
-                    then=straight_to if straight_to is not None else
-                    (x + dist * math.cos(psi), y + dist * math.sin(psi))
-                    if turn and dist > 0.0 else None)
+                    len(zz), final_turn=turn, straight_m=0.0 if turn else rz[0], then=then)
 
     def turn_first(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                    ctg: CostToGo, people: list[Person], final: bool,
@@ -1396,17 +1409,8 @@ class Mpepc:
         if best is None:
             return None
         e = best[1]
-        zz = np.array([[0.0, e, 0.0, self.p.v_min_mps], [0.0, 0.0, 0.0, 0.0]])
-        cost, info = self._costs(pose, 0.0, 0.0, zz, ctg, people, goal, final=final,
-                                 heading=hf)
-        if float(info["hit"][0]) != 0.0:
-            return None
-        path = np.stack([info["x"][0], info["y"][0], info["yaw"][0]], -1)
-        return Plan((0.0, e, 0.0, self.p.v_min_mps), (x, y, float(wrap(np.array(yaw + e)))),
-                    self.p.v_min_mps, float(cost[0]),
-                    float(info["phi0"][0] - info["phi_end"][0]), float(info["survival"][0]),
-                    float(info["clearance"][0]), path, False, math.nan, float(cost[1]),
-                    len(zz), final_turn=True)
+        return self._one_stage(pose, (0.0, e), (x, y, float(wrap(np.array(yaw + e)))), True,
+                               ctg, people, goal, hf, final=final)
 
     def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
                         goal: tuple[float, float, float]) -> bool:
