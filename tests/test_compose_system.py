@@ -148,6 +148,7 @@ def test_compose_sim_stack_drives_survives_a_killed_pid_and_records(
     compose = ["docker-compose", "-p", project, "-f", str(COMPOSE_FILE), "--profile", "sim"]
     drives: list[subprocess.Popen[bytes]] = []
     session = None
+    passed = False
     try:
         t_up = time.monotonic()
         r = subprocess.run([*compose, "up", "-d"], env=env, capture_output=True, text=True,
@@ -288,7 +289,12 @@ def test_compose_sim_stack_drives_survives_a_killed_pid_and_records(
               f"{summary.duration_s:.1f} s, {len(summary.channels)} channels, indexed")
         state = _copy_volume(f"{project}_autochair-state", image, tmp_path / "state")
         assert [p.name for p in state] == ["estop.json"]
+        passed = True
     finally:
+        if not passed:  # what the services said, for the failure's report
+            logs = subprocess.run([*compose, "logs", "--no-color"], env=env, capture_output=True,
+                                  text=True, timeout=120).stdout.splitlines()
+            print("\n".join([ln for ln in logs if " WARNING " in ln or " ERROR " in ln][-80:]))
         for p in drives:
             stop_process(p)
         if session is not None:

@@ -129,10 +129,11 @@ def test_around_a_corner(stack_factory: Callable[..., Launcher], hub: str, tmp_p
     stack = stack_factory(STACK)
     session = client_session(hub)
     try:
-        # The planner's searches are made in control's helper process (H46, nav/gil.py).
+        # The planner's searches are made in control's helper process (H46, nav/gil.py),
+        # started just after control's liveliness token, which is what "up" waits for.
         control = psutil.Process(stack.pid("control"))
-        assert any("autochair.runtime.helper" in " ".join(c.cmdline())
-                   for c in control.children()), control.children()
+        wait_for(lambda: any("autochair.runtime.helper" in " ".join(c.cmdline())
+                             for c in control.children()), 10, "control's helper process")
         truth = Recorder(session, keys.SIM_TRUTH)
         pid = Recorder(session, keys.PID_STATUS)  # (for a failure: what held the chair)
         map_ready(session)
