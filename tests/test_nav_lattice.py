@@ -109,8 +109,7 @@ def test_a_goal_only_reversing_reaches_is_refused_at_once_with_a_reason() -> Non
     # Deep in the dead end facing out: the chair fits there, and a path for its axle leads
     # there, but a forward-only chair cannot turn round in 1 m (it may not reverse blind):
     # refused at set_goal (path_error) with why. Positive control: facing in, accepted.
-    import time
-
+    # (How fast: bench nav_eval's refusal_s_max, not a timed test on a shared machine.)
     from autochair.nav.planner import path_error
 
     fld = dead_end(1.1)
@@ -118,9 +117,7 @@ def test_a_goal_only_reversing_reaches_is_refused_at_once_with_a_reason() -> Non
     out = (1.9, 0.0, math.pi)
     assert fld.check_goal(*out, 0.10) == ""  # the pose itself is free
     ctg = fld.cost_to_go(out[0], out[1])
-    t0 = time.perf_counter()
     why = path_error(fld, ctg, hall, out)
-    assert time.perf_counter() - t0 < 1.0
     assert "no forward way into (1.90, 0.00, 180°)" in why and "reverse" in why
     assert fld.check_goal(1.9, 0.0, 0.0, 0.10) == ""
     assert path_error(fld, ctg, hall, (1.9, 0.0, 0.0)) == ""
