@@ -11,13 +11,13 @@ import msgspec
 import numpy as np
 import pytest
 
-from autochair.control.core import ControlConfig
+from autochair.control.core import ControlConfig, ControlCore, OdomSample
 from autochair.geometry import along_lateral
 from autochair.nav import lattice, planner
 from autochair.nav.field import Footprint, GridMap, NavField
 from autochair.nav.mpepc import Mpepc, MpepcParams
 from autochair.nav.planner import PlanRequest, compute, free_field
-from autochair_msgs import OccupancyGrid
+from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
 
 FP = Footprint()
 LAW = ControlConfig().law(0.025)
@@ -626,3 +626,80 @@ def test_the_goal_region_holds_no_state_whose_turn_onto_the_goals_yaw_is_tight()
     # ... while the goal keeps a way in (the check only drops states)
     start = (12.5, 1.0, math.pi / 2)
     assert bool(new.at(*(np.array(v) for v in start))[1])
+
+
+def _counting_builds(monkeypatch: pytest.MonkeyPatch) -> list[lattice.HeadingField | None]:
+    """The heading-aware lattices built from now on (lattice.build with costs), in order."""
+    built: list[lattice.HeadingField | None] = []
+    real = lattice.build
+
+    def build(*args: object, **kwargs: object) -> lattice.HeadingField | None:
+        hf = real(*args, **kwargs)  # type: ignore[arg-type]
+        if kwargs.get("costs", True):
+            built.append(hf)
+        return hf
+
+    monkeypatch.setattr(lattice, "build", build)
+    planner._lattices.clear()
+    return built
+
+
+def _accepted(fld: NavField, goal: tuple[float, float, float]) -> ControlCore:
+    core = ControlCore(ControlConfig(), footprint=FP)
+    core.inline_planning = False
+    core.on_field(fld)
+    core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+    return core
+
+
+def test_the_goals_lattice_is_built_at_acceptance_and_the_first_plan_uses_it(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # 50-140 ms of the first planning cycle (nav_eval: a third of the cycles over the 95th
+    # percentile were goals' first), moved to the acceptance, whose budget is a second.
+    fld = _hallway()
+    built = _counting_builds(monkeypatch)
+    core = _accepted(fld, (6.0, 0.3, 0.0))
+    assert len(built) == 1 and built[0] is not None  # at acceptance
+    req = core.plan_request(0.0)
+    assert req is not None and req.final and req.ctg is not None
+    res = compute(req)
+    assert res.plan is not None and len(built) == 1  # the first cycle built none
+    assert planner.lattice_for(fld, req.goal, req.ctg, req.pose) is built[0]
+    # ... and it is the lattice that cycle would have built
+    again = lattice.build(fld, req.goal, req.ctg.phi, start=req.pose)
+    assert again is not None and np.array_equal(again.cost, built[0].cost)
+
+
+def test_a_goal_behind_a_door_has_its_lattice_built_at_acceptance_from_its_line_up_pose(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Into office A: the chair lines up before the door first; the goal's lattice and its
+    # costs-to-go were made in the first cycle planned to the goal, from there. Now the
+    # lattice at acceptance, from the line-up pose, the costs-to-go the route check's, and
+    # that cycle makes neither.
+    fld = _hallway()
+    built = _counting_builds(monkeypatch)
+    goal = (4.5, 3.0, math.pi / 2)
+    core = _accepted(fld, goal)
+    assert core.lineups >= 1
+    assert len(built) == 1 and built[0] is not None
+    t = 0.0
+    while core.index < core.lineups:  # at each line-up pose (within 0.2 m of it): passed
+        up = core.waypoints[core.index]
+        t += 0.02
+        core.on_odom(OdomSample(up.x_m - 0.1 * math.cos(up.yaw_rad),
+                                up.y_m - 0.1 * math.sin(up.yaw_rad), up.yaw_rad, 0.0, 0.0, t))
+        core.step(t)
+    req = core.plan_request(t)
+    assert req is not None and req.final and req.index == core.lineups
+    assert req.ctg is not None  # the route check's
+
+    def no_ctg(*args: object, **kwargs: object) -> None:
+        raise AssertionError("costs-to-go made again")
+
+    monkeypatch.setattr(fld, "cost_to_go", no_ctg)
+    res = compute(req)
+    assert res.plan is not None and len(built) == 1
+    assert np.array_equal(req.ctg.phi, _hallway().cost_to_go(*goal[:2]).phi)  # type: ignore[union-attr]
+    again = lattice.build(fld, goal, req.ctg.phi, start=req.pose)
+    assert again is not None and np.array_equal(again.cost, built[0].cost)

@@ -37,7 +37,7 @@ from autochair.nav.mpepc import (
     Person,
     Plan,
 )
-from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error
+from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error, prepare
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, park_kuipers
@@ -283,7 +283,9 @@ class GoalCheck:
         obstacles by the position tolerance plus the planner's contact margin, so that
         wherever within the tolerance the chair stops it touches nothing — or no path to the
         first one. Pure and slow (costs-to-go and the forward lattice's reachability: median
-        0.08 s at load 3, seconds at worst on a loaded CPU): the node runs it outside the lock."""
+        0.08 s at load 3, seconds at worst on a loaded CPU): the node runs it outside the lock.
+        A single waypoint's lattice is built here too (planner.prepare), from where the chair
+        first plans to it: the last line-up pose, else where it stands."""
         wps, o = self.req.waypoints, self.odom
         margin = MpepcParams().contact_m
         for i, p in enumerate(wps):
@@ -298,8 +300,11 @@ class GoalCheck:
                            first.yaw_rad), way_in=len(wps) == 1)
         if error or ctg is None:  # (no ctg: path_error said why)
             return replace(self, error=error)
-        return replace(self, ctg=ctg, lineups=tuple(
-            Pose2D(*a) for a in self.fld.door_approaches(ctg, o.x, o.y)))
+        lineups = self.fld.door_approaches(ctg, o.x, o.y)
+        if len(wps) == 1:
+            prepare(self.fld, (first.x_m, first.y_m, wrap(first.yaw_rad)), ctg,
+                    lineups[-1] if lineups else (o.x, o.y, o.yaw))
+        return replace(self, ctg=ctg, lineups=tuple(Pose2D(*a) for a in lineups))
 
 
 @dataclass(frozen=True)
@@ -493,6 +498,9 @@ class ControlCore:
         # the status reads ctg on that field
         self._ctg_field: NavField | None = None
         self._ctg_index = -1
+        # Behind line-ups: the route check's ctg to the waypoint after them (field, waypoint,
+        # ctg), taken when the chair gets there rather than made again in that cycle
+        self._behind: tuple[NavField, Pose2D, CostToGo] | None = None
         self.given_up: GridMap | None = None  # cells kept out of ctg (nav/planner.give_up)
         self.plan: Plan | None = None
         self.lineups = 0  # line-up poses before doors, inserted ahead of the goal's waypoints
@@ -645,6 +653,8 @@ class ControlCore:
         self.lineups = len(check.lineups)
         # (with line-ups the first waypoint is a line-up pose: its ctg is computed next cycle)
         ctg = None if check.lineups else check.ctg
+        self._behind = (check.fld, self.waypoints[self.lineups], check.ctg) \
+            if check.lineups else None
         self.index = 0
         self.tol_m, self.tol_rad = req.tolerance_m, req.tolerance_rad
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
@@ -1068,6 +1078,10 @@ class ControlCore:
             self.index += 1  # passed: plan to the next one at once
             self.plan, self.ctg, self._plan_t = None, None, -math.inf
             self.given_up = None
+            if self._behind is not None and self.index == self.lineups \
+                    and self.waypoints[self.index] == self._behind[1]:  # (a map goal moved)
+                self._ctg_field, _, self.ctg = self._behind
+                self._ctg_index = self.index
         if not self.final:
             return self._follow_plan(o, now)
         if self._plan_stale(now):  # the final approach, too, is watched by fresh plans

@@ -296,9 +296,10 @@ class ControlNode:
         with self.held():
             check = self.core.check_goal(req, time.monotonic())
         if isinstance(check, GoalCheck):
-            # The route check (costs-to-go, the forward lattice: up to 1.5 s on a loaded CPU)
-            # runs without the lock, so the 50 Hz loop and odometry go on meanwhile; the goal
-            # is taken only if its asker is still waiting.
+            # The route check (costs-to-go, the forward lattice; and the goal's lattice for the
+            # planner, planner.prepare: up to 1.5 s on a loaded CPU) runs without the lock, so
+            # the 50 Hz loop and odometry go on meanwhile; the goal is taken only if its asker
+            # is still waiting.
             routed = check.routed()
             late = self.node.too_late()
             with self.held():

@@ -92,6 +92,27 @@ def lattice_for(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
     return hit[1]
 
 
+def uses_lattice(fld: NavField, goal: tuple[float, float, float],
+                 pose: tuple[float, float, float], final: bool, mp: MpepcParams) -> bool:
+    """Whether a planning cycle from `pose` plans on the goal's lattice (`compute`): for the
+    last waypoint only (line-up poses before doors are passed within 0.2 m / 0.3 rad, which
+    the lattice's exact goal pose does not express; measured: door cases lost); only where
+    there is something to manoeuvre round (in free space, no map yet, the 2-D field's descent
+    is the way, and the free field's 0.1 m cells are too coarse for it); and not once at the
+    goal, where only the final turn is left (see MpepcParams)."""
+    return mp.heading_lattice and final and bool(fld.map.occupied.any()) and math.hypot(
+        goal[0] - pose[0], goal[1] - pose[1]) >= mp.in_place_r_m
+
+
+def prepare(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
+            start: tuple[float, float, float], params: MpepcParams | None = None) -> None:
+    """Build the goal's lattice (`lattice_for`) when the goal is accepted, from `start` (where
+    its first planning cycle on it begins), rather than in that cycle: 50-140 ms of a cycle
+    budgeted at 100 ms, where acceptance has a second (nav_eval reports both)."""
+    if uses_lattice(fld, goal, start, True, params or MpepcParams()):
+        lattice_for(fld, goal, ctg, start)
+
+
 def free_field(points: list[tuple[float, float]], footprint: Footprint,
                margin_m: float = 3.0, resolution_m: float = 0.1) -> NavField:
     """A field without obstacles around `points` (used before any map has arrived)."""
@@ -200,14 +221,8 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
     error = path_error(fld, ctg, req.pose, req.goal, way_in=False)  # (checked at set_goal)
     if error or ctg is None:
         return PlanResult(req.goal_id, req.index, fld, ctg, None, error=error)
-    # (the last waypoint only: line-up poses before doors are passed within 0.2 m / 0.3 rad,
-    # which the lattice's exact goal pose does not express; measured: door cases lost)
-    # (and only where there is something to manoeuvre round: in free space (no map yet) the
-    # 2-D field's descent is the way, and the free field's 0.1 m cells are too coarse for it;
-    # and not once at the goal, where only the final turn is left: see MpepcParams)
     mp = params or MpepcParams()
-    use = mp.heading_lattice and req.final and bool(fld.map.occupied.any()) and math.hypot(
-        req.goal[0] - req.pose[0], req.goal[1] - req.pose[1]) >= mp.in_place_r_m
+    use = uses_lattice(fld, req.goal, req.pose, req.final, mp)
     hf = lattice_for(fld, req.goal, ctg, req.pose) if use else None
     mpc = planner_for(fld, req.law, params)
     if req.straight and req.previous is not None and abs(req.omega) < 0.01:
