@@ -511,6 +511,23 @@ def test_world_people_walk_their_segment_and_are_seen_as_discs() -> None:
         parse_world("person 0 0 1 1 9\n")
 
 
+def test_nav_evals_contact_check_sees_a_body_through_a_wall_or_round_a_post() -> None:
+    # The distance to a wall is unsigned: a chair driven 0.19 m through the cluttered room's
+    # end wall (a rejected planner change, sampler seed 7) read 0.003 m, and no contact.
+    from bench.nav_eval import truth_clearance
+
+    w = parse_world("wall 7 -3 7 3\ncircle 2 5 0.05\n")
+    fp = FP
+    outline = fp.outline(0.02)
+    assert truth_clearance(w, fp, outline, 6.0, 0.0, 0.0, 0.0) == pytest.approx(
+        7.0 - 6.0 - fp.front_m)  # positive control: 5 cm short of the wall
+    assert truth_clearance(w, fp, outline, 6.19, 0.0, math.radians(11), 0.0) < 0.0
+    assert truth_clearance(w, fp, outline, 6.5, 0.0, 0.0, 0.0) < 0.0  # the wall mid-body
+    # a post thinner than the body, wholly under it (no outline point inside the disc)
+    assert truth_clearance(w, fp, outline, 1.8, 5.0, 0.0, 0.0) < 0.0
+    assert truth_clearance(w, fp, outline, 0.8, 5.0, 0.0, 0.0) > 0.0
+
+
 def _law_at_50hz(pose: tuple[float, float, float], v0: float, a0: float,
                  target: tuple[float, float, float], vmax: float, law: LawParams,
                  seconds: float) -> tuple[float, float, float]:
