@@ -10,7 +10,7 @@ import pytest
 from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
 from autochair.nav import field as nav_field
 from autochair.nav.field import Footprint, GridMap, NavField, bilinear, place
-from autochair.nav.mpepc import LawParams, Mpepc, MpepcParams, Person
+from autochair.nav.mpepc import LawParams, Mpepc, MpepcParams, Person, Plan
 from autochair.nav.planner import PlanRequest, blocker, compute, free_field
 from autochair.sim.world import World, WorldError, parse_world
 from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
@@ -378,6 +378,31 @@ def test_a_turn_from_a_blocked_chair_is_not_one_its_next_plan_undoes() -> None:
     if res.plan.final_turn:
         assert cost(res.plan.target[2]) <= cost(pose[2])
     assert cost(math.radians(80)) > cost(pose[2]) + 0.5  # (the turn it was)
+
+
+def test_a_goal_whose_approach_is_a_hit_is_not_handed_over_where_every_motion_is_one() -> None:
+    # The cluttered room's gap between the low table and the wall, 1.2 m before the goal at
+    # 1.08 m/s and accelerating: the law's approach to the goal, its stop after the plan
+    # period a hit, was within the slack of the best plan (a hit too) and was handed over;
+    # the core drove its final approach on, dropped it 0.5 s later at 1.19 m/s and braked
+    # 0.3 m past the goal into the end wall (a rejected planner change, nav_eval seed 7).
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD.parent / "cluttered.world")
+    fld = NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+    goal = (5.9, -2.3, 0.0)
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    assert ctg is not None
+
+    def plan(v0: float, w0: float, rates: tuple[float, float]) -> Plan:
+        return Mpepc(fld, LAW).plan((4.679, -2.286, -0.140), v0, w0, goal, ctg, [],
+                                    (5.698, -2.351, -0.022, 1.183), rates)
+
+    fast = plan(1.083, 0.249, (0.64, -0.128))
+    assert not fast.goal_stop_clear  # (the approach's stop is a hit)
+    assert not fast.is_goal
+    slow = plan(0.3, 0.0, (0.0, 0.0))  # positive control: its approach is clear
+    assert slow.is_goal and slow.goal_stop_clear
 
 
 def test_the_straight_final_is_not_handed_back_for_the_laws_approach_it_does_not_drive() -> None:
