@@ -10,7 +10,7 @@ import pytest
 from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
 from autochair.nav import field as nav_field
 from autochair.nav.field import Footprint, GridMap, NavField, bilinear, place
-from autochair.nav.mpepc import LawParams, Mpepc, MpepcParams, Person
+from autochair.nav.mpepc import LawParams, Mpepc, MpepcParams, Person, Plan
 from autochair.nav.planner import PlanRequest, blocker, compute, free_field
 from autochair.sim.world import World, WorldError, parse_world
 from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
@@ -380,6 +380,31 @@ def test_a_turn_from_a_blocked_chair_is_not_one_its_next_plan_undoes() -> None:
     assert cost(math.radians(80)) > cost(pose[2]) + 0.5  # (the turn it was)
 
 
+def test_a_goal_whose_approach_is_a_hit_is_not_handed_over_where_every_motion_is_one() -> None:
+    # The cluttered room's gap between the low table and the wall, 1.2 m before the goal at
+    # 1.08 m/s and accelerating: the law's approach to the goal, its stop after the plan
+    # period a hit, was within the slack of the best plan (a hit too) and was handed over;
+    # the core drove its final approach on, dropped it 0.5 s later at 1.19 m/s and braked
+    # 0.3 m past the goal into the end wall (a rejected planner change, nav_eval seed 7).
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD.parent / "cluttered.world")
+    fld = NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+    goal = (5.9, -2.3, 0.0)
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    assert ctg is not None
+
+    def plan(v0: float, w0: float, rates: tuple[float, float]) -> Plan:
+        return Mpepc(fld, LAW).plan((4.679, -2.286, -0.140), v0, w0, goal, ctg, [],
+                                    (5.698, -2.351, -0.022, 1.183), rates)
+
+    fast = plan(1.083, 0.249, (0.64, -0.128))
+    assert not fast.goal_stop_clear  # (the approach's stop is a hit)
+    assert not fast.is_goal
+    slow = plan(0.3, 0.0, (0.0, 0.0))  # positive control: its approach is clear
+    assert slow.is_goal and slow.goal_stop_clear
+
+
 def test_the_straight_final_is_not_handed_back_for_the_laws_approach_it_does_not_drive() -> None:
     # nav_eval seed 7, "L: round the corner", 0.1 s plan latency: the core on its straight
     # final 0.6 m before the goal at 0.77 m/s. Row 0 (the law towards the goal at full speed)
@@ -509,6 +534,23 @@ def test_world_people_walk_their_segment_and_are_seen_as_discs() -> None:
     assert len(w.at(0.5).circles) == 1 and len(w.circles) == 0
     with pytest.raises(WorldError, match="person speed"):
         parse_world("person 0 0 1 1 9\n")
+
+
+def test_nav_evals_contact_check_sees_a_body_through_a_wall_or_round_a_post() -> None:
+    # The distance to a wall is unsigned: a chair driven 0.19 m through the cluttered room's
+    # end wall (a rejected planner change, sampler seed 7) read 0.003 m, and no contact.
+    from bench.nav_eval import truth_clearance
+
+    w = parse_world("wall 7 -3 7 3\ncircle 2 5 0.05\n")
+    fp = FP
+    outline = fp.outline(0.02)
+    assert truth_clearance(w, fp, outline, 6.0, 0.0, 0.0, 0.0) == pytest.approx(
+        7.0 - 6.0 - fp.front_m)  # positive control: 5 cm short of the wall
+    assert truth_clearance(w, fp, outline, 6.19, 0.0, math.radians(11), 0.0) < 0.0
+    assert truth_clearance(w, fp, outline, 6.5, 0.0, 0.0, 0.0) < 0.0  # the wall mid-body
+    # a post thinner than the body, wholly under it (no outline point inside the disc)
+    assert truth_clearance(w, fp, outline, 1.8, 5.0, 0.0, 0.0) < 0.0
+    assert truth_clearance(w, fp, outline, 0.8, 5.0, 0.0, 0.0) > 0.0
 
 
 def _law_at_50hz(pose: tuple[float, float, float], v0: float, a0: float,
