@@ -405,6 +405,78 @@ def test_a_goal_whose_approach_is_a_hit_is_not_handed_over_where_every_motion_is
     assert slow.is_goal and slow.goal_stop_clear
 
 
+def test_a_stage_does_not_land_where_the_lattices_next_turn_does_not_keep_the_margin() -> None:
+    # nav_eval seed 7, office A's far corner, 0.1 s plan latency: a straight stage took the
+    # chair from (5.68, 3.22, 90°) to (5.68, 3.34), where the lattice's way on is an in-place
+    # turn onto 135° that sweeps 0.048 m at 110° (the lattice checks its turns at half steps,
+    # by its own 0.04 m): a trap for a planner that keeps contact_m (no turn there, no way
+    # ahead). The next stage, a 5° turn "towards" the lattice's cheaper heading, was undone by
+    # MPEPC each cycle till "no progress".
+    from autochair.nav import planner as nav_planner
+    from autochair.nav.lattice import HeadingField
+    from autochair.nav.mpepc import wrap
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD)
+    fld = NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+    goal = (5.5, 3.5, math.pi)
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    assert ctg is not None
+    mp = Mpepc(fld, LAW)
+
+    def next_turn_clearance(hf: HeadingField, land: tuple[float, float, float]) -> float:
+        """The least clearance of the in-place turn the lattice's way from `land` starts with."""
+        e, yaw = 0.0, land[2]
+        for (_, _, heading), turned in hf.best_path(*land):
+            if not turned:
+                break
+            e, yaw = e + float(wrap(np.array(heading - yaw))), heading
+        yaws = land[2] + np.linspace(0.0, e, 200)
+        return float(fld.footprint_clearance(np.full(200, land[0]), np.full(200, land[1]),
+                                             yaws).min())
+
+    hf = nav_planner.lattice_for(fld, goal, ctg, (5.68, 3.22, math.pi / 2))
+    assert hf is not None
+    staged = []
+    for deg, y in ((90.0, 3.22), (90.0, 3.34), (91.0, 3.22)):
+        pose = (5.68, y, math.radians(deg))
+        got = mp.stage(pose, goal, hf)
+        if got is not None:
+            psi, d = got
+            land = (pose[0] + d * math.cos(psi), pose[1] + d * math.sin(psi), psi)
+            assert next_turn_clearance(hf, land) >= MpepcParams().contact_m, (deg, y, got)
+            staged.append(deg)
+    # (the trap itself: the lattice's way from it turns under the margin)
+    assert next_turn_clearance(hf, (5.68, 3.34, math.pi / 2)) < MpepcParams().contact_m
+    assert 91.0 in staged  # (positive control: 2 cm short of it, the stage is still offered)
+
+
+def test_a_chair_blocked_where_the_lattices_way_is_arcs_drives_on_towards_it() -> None:
+    # nav_eval seed 1, office A's far corner, 0.1 s plan latency: at rest at (5.38, 2.63, 44°),
+    # 0.88 m from the goal; the lattice's way on is arcs (45° → 67.5° → 90° along the wall),
+    # no stage nor in-place turn reproduces it and the law towards its poses swings the
+    # front into the wall: blocked 12 s, aborted. A target just beyond the way, at a low
+    # speed, is a curve the law drives clear (Mpepc.along_lattice).
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world = load_world(DEFAULT_WORLD)
+    goal, pose = (5.5, 3.5, math.pi), (5.38, 2.63, math.radians(44))
+    mp = MpepcParams()
+    for params in (MpepcParams(stages=False), mp):
+        fld = NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"), FP)
+        res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, None, None, LAW), params)
+        assert res.plan is not None
+        if not params.stages:  # (positive control: nothing else moves it on)
+            assert res.blocked_by
+            continue
+        p = res.plan
+        assert not res.blocked_by and not p.final_turn and p.straight_m == 0.0
+        assert p.min_clearance_m >= mp.contact_m and p.progress_m >= 0.1
+        assert p.cost < p.stop_cost - 0.1
+        # (it ends on the lattice's way, by the wall, before its turn: not further into it)
+        assert math.hypot(p.path[-1, 0] - 5.73, p.path[-1, 1] - 3.28) < 0.1
+
+
 def test_the_straight_final_is_not_handed_back_for_the_laws_approach_it_does_not_drive() -> None:
     # nav_eval seed 7, "L: round the corner", 0.1 s plan latency: the core on its straight
     # final 0.6 m before the goal at 0.77 m/s. Row 0 (the law towards the goal at full speed)

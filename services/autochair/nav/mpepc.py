@@ -29,6 +29,7 @@ of ms (bench/nav_eval.py reports the per-cycle time).
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Protocol
@@ -240,6 +241,8 @@ class MpepcParams:
     # the lattice's one exact state) is given the way's next stage directly (Mpepc.stage):
     # an in-place turn onto a heading within `stage_turn_deg`, or a straight move of at most
     # `stage_straight_m` along its own heading, that the core executes without the law.
+    # (And where no stage nor turn does: the law towards a target just beyond the lattice's
+    # way, Mpepc.along_lattice.)
     stages: bool = True
     stage_turn_deg: float = 90.0
     stage_straight_m: float = 0.5
@@ -1224,11 +1227,34 @@ class Mpepc:
         good = (straight_ok > 0.0) & (turn_ok[:, None] > 0.0) \
             & (worst <= float(c0) - p.stage_gain_m)
         good[offs == 0.0, 0] = False  # (no turn and no straight: no stage)
-        if good.any():
-            i, j = np.unravel_index(int(np.argmin(np.where(good, total, math.inf))),
-                                    good.shape)
-            return yaw + float(offs[i]), float(ds[j])
+        for flat in np.argsort(np.where(good, total, math.inf), axis=None)[:int(good.sum())]:
+            i, j = np.unravel_index(int(flat), good.shape)
+            psi_ij, d = yaw + float(offs[i]), float(ds[j])
+            if self.turn_on_clear(hf, (x + d * math.cos(psi_ij), y + d * math.sin(psi_ij),
+                                       psi_ij)):
+                return psi_ij, d
         return self.stage_way(pose, goal, hf, pairs)
+
+    def turn_on_clear(self, hf: HeadingField, pose: tuple[float, float, float]) -> bool:
+        """Whether the in-place turn the lattice's way from `pose` begins with (if any)
+        sweeps clear by `contact_m` from the chair's own yaw there. The lattice checks its
+        turns at its states and half steps only, by its own lower margin
+        (LatticeParams.min_clear_m); a stage that lands where that turn does not keep
+        MPEPC's margin leaves the chair where nothing moves on (office A's far corner: the
+        turn from 90° at (5.68, 3.34) sweeps 0.048 m at 110°; nav_eval seed 7 at a 0.1 s
+        plan latency stood there, blocked, till "no progress")."""
+        e, yaw = 0.0, pose[2]
+        for (_, _, heading), turned in hf.best_path(*pose, max_steps=hf.params.headings):
+            if not turned:
+                break
+            e += float(wrap(np.array(heading - yaw)))
+            yaw = heading
+        if e == 0.0:
+            return True
+        n = self.field.footprint.turn_samples(e)
+        return float(self.field.footprint_clearance(
+            np.full(n, pose[0]), np.full(n, pose[1]), pose[2] + np.linspace(0.0, e, n)).min()) \
+            >= self.p.contact_m
 
     def stage_way(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                   hf: HeadingField, pairs: tuple[F64, F64, F64, F64, F64, F64, F64]
@@ -1411,6 +1437,54 @@ class Mpepc:
         e = best[1]
         return self._one_stage(pose, (0.0, e), (x, y, float(wrap(np.array(yaw + e)))), True,
                                ctg, people, goal, hf, final=final)
+
+    def along_lattice(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                      ctg: CostToGo, people: list[Person], final: bool, hf: HeadingField,
+                      progress_m: float, gain: float, rates: tuple[float, float] = (0.0, 0.0),
+                      chain: Chain | None = None) -> Plan | None:
+        """For a chair at rest that nothing else moves on (blocked; no stage, no turn): the
+        law's target a little beyond the poses along the lattice's best way (0.2–1.5 m on;
+        0–0.2 m further along its heading, ±4 cm beside it, ±10° off it) at low speeds, the
+        best one that is clear, progresses at least `progress_m` and costs `gain` less than
+        standing. The lattice's way there is arcs the law cannot follow onto its exact poses
+        and the stages' turns and straights do not reproduce; a target just beyond one, at
+        the right speed, is a curve the law does drive, but MPEPC's sampler seldom offers
+        one that narrow (nav_eval seed 1 at a 0.1 s plan latency, office A's far corner:
+        2 of these 675 targets from (5.38, 2.63, 44°), none of the sampler's in 12 s,
+        blocked till aborted). Evaluated as the candidates are (`_costs`). None: none."""
+        vmax = self.law.vmax_mps
+        rows: list[list[float]] = []
+        travelled, last = 0.0, (pose[0], pose[1])
+        for (x, y, yaw), turned in hf.best_path(*pose):
+            travelled += math.hypot(x - last[0], y - last[1])
+            last = (x, y)
+            if travelled > 1.5:
+                break
+            if turned or travelled < 0.2:
+                continue
+            c, s = math.cos(yaw), math.sin(yaw)
+            for a, lat, off in itertools.product((0.0, 0.05, 0.1, 0.15, 0.2), (-0.04, 0.0, 0.04),
+                                                 np.radians((-10.0, 0.0, 10.0))):
+                zz = self.relative(pose, (x + a * c - lat * s, y + a * s + lat * c, yaw + off))
+                if zz[0] >= self.p.in_place_r_m and abs(zz[2]) <= self.p.delta_max_rad:
+                    rows += [[*zz, v] for v in (self.p.v_min_mps, vmax / 5, vmax / 3)]
+        if not rows:
+            return None
+        z = np.array([[0.0, 0.0, 0.0, 0.0], *rows])  # (row 0: braking, i.e. standing here)
+        cost, info = self._costs(pose, 0.0, 0.0, z, ctg, people, goal, rates, final, hf, chain)
+        ok = (info["hit"] == 0.0) & (info["phi0"] - info["phi_end"] >= progress_m) \
+            & (cost < float(cost[0]) - gain)
+        ok[0] = False
+        if not ok.any():
+            return None
+        i = int(np.argmin(np.where(ok, cost, math.inf)))
+        tgt = self.targets(pose, z[i:i + 1])[0]
+        return Plan((float(z[i, 0]), float(z[i, 1]), float(z[i, 2]), float(z[i, 3])),
+                    (float(tgt[0]), float(tgt[1]), float(tgt[2])), float(z[i, 3]),
+                    float(cost[i]), float(info["phi0"][i] - info["phi_end"][i]),
+                    float(info["survival"][i]), float(info["clearance"][i]),
+                    np.stack([info["x"][i], info["y"][i], info["yaw"][i]], -1), False, math.nan,
+                    float(cost[0]), len(z))
 
     def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
                         goal: tuple[float, float, float]) -> bool:

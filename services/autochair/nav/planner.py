@@ -307,5 +307,11 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
                               blocked_progress_m, blocked_gain)
         if turn is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, turn, given_up=given_up)
+    if blocked and at_rest and hf is not None and mp.stages:
+        # ... else the law towards targets just beyond the lattice's way (Mpepc.along_lattice)
+        along = mpc.along_lattice(req.pose, req.goal, ctg, req.people, req.final, hf,
+                                  blocked_progress_m, blocked_gain, req.rates, req.chain)
+        if along is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, along, given_up=given_up)
     return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked,
                       given_up=given_up)
