@@ -83,6 +83,7 @@ class ControlNode:
         self.grid_key = b""
         self.field_grid: OccupancyGrid | None = None  # the grid the field was last made for
         self.field_lock = threading.Lock()  # (the map thread and a goal request both make it)
+        self.planned_field: NavField | None = None  # the field the last planning cycle was on
         # People for MPEPC, tracked in the scans (on the scan callback, its own lock).
         self.people = ScanPeople(chair.laser_mount)
         self.people_lock = threading.Lock()
@@ -194,6 +195,8 @@ class ControlNode:
             req = self.core.plan_request(time.monotonic())
         if req is None:
             return
+        new_field = req.field is not self.planned_field  # (NavPlan.new_field)
+        self.planned_field = req.field
         t0 = time.perf_counter()
         res = compute(req)  # outside the lock: the 50 Hz loop goes on meanwhile
         ms = (time.perf_counter() - t0) * 1e3
@@ -203,9 +206,10 @@ class ControlNode:
         with self.held():
             self.core.on_plan(res, time.monotonic())
             state = self.core.state
-        self.publish_plan(req, res, state, ms)
+        self.publish_plan(req, res, state, ms, new_field)
 
-    def publish_plan(self, req: PlanRequest, res: PlanResult, state: str, ms: float) -> None:
+    def publish_plan(self, req: PlanRequest, res: PlanResult, state: str, ms: float,
+                     new_field: bool) -> None:
         """The plan, the footprint and the people for the 3D view (keys.NAV_PLAN)."""
         p, fp = res.plan, self.core.footprint
         corners = np.array([[fp.front_m, fp.half_width_m], [fp.front_m, -fp.half_width_m],
@@ -224,7 +228,7 @@ class ControlNode:
             progress_m=0.0 if p is None else round(p.progress_m, 3),
             survival=1.0 if p is None else round(p.survival, 3),
             min_clearance_m=0.0 if p is None else round(p.min_clearance_m, 3),
-            plan_ms=round(ms, 2)))
+            plan_ms=round(ms, 2), new_field=new_field))
 
     def map_tick(self) -> None:
         """Take a new grid in: the people tracker's static map at once; the navigation field
@@ -266,10 +270,13 @@ class ControlNode:
             if key == self.grid_key:
                 return
             self.grid_key = key
+            t0 = time.perf_counter()
             fld = NavField(gm, self.core.footprint)
             with self.held():
                 self.core.on_field(fld)
             self.node.health.count("nav_fields")
+            # (with nav_fields: the map thread's mean time per field)
+            self.node.health.count("nav_field_ms", round((time.perf_counter() - t0) * 1e3))
 
     # --- requests and status ------------------------------------------------------------------
     def status_msg(self) -> GoalStatus:
