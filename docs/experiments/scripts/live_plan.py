@@ -69,10 +69,17 @@ def main() -> int:
         print("all cycles      ", stats(new + rest))
         print("new-field cycles", stats(new))
         print("other cycles    ", stats(rest))
+        for state in sorted({m.state for m in msgs}):  # (blocked cycles plan more: give_up, ...)
+            print(f"{state:8} new-field", stats([m.plan_ms for m in msgs
+                                                 if m.state == state and m.new_field]))
+            print(f"{state:8} other    ", stats([m.plan_ms for m in msgs
+                                                 if m.state == state and not m.new_field]))
         n = h.get("nav_fields", 0)
-        print(f"map thread: {n} fields, {h.get('nav_field_ms', 0) / max(n, 1):.1f} ms per field")
+        print(f"map thread: {n} fields, {h.get('nav_field_ms', 0) / max(n, 1):.1f} ms per field; "
+              f"{h.get('new_fields_warm', 0)} new-field cycles found their costs-to-go made")
         out = run / "plans.json"
-        out.write_text(json.dumps({"new": new, "rest": rest, "counters": h}))
+        out.write_text(json.dumps({"plans": [(m.plan_ms, m.new_field, m.state) for m in msgs],
+                                   "counters": h}))
         print("raw:", out)
     finally:
         session.close()
