@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import gzip
 import math
@@ -703,3 +704,41 @@ def test_a_goal_behind_a_door_has_its_lattice_built_at_acceptance_from_its_line_
     assert np.array_equal(req.ctg.phi, _hallway().cost_to_go(*goal[:2]).phi)  # type: ignore[union-attr]
     again = lattice.build(fld, goal, req.ctg.phi, start=req.pose)
     assert again is not None and np.array_equal(again.cost, built[0].cost)
+
+
+def test_a_new_fields_first_planning_cycle_finds_its_costs_to_go_lattice_and_planner_made(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # The live map changes about once a second: each new field made the next planning cycle
+    # rebuild the costs-to-go (~35 ms), the goal's lattice (50-140 ms) and the planner, the
+    # live node's largest cycles. The control node's map thread now makes them (planner.warm,
+    # from the core's field_request) and hands them over with the field.
+    built = _counting_builds(monkeypatch)
+    core = _accepted(_hallway(), (6.0, 0.3, 0.0))
+    req = core.plan_request(0.0)
+    assert req is not None
+    core.on_plan(compute(req), 0.1)
+    new = _hallway()  # the same walls, a new field (as a new live map makes)
+    fresh = new.cost_to_go(6.0, 0.3)
+    assert fresh is not None
+    # positive control: the new field alone (as before) leaves its cycle the costs-to-go
+    plain = copy.copy(core)
+    plain.on_field(new)
+    before = plain.plan_request(1.0)
+    assert before is not None and before.field is new and before.ctg is None
+    n = len(built)
+    warmed = planner.warm(core.field_request(new, 1.0))  # type: ignore[arg-type]
+    assert warmed is not None and len(built) == n + 1  # the goal's lattice on the new field
+    core.on_field(new, warmed)
+    req = core.plan_request(1.0)
+    assert req is not None and req.field is new and req.ctg is not None
+    assert np.array_equal(req.ctg.phi, fresh.phi)  # what the cycle would have made
+
+    def made(*args: object, **kwargs: object) -> None:
+        raise AssertionError("made again in the planning cycle")
+
+    monkeypatch.setattr(new, "cost_to_go", made)
+    monkeypatch.setattr(planner, "Mpepc", made)
+    res = compute(req)
+    assert res.plan is not None and len(built) == n + 1  # no lattice, ctg nor planner made
+    again, last = lattice.build(new, req.goal, fresh.phi, start=req.pose), built[-1]
+    assert again is not None and last is not None and np.array_equal(again.cost, last.cost)

@@ -70,6 +70,7 @@ class NavPlan(msgspec.Struct, kw_only=True):
     survival: float = 1.0
     min_clearance_m: float = 0.0
     plan_ms: float = 0.0  # the planning cycle's wall time
+    new_field: bool = False  # the first cycle on a field made since the last (the map changed)
 
 
 class TrackedPerson(msgspec.Struct, kw_only=True, frozen=True):

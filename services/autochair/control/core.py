@@ -37,7 +37,15 @@ from autochair.nav.mpepc import (
     Person,
     Plan,
 )
-from autochair.nav.planner import PlanRequest, PlanResult, compute, free_field, path_error, prepare
+from autochair.nav.planner import (
+    PlanRequest,
+    PlanResult,
+    Warmed,
+    compute,
+    free_field,
+    path_error,
+    prepare,
+)
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, park_kuipers
@@ -502,6 +510,7 @@ class ControlCore:
         # ctg), taken when the chair gets there rather than made again in that cycle
         self._behind: tuple[NavField, Pose2D, CostToGo] | None = None
         self.given_up: GridMap | None = None  # cells kept out of ctg (nav/planner.give_up)
+        self._warm: Warmed | None = None  # the newest field's ctg, made before its first cycle
         self.plan: Plan | None = None
         self.lineups = 0  # line-up poses before doors, inserted ahead of the goal's waypoints
         self.final = False  # MPEPC took the goal itself: the law's own final approach
@@ -554,9 +563,21 @@ class ControlCore:
         return self.state in ACTIVE_STATES
 
     # --- inputs -----------------------------------------------------------------------------
-    def on_field(self, fld: NavField) -> None:
-        """A new navigation field (the map changed): costs-to-go are recomputed next cycle."""
+    def on_field(self, fld: NavField, warmed: Warmed | None = None) -> None:
+        """A new navigation field (the map changed): costs-to-go are recomputed next cycle,
+        unless `warmed` made them for it (`field_request`, nav/planner.warm)."""
         self.field = fld
+        self._warm = warmed if warmed is not None and warmed.req.field is fld else None
+
+    def field_request(self, fld: NavField, now: float) -> PlanRequest | None:
+        """The current goal's request as the next planning cycle would make it, on a new field
+        `fld` (not yet taken: `on_field`), for nav/planner.warm to make its costs-to-go,
+        lattice and planner beforehand, outside the lock; None without a goal to plan to."""
+        o = self.odom
+        if not self.active or o is None or (self.map_waypoints is not None and (
+                self._loc_lost or self.frames.why_not(now))):
+            return None
+        return replace(self._request(o, now), field=fld, ctg=None)
 
     def on_odom(self, odom: OdomSample) -> None:
         if not all(math.isfinite(c) for c in (odom.x, odom.y, odom.yaw, odom.v, odom.omega)):
@@ -826,6 +847,11 @@ class ControlCore:
         wp = self.waypoints[self.index]
         fld = self._field_for(o, self.waypoints)
         ctg = self.ctg if self._ctg_field is fld and self._ctg_index == self.index else None
+        given_up, w = self.given_up, self._warm
+        if ctg is None and w is not None and w.req.field is fld \
+                and w.req.given_up is given_up and (w.req.goal_id, w.req.index, w.req.goal) \
+                == (self.goal_id, self.index, (wp.x_m, wp.y_m, wp.yaw_rad)):
+            ctg, given_up = w.ctg, w.given_up  # (made for this field, goal and cells: warm)
         prev = None if self.plan is None else (*self.plan.target, self.plan.vmax_mps)
         # The plan starts from the pose predicted `ahead` s ahead; people are moved on as far
         # (else the chair is planned past a crossing person it has not yet passed). With the
@@ -842,7 +868,7 @@ class ControlCore:
                            (self.limiter.v.rate, self.limiter.w.rate),
                            self.index == len(self.waypoints) - 1,
                            self.plan is not None and self.plan.straight_m > 0.0,
-                           None if self.plan is None else self.plan.then, self.given_up,
+                           None if self.plan is None else self.plan.then, given_up,
                            self.final, self._chain_now(o, now), self.final and self.straight)
 
     def _chain_now(self, o: OdomSample, now: float) -> Chain | None:
@@ -866,6 +892,8 @@ class ControlCore:
             self._asked_t = -math.inf
             self.latency_s = late if self.latency_s is None else \
                 self.latency_s + LATENCY_WEIGHT * (late - self.latency_s)
+        if self._warm is not None and res.field is self._warm.req.field:
+            self._warm = None  # (planned on: its ctg is kept as any cycle's, or made anew)
         if res.goal_id != self.goal_id or res.index != self.index or not self.active:
             return
         # (with the field they were made on: a request made ahead (_ahead) made its own free

@@ -7,7 +7,8 @@ MPEPC runs inside this service (nav/; the decision and its reasons are in README
 the goal's state machine, the pose prediction and the limiter it plans from are the core's, and
 one process means no goal handshake between two. The planning cycle (tens of ms) runs on its
 own thread outside the core's lock, so the 50 Hz law is never held up by it; the navigation
-field is rebuilt on a third thread when the mapping service's grid changes.
+field is rebuilt on a third thread when the mapping service's grid changes, with what the goal's
+next planning cycle needs on it (costs-to-go, lattice, planner: nav/planner.warm).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from autochair.geometry import quaternion_yaw
 from autochair.nav import gil
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import Person
-from autochair.nav.planner import PlanRequest, PlanResult, compute
+from autochair.nav.planner import PlanRequest, PlanResult, compute, warm
 from autochair.people.core import ScanPeople, StaticMap
 from autochair.runtime import ConfigError, Node, service_main
 from autochair.runtime.helper import HelperProcess
@@ -83,6 +84,7 @@ class ControlNode:
         self.grid_key = b""
         self.field_grid: OccupancyGrid | None = None  # the grid the field was last made for
         self.field_lock = threading.Lock()  # (the map thread and a goal request both make it)
+        self.planned_field: NavField | None = None  # the field the last planning cycle was on
         # People for MPEPC, tracked in the scans (on the scan callback, its own lock).
         self.people = ScanPeople(chair.laser_mount)
         self.people_lock = threading.Lock()
@@ -194,6 +196,10 @@ class ControlNode:
             req = self.core.plan_request(time.monotonic())
         if req is None:
             return
+        new_field = req.field is not self.planned_field  # (NavPlan.new_field)
+        self.planned_field = req.field
+        if new_field and req.ctg is not None:  # (its costs-to-go made before: warm)
+            self.node.health.count("new_fields_warm")
         t0 = time.perf_counter()
         res = compute(req)  # outside the lock: the 50 Hz loop goes on meanwhile
         ms = (time.perf_counter() - t0) * 1e3
@@ -203,9 +209,10 @@ class ControlNode:
         with self.held():
             self.core.on_plan(res, time.monotonic())
             state = self.core.state
-        self.publish_plan(req, res, state, ms)
+        self.publish_plan(req, res, state, ms, new_field)
 
-    def publish_plan(self, req: PlanRequest, res: PlanResult, state: str, ms: float) -> None:
+    def publish_plan(self, req: PlanRequest, res: PlanResult, state: str, ms: float,
+                     new_field: bool) -> None:
         """The plan, the footprint and the people for the 3D view (keys.NAV_PLAN)."""
         p, fp = res.plan, self.core.footprint
         corners = np.array([[fp.front_m, fp.half_width_m], [fp.front_m, -fp.half_width_m],
@@ -224,7 +231,7 @@ class ControlNode:
             progress_m=0.0 if p is None else round(p.progress_m, 3),
             survival=1.0 if p is None else round(p.survival, 3),
             min_clearance_m=0.0 if p is None else round(p.min_clearance_m, 3),
-            plan_ms=round(ms, 2)))
+            plan_ms=round(ms, 2), new_field=new_field))
 
     def map_tick(self) -> None:
         """Take a new grid in: the people tracker's static map at once; the navigation field
@@ -248,8 +255,9 @@ class ControlNode:
         if active:
             self.refresh_field()
 
-    def refresh_field(self) -> None:
-        """Rebuild the navigation field if the newest grid's obstacles changed."""
+    def refresh_field(self, for_goal: bool = True) -> None:
+        """Rebuild the navigation field if the newest grid's obstacles changed; `for_goal`:
+        with what the current goal's next planning cycle needs on it (planner.warm)."""
         with self.field_lock:
             msg = self.grid
             if msg is None or msg is self.field_grid:
@@ -266,10 +274,16 @@ class ControlNode:
             if key == self.grid_key:
                 return
             self.grid_key = key
+            t0 = time.perf_counter()
             fld = NavField(gm, self.core.footprint)
             with self.held():
-                self.core.on_field(fld)
+                req = self.core.field_request(fld, time.monotonic()) if for_goal else None
+            warmed = None if req is None else warm(req)  # (without the lock, as compute)
+            with self.held():
+                self.core.on_field(fld, warmed)
             self.node.health.count("nav_fields")
+            # (with nav_fields: the map thread's mean time per field)
+            self.node.health.count("nav_field_ms", round((time.perf_counter() - t0) * 1e3))
 
     # --- requests and status ------------------------------------------------------------------
     def status_msg(self) -> GoalStatus:
@@ -292,7 +306,7 @@ class ControlNode:
         self.status_pub.put(self.status_msg())
 
     def on_set(self, req: GoalRequest) -> GoalReply:
-        self.refresh_field()  # (not kept up while no goal was active)
+        self.refresh_field(for_goal=False)  # (not kept up while no goal was active)
         with self.held():
             check = self.core.check_goal(req, time.monotonic())
         if isinstance(check, GoalCheck):

@@ -67,7 +67,10 @@ def planner_for(fld: NavField, law: LawParams, params: MpepcParams | None = None
     key = id(fld)
     hit = _planners.get(key)
     if hit is None or hit[0] is not fld or hit[1].law != law:
-        _planners.clear()  # only the newest field is used
+        # The newest two: the control node's map thread makes a new field's (`warm`) while
+        # a planning cycle may still be on the one before, which must not drop it.
+        for k in list(_planners)[:-1]:  # (list(): one step, thread-safe)
+            _planners.pop(k, None)
         hit = (fld, Mpepc(fld, law, params))
         _planners[key] = hit
     return hit[1]
@@ -208,16 +211,50 @@ def give_up(fld: NavField, ctg: CostToGo, pose: tuple[float, float, float],
     return ctg2, GridMap(closed, gm.resolution_m, gm.origin_x_m, gm.origin_y_m, gm.frame_id)
 
 
+def costs_to_go(fld: NavField, goal: tuple[float, float, float],
+                pose: tuple[float, float, float], given_up: GridMap | None
+                ) -> tuple[CostToGo | None, GridMap | None]:
+    """The costs-to-go to `goal` without the cells given up, and those cells; on this map they
+    may close the way from `pose`: then they are dropped."""
+    if given_up is not None:
+        ctg = fld.cost_to_go(goal[0], goal[1], closed=fld.cells_of(given_up))
+        if ctg is not None and math.isfinite(fld.start_cost(ctg, pose[0], pose[1])):
+            return ctg, given_up
+    return fld.cost_to_go(goal[0], goal[1]), None
+
+
+@dataclass(frozen=True)
+class Warmed:
+    """A new field's costs-to-go for `req` (its goal, waypoint and cells given up), made
+    before its first planning cycle (`warm`)."""
+
+    req: PlanRequest
+    ctg: CostToGo
+    given_up: GridMap | None
+
+
+def warm(req: PlanRequest, params: MpepcParams | None = None) -> Warmed | None:
+    """What the first `compute` on a new field (`req.field`) would build, built beforehand:
+    its costs-to-go (returned), the goal's lattice and the planner (into their caches). The
+    live map changes about once a second, and each new field made the next planning cycle
+    rebuild them (hallway, quiet: ~20 + ~80 + 1 ms); two in three live cycles were such
+    (docs/experiments/scripts/live_plan.py). The control node warms them on its map thread.
+    None where there is no path (`compute` says why)."""
+    fld = req.field
+    ctg, given_up = costs_to_go(fld, req.goal, req.pose, req.given_up)
+    if ctg is None or path_error(fld, ctg, req.pose, req.goal, way_in=False):
+        return None
+    if uses_lattice(fld, req.goal, req.pose, req.final, params or MpepcParams()):
+        lattice_for(fld, req.goal, ctg, req.pose)
+    planner_for(fld, req.law, params)
+    return Warmed(req, ctg, given_up)
+
+
 def compute(req: PlanRequest, params: MpepcParams | None = None,
             blocked_progress_m: float = 0.1, blocked_gain: float = 0.1) -> PlanResult:
     fld, ctg, given_up = req.field, req.ctg, req.given_up
-    if ctg is None and given_up is not None:
-        # (on this map the cells given up may close the way: then they are dropped)
-        ctg = fld.cost_to_go(req.goal[0], req.goal[1], closed=fld.cells_of(given_up))
-        if ctg is None or not math.isfinite(fld.start_cost(ctg, req.pose[0], req.pose[1])):
-            ctg, given_up = None, None
     if ctg is None:
-        ctg = fld.cost_to_go(req.goal[0], req.goal[1])
+        ctg, given_up = costs_to_go(fld, req.goal, req.pose, given_up)
     error = path_error(fld, ctg, req.pose, req.goal, way_in=False)  # (checked at set_goal)
     if error or ctg is None:
         return PlanResult(req.goal_id, req.index, fld, ctg, None, error=error)
