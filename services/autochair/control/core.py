@@ -574,8 +574,7 @@ class ControlCore:
         `fld` (not yet taken: `on_field`), for nav/planner.warm to make its costs-to-go,
         lattice and planner beforehand, outside the lock; None without a goal to plan to."""
         o = self.odom
-        if not self.active or o is None or (self.map_waypoints is not None and (
-                self._loc_lost or self.frames.why_not(now))):
+        if o is None or not self._plannable(now):
             return None
         return replace(self._request(o, now), field=fld, ctg=None)
 
@@ -801,15 +800,19 @@ class ControlCore:
         now, its start and its committed sweep lagged the chair by v·latency (nav_eval seed 7
         with 0.1 s: 2 of 32 tight goals lost)."""
         o = self.odom
-        if not self.active or o is None or now - self._plan_t < 1.0 / self.cfg.plan_rate_hz:
+        if o is None or now - self._plan_t < 1.0 / self.cfg.plan_rate_hz \
+                or not self._plannable(now):
             return None
-        if self.map_waypoints is not None and (self._loc_lost or self.frames.why_not(now)):
-            return None  # where the goal is in odom is unknown: nothing to plan to
         self._plan_t = self._asked_t = now
         ahead = self._ahead(o, now)
         if ahead is not None:
             return ahead
         return self._request(o, now)
+
+    def _plannable(self, now: float) -> bool:
+        """A goal to plan to: active, and (a goal in map) where it is in odom known."""
+        return self.active and not (self.map_waypoints is not None and (
+            self._loc_lost or bool(self.frames.why_not(now))))
 
     def _ahead(self, o: OdomSample, now: float) -> PlanRequest | None:
         """The request of a copy of this core driven on by the latency in whole ticks, its

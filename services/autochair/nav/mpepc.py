@@ -32,7 +32,7 @@ import functools
 import itertools
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -1388,11 +1388,24 @@ class Mpepc:
         cost, info = self._costs(pose, v0, 0.0, zz, ctg, people, goal, rates, final, hf)
         if float(info["hit"][0]) != 0.0:
             return None
-        path = np.stack([info["x"][0], info["y"][0], info["yaw"][0]], -1)
-        return Plan((float(zz[0, 0]), float(zz[0, 1]), 0.0, vmin), tgt, vmin, float(cost[0]),
-                    float(info["phi0"][0] - info["phi_end"][0]), float(info["survival"][0]),
-                    float(info["clearance"][0]), path, False, math.nan, float(cost[1]),
-                    len(zz), final_turn=turn, straight_m=0.0 if turn else rz[0], then=then)
+        return self._plan_of(pose, zz[0], float(cost[0]), {k: v[0] for k, v in info.items()},
+                             float(cost[1]), len(zz), tgt, final_turn=turn,
+                             straight_m=0.0 if turn else rz[0], then=then)
+
+    def _plan_of(self, pose: tuple[float, float, float], z: F64, cost: float,
+                 row: dict[str, F64], stop_cost: float, evaluations: int,
+                 tgt: tuple[float, float, float] | None = None, is_goal: bool = False,
+                 goal_clearance_m: float = math.nan, **kw: Any) -> Plan:
+        """The Plan of candidate `z` (r, θ, δ, vmax) as `_costs` evaluated it (`row`: its
+        entries of `info`); `tgt` the law's target pose, by default z's from `pose`."""
+        if tgt is None:
+            t = (self.in_place_targets(pose, z[None, :]) if z[0] < self.p.in_place_r_m
+                 else self.targets(pose, z[None, :]))[0]
+            tgt = (float(t[0]), float(t[1]), float(t[2]))
+        return Plan((float(z[0]), float(z[1]), float(z[2]), float(z[3])), tgt, float(z[3]),
+                    cost, float(row["phi0"] - row["phi_end"]), float(row["survival"]),
+                    float(row["clearance"]), np.stack([row["x"], row["y"], row["yaw"]], -1),
+                    is_goal, goal_clearance_m, stop_cost, evaluations, **kw)
 
     def turn_first(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                    ctg: CostToGo, people: list[Person], final: bool,
@@ -1478,13 +1491,8 @@ class Mpepc:
         if not ok.any():
             return None
         i = int(np.argmin(np.where(ok, cost, math.inf)))
-        tgt = self.targets(pose, z[i:i + 1])[0]
-        return Plan((float(z[i, 0]), float(z[i, 1]), float(z[i, 2]), float(z[i, 3])),
-                    (float(tgt[0]), float(tgt[1]), float(tgt[2])), float(z[i, 3]),
-                    float(cost[i]), float(info["phi0"][i] - info["phi_end"][i]),
-                    float(info["survival"][i]), float(info["clearance"][i]),
-                    np.stack([info["x"][i], info["y"][i], info["yaw"][i]], -1), False, math.nan,
-                    float(cost[0]), len(z))
+        return self._plan_of(pose, z[i], float(cost[i]), {k: v[i] for k, v in info.items()},
+                             float(cost[0]), len(z))
 
     def wide_line_clear(self, pose: tuple[float, float, float], v0: float, w0: float,
                         goal: tuple[float, float, float]) -> bool:
@@ -1749,17 +1757,10 @@ class Mpepc:
                     best_z, best_c, best = (z[0] if is_goal else zz[0]).copy(), float(c3[0]), {
                         k: v[0] for k, v in inf3.items()}
                     goal_clear = float(inf3["clearance"][0]) if is_goal else goal_clear
-        tgt = self.targets(pose, best_z[None, :])[0]
-        if best_z[0] < self.p.in_place_r_m:
-            tgt = self.in_place_targets(pose, best_z[None, :])[0]
-        path = np.stack([best["x"], best["y"], best["yaw"]], -1)
-        return Plan((float(best_z[0]), float(best_z[1]), float(best_z[2]), float(best_z[3])),
-                    (float(tgt[0]), float(tgt[1]), float(tgt[2])), float(best_z[3]),
-                    best_c, float(best["phi0"] - best["phi_end"]), float(best["survival"]),
-                    float(best["clearance"]), path, is_goal, goal_clear,
-                    float(cost[int(has_goal)]), evals, final_turn,
-                    goal_withheld=withheld and not is_goal and not final_turn,
-                    goal_stop_clear=goal_stop_clear)
+        return self._plan_of(pose, best_z, best_c, best, float(cost[int(has_goal)]), evals,
+                             is_goal=is_goal, goal_clearance_m=goal_clear, final_turn=final_turn,
+                             goal_withheld=withheld and not is_goal and not final_turn,
+                             goal_stop_clear=goal_stop_clear)
 
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],

@@ -240,27 +240,34 @@ def warm(req: PlanRequest, params: MpepcParams | None = None) -> Warmed | None:
     rebuild them (hallway, quiet: ~20 + ~80 + 1 ms); two in three live cycles were such
     (docs/experiments/scripts/live_plan.py). The control node warms them on its map thread.
     None where there is no path (`compute` says why)."""
-    fld = req.field
-    ctg, given_up = costs_to_go(fld, req.goal, req.pose, req.given_up)
-    if ctg is None or path_error(fld, ctg, req.pose, req.goal, way_in=False):
+    ctg, given_up, error, _ = _setup(req, params or MpepcParams())
+    if error or ctg is None:
         return None
-    if uses_lattice(fld, req.goal, req.pose, req.final, params or MpepcParams()):
-        lattice_for(fld, req.goal, ctg, req.pose)
-    planner_for(fld, req.law, params)
+    planner_for(req.field, req.law, params)
     return Warmed(req, ctg, given_up)
 
 
-def compute(req: PlanRequest, params: MpepcParams | None = None,
-            blocked_progress_m: float = 0.1, blocked_gain: float = 0.1) -> PlanResult:
+def _setup(req: PlanRequest, mp: MpepcParams
+           ) -> tuple[CostToGo | None, GridMap | None, str, HeadingField | None]:
+    """What a planning cycle plans on (`compute`; `warm` makes it beforehand): the costs-to-go
+    and the cells given up, why there is no path ("" if there is one), the goal's lattice."""
     fld, ctg, given_up = req.field, req.ctg, req.given_up
     if ctg is None:
         ctg, given_up = costs_to_go(fld, req.goal, req.pose, given_up)
     error = path_error(fld, ctg, req.pose, req.goal, way_in=False)  # (checked at set_goal)
     if error or ctg is None:
+        return ctg, given_up, error, None
+    hf = lattice_for(fld, req.goal, ctg, req.pose) \
+        if uses_lattice(fld, req.goal, req.pose, req.final, mp) else None
+    return ctg, given_up, "", hf
+
+
+def compute(req: PlanRequest, params: MpepcParams | None = None,
+            blocked_progress_m: float = 0.1, blocked_gain: float = 0.1) -> PlanResult:
+    fld, mp = req.field, params or MpepcParams()
+    ctg, given_up, error, hf = _setup(req, mp)
+    if error or ctg is None:
         return PlanResult(req.goal_id, req.index, fld, ctg, None, error=error)
-    mp = params or MpepcParams()
-    use = uses_lattice(fld, req.goal, req.pose, req.final, mp)
-    hf = lattice_for(fld, req.goal, ctg, req.pose) if use else None
     mpc = planner_for(fld, req.law, params)
     if req.straight and req.previous is not None and abs(req.omega) < 0.01:
         # A straight stage under way (Mpepc.stage_plan): its rest, rechecked.
