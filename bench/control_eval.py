@@ -39,6 +39,7 @@ import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
 from autochair.geometry import wrap_angle as wrap
+from autochair.nav.planner import compute
 from autochair.odometry.core import OdomState
 from autochair.pid.core import PidConfig, VelocityPidCore, make_core
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate, for all benches
@@ -178,7 +179,7 @@ def turn_drive_turn_time(start: tuple[float, float, float], goal: tuple[float, f
 
 def run_case(start: tuple[float, float, float], goal: tuple[float, float, float],
              cfg: ControlConfig, pid_kind: str = "tuned", odom_age_ticks: int = 0,
-             cmd_delay_ticks: int = 0) -> dict[str, Any]:
+             cmd_delay_ticks: int = 0, plan_delay_s: float = 0.0) -> dict[str, Any]:
     """One goal in lockstep. `odom_age_ticks` / `cmd_delay_ticks` (drive ticks, default 0:
     none): the delays of the control's path through the processes, which lockstep lacks. The
     control reads ODOM_SLOW (every second sample) on its own free-running 50 Hz timer, so it
@@ -190,6 +191,8 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
     sent: deque[Any] = deque()  # the control's commands on their way to the PID
     model = rig.chair
     core = ControlCore(cfg)
+    core.inline_planning = plan_delay_s <= 0.0
+    pending: tuple[Any, float] | None = None  # a plan and when it takes effect
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
     rows: list[tuple[float, ...]] = []
     cmds: list[tuple[float, float]] = []
@@ -205,7 +208,16 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
         if k == 0:
             reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t)
             assert reply.ok, reply.error
-        out = core.step(t) if k % ctrl_every == 0 else None
+        out = None
+        if k % ctrl_every == 0:
+            if not core.inline_planning:
+                if pending is not None and t >= pending[1] - 1e-9:
+                    core.on_plan(pending[0], t)
+                    pending = None
+                req = None if pending is not None else core.plan_request(t)
+                if req is not None:
+                    pending = (compute(req), t + plan_delay_s)
+            out = core.step(t)
         if out is not None:  # the plan (what is sent leads it past the PID's prefilter)
             cmds.append((core.limiter.v.value, core.limiter.w.value))
         sent.append(out)
@@ -288,6 +300,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="the control acts on odometry N drive ticks old (processes: 0–2)")
     ap.add_argument("--cmd-delay-ticks", type=int, default=0, metavar="N",
                     help="the PID takes the control's command up N drive ticks late (0–1)")
+    ap.add_argument("--plan-delay-s", type=float, default=0.0, metavar="D",
+                    help="each MPEPC plan takes effect D s after it was asked for, as on the "
+                         "node's planning thread (default 0: at once)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [control] setting")
     args = ap.parse_args(argv)
@@ -298,7 +313,8 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     t0 = time.perf_counter()
     for name, start, goal in cases:
-        r = run_case(start, goal, cfg, args.pid, args.odom_age_ticks, args.cmd_delay_ticks)
+        r = run_case(start, goal, cfg, args.pid, args.odom_age_ticks, args.cmd_delay_ticks,
+                     args.plan_delay_s)
         r.update(name=name, start=start, goal=goal)
         results.append(r)
         print(f"{name:32s} {r['state']:8s} t={r['time_s']:6.2f}s x{r['time_ratio']:<5} "
@@ -348,6 +364,7 @@ def main(argv: list[str] | None = None) -> int:
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps({"pid": args.pid, "odom_age_ticks": args.odom_age_ticks,
                                    "cmd_delay_ticks": args.cmd_delay_ticks,
+                                   "plan_delay_s": args.plan_delay_s,
                                    "config": {f: getattr(cfg, f) for f in cfg.__struct_fields__},
                                    "summary": summary, "runs": results}, indent=1) + "\n")
     return 0
