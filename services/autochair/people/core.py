@@ -22,7 +22,9 @@ from ground truth, on a live chair only from this tracker. Per scan, in the plan
 3. **Tracks.** A constant-velocity Kalman filter per person (state x, y, vx, vy; white-noise
    acceleration `accel_std`; measurement σ `meas_std_m`); greedy nearest association within
    `gate_m` of the prediction; a track is reported after `confirm` hits and dropped when
-   unseen for `coast_s`.
+   unseen for `coast_s`, or at once when unseen in the first scan with a map: before it every
+   point was a candidate, walls too (the inner face of a side room's wall seen through its
+   doorway is a person's width), and the map now says what it saw is the map's.
 
 Why this and not a library: the segment-and-track scheme of ROS's `leg_detector` /
 `spencer_people_tracking` without their trained classifiers, which need a real laser's data;
@@ -209,6 +211,7 @@ class PeopleTracker:
     _tracks: list[_Track] = field(default_factory=list)
     _next_id: int = 1
     _sweeps: deque[_Sweep] = field(default_factory=deque)  # the last `moved_s` and one more
+    _mapless: bool = True  # the last scan had no map
 
     def detect(self, pts: F64, origin: tuple[float, float], before: _Sweep | None = None
                ) -> F64:
@@ -298,7 +301,10 @@ class PeopleTracker:
                 self._tracks.append(_Track(self._next_id, np.array([d[0], d[1], 0.0, 0.0]),
                                            cov, t, t, radius_m=max(p.radius_m, float(d[2]))))
                 self._next_id += 1
-        self._tracks = [tr for tr in self._tracks if t - tr.seen_t <= p.coast_s]
+        # (a track of the map's points is not coasted on into the map: see the docstring)
+        first_map, self._mapless = self._mapless and self.static is not None, self.static is None
+        self._tracks = [tr for tr in self._tracks
+                        if t - tr.seen_t <= p.coast_s and not (first_map and tr.seen_t < t)]
         return self.people()
 
     def people(self) -> list[TrackedPerson]:
