@@ -4,8 +4,12 @@ in lockstep (deterministic, faster than real time).
 Loop at the drive chain's rate (autochair.tune.lockstep.DT), as bench/control_eval.py: ChairModel
 (sim/chair/model.py) → encoder counts → OdometryCore → ControlCore (50 Hz; MPEPC at its plan rate,
 timed) → the velocity PID as [pid] configures it → joystick volts → ChairModel. The navigation
-field is the world rasterised at 0.05 m (what a perfect map would hold); people are given to the
-planner from the world's ground truth (a perfect tracker: the stack has none yet). Metrics come
+field is the world rasterised at 0.05 m (what a perfect map would hold); with `--map scans`, the
+mapping service's grid grown from the simulated laser's scans as the chair drives, from what it
+saw standing 1 s at the start (bench/scan_map.py: what the live chair plans on; unseen cells are
+free, so a goal in an unseen room is accepted; the references below stay on the exact map).
+People are given to the planner from the world's ground truth (a perfect tracker: the stack has
+none yet). Metrics come
 from the simulator's ground truth: footprint clearance against the exact world (people included)
 every 0.05 s, collisions (any contact), the true final pose error, time and path length against the
 shortest feasible path, comfort peaks from the odometry (as control_eval), the wall time of
