@@ -4,8 +4,12 @@ in lockstep (deterministic, faster than real time).
 Loop at the drive chain's rate (autochair.tune.lockstep.DT), as bench/control_eval.py: ChairModel
 (sim/chair/model.py) → encoder counts → OdometryCore → ControlCore (50 Hz; MPEPC at its plan rate,
 timed) → the velocity PID as [pid] configures it → joystick volts → ChairModel. The navigation
-field is the world rasterised at 0.05 m (what a perfect map would hold); people are given to the
-planner from the world's ground truth (a perfect tracker: the stack has none yet). Metrics come
+field is the world rasterised at 0.05 m (what a perfect map would hold); with `--map scans`, the
+mapping service's grid grown from the simulated laser's scans as the chair drives, from what it
+saw standing 1 s at the start (bench/scan_map.py: what the live chair plans on; unseen cells are
+free, so a goal in an unseen room is accepted; the references below stay on the exact map).
+People are given to the planner from the world's ground truth (a perfect tracker: the stack has
+none yet). Metrics come
 from the simulator's ground truth: footprint clearance against the exact world (people included)
 every 0.05 s, collisions (any contact), the true final pose error, time and path length against the
 shortest feasible path, comfort peaks from the odometry (as control_eval), the wall time of
@@ -61,13 +65,14 @@ from autochair.geometry import wrap_angle as wrap
 from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import MpepcParams, Person
-from autochair.nav.planner import PlanResult, compute
+from autochair.nav.planner import PlanResult, compute, warm
 from autochair.sim.world import DEFAULT_WORLD, World, load_world
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate
 from bench.clearance_bound import Room, lattice_attainable
 from bench.control_eval import deriv, make_pid, smooth, trapezoid_time
 from bench.min_time import Limits, cached, lookup
 from bench.path_time import fit, path_time
+from bench.scan_map import ScanMap
 
 SETTLE_S = 1.5
 TIMEOUT_S = 90.0
@@ -231,18 +236,29 @@ def people_at(world: World, t: float) -> list[Person]:
 
 
 def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig,
-             fp: Footprint, params: MpepcParams | None = None, plan_delay_s: float = 0.0
-             ) -> dict[str, Any]:
+             fp: Footprint, params: MpepcParams | None = None, plan_delay_s: float = 0.0,
+             scans: ScanMap | None = None) -> dict[str, Any]:
     """One goal in lockstep. `plan_delay_s`: each plan takes effect this long after it was
     asked for (the node plans on its own thread meanwhile, the core driving the previous
-    plan; 0: at once, as the figures are made)."""
+    plan; 0: at once, as the figures are made). `scans`: the chair plans on the map grown
+    from its laser's scans (bench/scan_map.py), not on `fld` (the exact world, which the
+    metrics' references keep)."""
     from autochair_msgs import GoalRequest, Pose2D
 
     rig = Rig(make_pid("tuned"), start=start)  # the PID as the node configures it
     model = rig.chair
     core = ControlCore(cfg, footprint=fp)
     core.inline_planning = False  # planned here, so each cycle can be timed
-    core.on_field(fld)
+    map_ms: list[float] = []  # the map's upkeep (the mapping service's and the map thread's)
+    grid_key = b""
+    if scans is None:
+        core.on_field(fld)
+    else:
+        t0 = time.perf_counter()
+        parked = scans.parked(0.0, start)
+        core.on_field(NavField(parked, fp))
+        grid_key = parked.occupied.tobytes()
+        map_ms.append((time.perf_counter() - t0) * 1e3)
     outline = fp.outline(0.02)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
     rows: list[tuple[float, ...]] = []
@@ -265,6 +281,18 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
             if not reply.ok:
                 return {"state": "refused", "reason": reply.error, "arrived": False}
         out = None
+        if scans is not None:
+            t0 = time.perf_counter()
+            gm = scans.step(t, (st.x, st.y, st.yaw), (model.x, model.y, model.yaw),
+                            (model.v, model.omega))
+            # As the control service's map thread: a new field where the obstacles changed,
+            # warmed for the goal's next cycle (control/node.py refresh_field)
+            if gm is not None and core.active and gm.occupied.tobytes() != grid_key:
+                grid_key = gm.occupied.tobytes()
+                new = NavField(gm, fp)
+                req = core.field_request(new, t)
+                core.on_field(new, None if req is None else warm(req, params))
+            map_ms.append((time.perf_counter() - t0) * 1e3)
         if k % ctrl_every == 0:
             core.people = people_at(world, t)
             if pending is not None and t >= pending[1] - 1e-9:
@@ -298,6 +326,9 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         k += 1
     result = metrics(rows, clear, plan_ms, core, start, goal, t_end, fld, states)
     result["accept_ms"] = round(accept_ms, 1)
+    if scans is not None:
+        result["map_s"] = round(sum(map_ms) / 1e3, 2)
+        result["scans_mapped"] = scans.mapper.scans
     cl, sp = np.array(clear), np.array(speeds)
     starts = (cl <= 0.0) & np.concatenate([[True], cl[:-1] > 0.0])
     result["collisions_moving"] = int(np.sum(starts & (sp > 0.05)))  # the chair was driving
@@ -378,10 +409,14 @@ def room_for(fld: NavField, room: Room, fp: Footprint, start: Pose, goal: Pose
 
 
 def refusal(world_name: str, start: Pose, goal: Pose, cfg: ControlConfig,
-            fp: Footprint) -> dict[str, Any]:
+            fp: Footprint, scans: int | None = None) -> dict[str, Any]:
+    """`scans`: on the map the chair's laser made standing at the start (bench/scan_map.py,
+    this rng seed), as a goal given then would be checked."""
     from autochair_msgs import GoalRequest, Pose2D
 
-    _, fld = build(world_name, fp)
+    world, fld = build(world_name, fp)
+    if scans is not None:
+        fld = NavField(ScanMap(world, laser_mount(), scans).parked(0.0, start), fp)
     core = ControlCore(cfg, footprint=fp)
     core.on_field(fld)
     core.on_odom(OdomSample(*start, 0.0, 0.0, 0.0))
@@ -389,6 +424,12 @@ def refusal(world_name: str, start: Pose, goal: Pose, cfg: ControlConfig,
     reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0)
     return {"refused": not reply.ok, "reason": reply.error,
             "seconds": round(time.perf_counter() - t0, 4)}
+
+
+def laser_mount() -> Pose:
+    from autochair.runtime.config import ChairGeometry
+
+    return ChairGeometry().laser_mount
 
 
 def summarise(runs: list[dict[str, Any]], refused: list[dict[str, Any]], wall: float
@@ -467,6 +508,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plan-delay-s", type=float, default=0.0,
                     help="each plan takes effect this long after it was asked for, as in the "
                          "node, where planning takes 50-100 ms (results file not written)")
+    ap.add_argument("--map", choices=("exact", "scans"), default="exact",
+                    help="what the chair plans on: the world rasterised (exact), or the "
+                         "mapping service's grid grown from the simulated laser's scans as "
+                         "it drives (bench/scan_map.py; results file not written)")
+    ap.add_argument("--scan-seed", type=int, default=0,
+                    help="the simulated laser's noise seed (--map scans)")
     args = ap.parse_args(argv)
     from autochair.runtime.config import ChairGeometry, load_section
 
@@ -488,10 +535,11 @@ def main(argv: list[str] | None = None) -> int:
         world, fld = fields[wname]
         planner._planners.clear()  # a fresh planner (and sampler) per case: order-independent
         planner._lattices.clear()
+        scans = ScanMap(world, laser_mount(), args.scan_seed) if args.map == "scans" else None
         r = run_case(world, fld, start, goal, cfg, fp,
                      MpepcParams(seed=args.seed,
                                  heading_lattice=MpepcParams().heading_lattice
-                                 and not args.no_lattice), args.plan_delay_s)
+                                 and not args.no_lattice), args.plan_delay_s, scans)
         r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
         runs.append(r)
         if r["state"] == "refused":
@@ -512,11 +560,13 @@ def main(argv: list[str] | None = None) -> int:
               f"j={r['peak_jerk_mps3']:.2f} "
               f"ω̇={r['peak_omega_dot_radps2']:.2f} plan={r['plan_ms_median']}ms "
               f"accept={r['accept_ms']}ms "
-              f"{r['reason']}", flush=True)
+              + (f"map={r['map_s']}s/{r['scans_mapped']} " if scans else "")
+              + f"{r['reason']}", flush=True)
     wall = time.perf_counter() - t0 - ref_wall
     refused = []
     for name, wname, start, goal in ([] if args.only or args.quick else REFUSED):
-        rr = refusal(wname, start, goal, cfg, fp)
+        rr = refusal(wname, start, goal, cfg, fp,
+                     args.scan_seed if args.map == "scans" else None)
         rr.update(name=name, world=wname, start=start, goal=goal)
         refused.append(rr)
         print(f"refuse {name:40s} {rr['refused']} {rr['seconds'] * 1e3:.0f} ms: {rr['reason']}")
@@ -525,10 +575,13 @@ def main(argv: list[str] | None = None) -> int:
         if ok_runs else {}
     summary["refused_reachable"] = len(runs) - len(ok_runs)
     summary["seed"] = args.seed
+    if args.map == "scans":
+        summary["map"] = f"scans (seed {args.scan_seed})"
+        summary["map_s"] = round(sum(r["map_s"] for r in ok_runs), 1)
     print(json.dumps(summary, indent=1))
     summary["heading_lattice"] = MpepcParams().heading_lattice and not args.no_lattice
     if not (args.only or args.quick or args.no_save or args.no_lattice or args.plan_delay_s
-            or args.seed != MpepcParams().seed):
+            or args.seed != MpepcParams().seed or args.map != "exact"):
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         for r in runs:
             r.pop("plan_ms", None)
