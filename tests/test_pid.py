@@ -272,6 +272,19 @@ def test_after_a_stop_only_a_stream_begun_later_drives(kind: str) -> None:
     assert core.update(0.0, 0.0, DT, t, ns(t)).active
 
 
+def test_a_stream_begun_as_the_last_one_went_stale_drives_and_the_last_one_never() -> None:
+    """A goal sent just as the previous one's stream fell silent: its stream began after the
+    old one's last command, its first command came after the stale stop. Stopped as of the
+    stop's instant, that stream was refused for ever (the goal aborted "does not follow")."""
+    core = core_(stale_s=0.3)
+    assert drive(core, 0.5, 0.0, 0.0) is Verdict.OK  # the old stream's last command, at 0
+    assert not core.update(0.0, 0.0, DT, 0.31, ns(0.31)).active
+    assert core.stop_reason == "command stream stale"
+    assert drive(core, 0.5, 0.0, 0.32) is Verdict.BEFORE_STOP  # the old stream goes on: never
+    assert drive(core, 0.5, 0.0, 0.32, began=0.29) is Verdict.OK  # begun since its last word
+    assert core.update(0.0, 0.0, DT, 0.32, ns(0.32)).active
+
+
 def test_restarted_core_obeys_nothing_begun_before_it_started() -> None:
     core = core_(start_ns=ns(5.0))
     core.set_estop(False, 5.0, ns(5.0))

@@ -426,7 +426,11 @@ class VelocityPidCore:
         if not self.obeying:
             return None
         if now_s - self._desired_t > self.stale_s:
-            self.stop("command stream stale", now_ns)
+            # Stopped as of the stream's last command (its sender's stamp), not of now: a
+            # stream begun after that is a new act (a goal sent as the last one's stream ended)
+            # whose first command may come just after this; stopped as of now, it was refused
+            # for ever and the goal aborted "does not follow" (bench control_stack, session 21).
+            self.stop("command stream stale", self._desired_ns)
             return None
         v, omega = self._desired
         c = self.caps
