@@ -7,7 +7,7 @@ goal relative to the suite's start, applied to the chair's pose now (only cases 
 the origin are used). Time to goal: from the goal request to the status "arrived". Comfort
 peaks from the simulator's ground truth (autochair/sim/truth, 100 Hz, on its own clock).
 
-    .venv/bin/python -m bench control_stack [--cases 6] [--out FILE]
+    .venv/bin/python -m bench control_stack [--cases 6] [--out FILE] [--logs DIR [--record]]
 """
 
 from __future__ import annotations
@@ -140,7 +140,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=RESULTS, help="results file")
     ap.add_argument("--only", default="", help="only cases whose name contains this")
     ap.add_argument("--logs", type=Path, default=None, help="keep the processes' logs here")
+    ap.add_argument("--record", action="store_true",
+                    help="run the logger too: every key to an MCAP file beside the logs (the "
+                         "commands, odometry, PID status and truth of a failed case to trace)")
     args = ap.parse_args(argv)
+    if args.record and args.logs is None:
+        ap.error("--record needs --logs DIR (where the recording is kept)")
+    stack = [*STACK, "logger"] if args.record else STACK
     from autochair.runtime.client import open_client, subscribe
     from autochair_msgs import GroundTruth, keys
 
@@ -151,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         run_dir = args.logs or Path(tmp)
         run_dir.mkdir(parents=True, exist_ok=True)
-        launcher = Launcher([p for p in PROCESSES if p.name in STACK],
+        launcher = Launcher([p for p in PROCESSES if p.name in stack],
                             local_values(run_dir, hub), run_dir)
         launcher.start(ready_timeout_s=40)
         session = open_client(hub)
