@@ -31,6 +31,7 @@ import math
 import statistics
 import time
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,7 @@ import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
 from autochair.geometry import wrap_angle as wrap
-from autochair.nav.planner import compute
+from autochair.nav.planner import PlanRequest, PlanResult, compute
 from autochair.odometry.core import OdomState
 from autochair.pid.core import PidConfig, VelocityPidCore, make_core
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate, for all benches
@@ -177,6 +178,32 @@ def turn_drive_turn_time(start: tuple[float, float, float], goal: tuple[float, f
                                               cfg.jerk_max_mps3) + turn(gyaw - heading)
 
 
+class Planning:
+    """The control node's planning thread in lockstep: a plan asked for at `t` takes effect
+    `delay_s` later (at once when 0), the core driving the previous plan meanwhile; one
+    request at a time, as the node's. `plan` computes one (nav_eval times it)."""
+
+    def __init__(self, core: ControlCore, delay_s: float,
+                 plan: Callable[[PlanRequest], PlanResult] = compute) -> None:
+        self.core, self.delay_s, self.plan = core, delay_s, plan
+        core.inline_planning = False
+        self._pending: tuple[PlanResult, float] | None = None  # a plan, when it takes effect
+
+    def tick(self, t: float) -> None:
+        core, pending = self.core, self._pending
+        if pending is not None and t >= pending[1] - 1e-9:
+            core.on_plan(pending[0], t)
+            self._pending = pending = None
+        req = None if pending is not None else core.plan_request(t)
+        if req is None:
+            return
+        res = self.plan(req)
+        if self.delay_s > 0.0:
+            self._pending = (res, t + self.delay_s)
+        else:
+            core.on_plan(res, t)
+
+
 def run_case(start: tuple[float, float, float], goal: tuple[float, float, float],
              cfg: ControlConfig, pid_kind: str = "tuned", odom_age_ticks: int = 0,
              cmd_delay_ticks: int = 0, plan_delay_s: float = 0.0) -> dict[str, Any]:
@@ -191,8 +218,8 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
     sent: deque[Any] = deque()  # the control's commands on their way to the PID
     model = rig.chair
     core = ControlCore(cfg)
-    core.inline_planning = plan_delay_s <= 0.0
-    pending: tuple[Any, float] | None = None  # a plan and when it takes effect
+    # (at 0 the core plans inside step(), as it did before plans could be delayed)
+    planning = Planning(core, plan_delay_s) if plan_delay_s > 0.0 else None
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
     rows: list[tuple[float, ...]] = []
     cmds: list[tuple[float, float]] = []
@@ -210,13 +237,8 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
             assert reply.ok, reply.error
         out = None
         if k % ctrl_every == 0:
-            if not core.inline_planning:
-                if pending is not None and t >= pending[1] - 1e-9:
-                    core.on_plan(pending[0], t)
-                    pending = None
-                req = None if pending is not None else core.plan_request(t)
-                if req is not None:
-                    pending = (compute(req), t + plan_delay_s)
+            if planning is not None:
+                planning.tick(t)
             out = core.step(t)
         if out is not None:  # the plan (what is sent leads it past the PID's prefilter)
             cmds.append((core.limiter.v.value, core.limiter.w.value))

@@ -65,11 +65,11 @@ from autochair.geometry import wrap_angle as wrap
 from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import MpepcParams, Person
-from autochair.nav.planner import PlanResult, compute, warm
+from autochair.nav.planner import PlanRequest, PlanResult, compute, warm
 from autochair.sim.world import DEFAULT_WORLD, World, load_world
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate
 from bench.clearance_bound import Room, lattice_attainable
-from bench.control_eval import deriv, make_pid, smooth, trapezoid_time
+from bench.control_eval import Planning, deriv, make_pid, smooth, trapezoid_time
 from bench.min_time import Limits, cached, lookup
 from bench.path_time import fit, path_time
 from bench.scan_map import ScanMap
@@ -248,7 +248,15 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     rig = Rig(make_pid("tuned"), start=start)  # the PID as the node configures it
     model = rig.chair
     core = ControlCore(cfg, footprint=fp)
-    core.inline_planning = False  # planned here, so each cycle can be timed
+    plan_ms: list[float] = []
+
+    def timed(req: PlanRequest) -> PlanResult:
+        t0 = time.perf_counter()
+        res = compute(req, params)
+        plan_ms.append((time.perf_counter() - t0) * 1e3)
+        return res
+
+    planning = Planning(core, plan_delay_s, timed)  # planned here, so each cycle is timed
     map_ms: list[float] = []  # the map's upkeep (the mapping service's and the map thread's)
     grid_key = b""
     if scans is None:
@@ -262,13 +270,11 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     outline = fp.outline(0.02)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
     rows: list[tuple[float, ...]] = []
-    plan_ms: list[float] = []
     clear: list[float] = []
     speeds: list[float] = []  # true |v| at each clearance sample
     where: list[tuple[float, float, float]] = []  # true pose at each clearance sample
     states: set[str] = set()
     t_end: float | None = None
-    pending: tuple[PlanResult, float] | None = None  # a plan and when it takes effect
     k = 0
     while True:
         t = k * DT
@@ -287,26 +293,15 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
                             (model.v, model.omega))
             # As the control service's map thread: a new field where the obstacles changed,
             # warmed for the goal's next cycle (control/node.py refresh_field)
-            if gm is not None and core.active and gm.occupied.tobytes() != grid_key:
-                grid_key = gm.occupied.tobytes()
+            if gm is not None and core.active and (key := gm.occupied.tobytes()) != grid_key:
+                grid_key = key
                 new = NavField(gm, fp)
                 req = core.field_request(new, t)
                 core.on_field(new, None if req is None else warm(req, params))
             map_ms.append((time.perf_counter() - t0) * 1e3)
         if k % ctrl_every == 0:
             core.people = people_at(world, t)
-            if pending is not None and t >= pending[1] - 1e-9:
-                core.on_plan(pending[0], t)
-                pending = None
-            req = None if pending is not None else core.plan_request(t)
-            if req is not None:
-                t0 = time.perf_counter()
-                res = compute(req, params)
-                plan_ms.append((time.perf_counter() - t0) * 1e3)
-                if plan_delay_s > 0.0:
-                    pending = (res, t + plan_delay_s)
-                else:
-                    core.on_plan(res, t)
+            planning.tick(t)
             states.add(core.state)
             out = core.step(t)
         rig.act(t, st.v, st.omega, out)

@@ -101,8 +101,8 @@ class ScanMap:
         raw = ray_scan(self.world.at(t_end), self.urg, truth, self.mount, self.noise_m,
                        self.rng, twist)
         self.scans += 1
-        p, dec = self.dec.p, self.dec
-        ranges = np.where((raw < p.dmin_mm) | (raw > p.dmax_mm), np.nan, raw * 1e-3)
+        dec = self.dec
+        ranges = dec.ranges(raw)
         # the device stamps the start of its turn, a period before it ends
         stamp = ns(t_end - self.period_s) + dec.first_beam_ns
         max_dt = ns(self.cfg.max_odom_dt_s)

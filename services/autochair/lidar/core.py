@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from autochair.backoff import Backoff
 from autochair.protocol import scip
@@ -196,6 +197,12 @@ class ScanDecoder:
         self.first_beam_ns = round((req.start + (req.cluster - 1) / 2) * step_ns)
         self.time_increment_s = step_ns * req.cluster * 1e-9
 
+    def ranges(self, values: npt.NDArray[np.int64]) -> npt.NDArray[np.float64]:
+        """A scan's values (mm, or error codes below the device's minimum) in metres, NaN for
+        error codes and values out of the device's range."""
+        return np.where((values < self.p.dmin_mm) | (values > self.p.dmax_mm), np.nan,
+                        values * 1e-3)
+
     def decode(self, block: bytes, host_rx_ns: int) -> LaserScan:
         scan = scip.parse_scan(block, self.prefix, self.req.nchars)
         if scan.values.size != self.n:
@@ -208,8 +215,7 @@ class ScanDecoder:
             lost = round(delta / self.period_ms) - 1
             if lost > 0:
                 self.count("dropped_scans", lost)
-        v = scan.values
-        ranges = np.where((v < self.p.dmin_mm) | (v > self.p.dmax_mm), np.nan, v * 1e-3)
+        ranges = self.ranges(scan.values)
         self.seq += 1
         return LaserScan(
             stamp_ns=self.sync.update(dev_ms, host_rx_ns) + self.first_beam_ns,
