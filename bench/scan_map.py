@@ -7,9 +7,10 @@ Each piece is the live one, called as its service calls it:
   and URG parameters, every period of the device (10 Hz);
 - the ingest's conversion (lidar/core.py ScanDecoder: angles, beam timing, NaN for error
   codes);
-- the mapping service's integration (mapping/node.py MappingService.integrate): placed by
-  odometry (keys.ODOM_SLOW, 50 Hz, interpolated at the scan's stamp and last beam), the
-  [chair] laser mount, the MoveGate, the [mapping] grid and log odds;
+- the mapping service's integration (mapping/core.py place_scan, then
+  OccupancyMapper.integrate): placed by odometry (keys.ODOM_SLOW, 50 Hz, interpolated at the
+  scan's stamp and last beam), the [chair] laser mount, the MoveGate, the [mapping] grid and
+  log odds;
 - published once a second (`publish_period_s`) as the message the control service reads
   (OccupancyMapper.to_msg → GridMap.from_msg: its thresholds, unknown cells free).
 The grid is laid in the world's frame (odometry started at the world's origin): the [mapping]
@@ -22,9 +23,9 @@ import math
 
 import numpy as np
 
-from autochair.geometry import Pose, compose, sweep_poses
+from autochair.geometry import Pose
 from autochair.lidar.core import LaserParams, ScanDecoder
-from autochair.mapping.core import GridSpec, MoveGate, OccupancyMapper, OdomBuffer
+from autochair.mapping.core import GridSpec, MoveGate, OccupancyMapper, OdomBuffer, place_scan
 from autochair.mapping.node import MappingConfig
 from autochair.nav.field import GridMap
 from autochair.protocol import scip
@@ -97,7 +98,7 @@ class ScanMap:
 
     def scan(self, t_end: float, truth: Pose, twist: tuple[float, float]) -> None:
         """The sweep that ends at `t_end` (sim/lidar/node.py scan_fn), as the ingest stamps
-        it, integrated as mapping/node.py does."""
+        it, integrated as the mapping service does."""
         raw = ray_scan(self.world.at(t_end), self.urg, truth, self.mount, self.noise_m,
                        self.rng, twist)
         self.scans += 1
@@ -105,11 +106,8 @@ class ScanMap:
         ranges = dec.ranges(raw)
         # the device stamps the start of its turn, a period before it ends
         stamp = ns(t_end - self.period_s) + dec.first_beam_ns
-        max_dt = ns(self.cfg.max_odom_dt_s)
-        pose = self.odom.at(stamp, max_dt)
-        if pose is None or not self.gate.take(pose, stamp):
-            return
-        last = self.odom.at_last_beam(stamp, ranges.size, dec.time_increment_s, max_dt)
-        beams = sweep_poses(pose, last, self.mount, ranges.size) if last is not None else None
-        self.mapper.integrate(ranges, dec.angle_min, dec.angle_inc, compose(pose, self.mount),
-                              beams)
+        placed = place_scan(self.odom, self.gate, stamp, ranges.size, dec.time_increment_s,
+                            self.mount, ns(self.cfg.max_odom_dt_s))
+        if not isinstance(placed, str):
+            self.mapper.integrate(ranges, dec.angle_min, dec.angle_inc, placed.laser,
+                                  placed.beams)

@@ -129,3 +129,27 @@ def test_a_driving_chairs_scans_are_taken_every_10_cm_or_6_degrees() -> None:
         moved = gaps * max(step, turn)
         assert (moved >= 0.1 - 1e-9).all() and (moved <= 0.1 + max(step, turn) + 1e-9).all()
         assert len(taken) >= (40 if step > 0.1 else 13)
+
+
+def test_a_scan_is_placed_by_odometry_along_its_sweep_or_skipped_with_a_reason() -> None:
+    """The mapping service's placement (bench/scan_map.py calls the same function): the laser
+    at the stamp, each beam where the laser was as it took it, the mount applied once."""
+    from autochair.mapping.core import MoveGate, Placed, place_scan
+
+    buf, gate, ms = OdomBuffer(), MoveGate(), 1_000_000
+    assert place_scan(buf, gate, 0, 3, 0.035, MOUNT, 250 * ms) == "scans_no_odom"
+    nowhere = place_scan(buf, MoveGate(), 0, 3, 0.035, MOUNT, 250 * ms, (0.0, 0.0, 0.0))
+    assert isinstance(nowhere, Placed) and nowhere.laser == pytest.approx(MOUNT)
+    for k in range(11):  # driving +x at 1 m/s, sampled every 20 ms
+        buf.add(Odometry(stamp_ns=k * 20 * ms, x_m=k * 0.02, y_m=0.0, yaw_rad=0.0, v_mps=1.0,
+                           omega_radps=0.0))
+    placed = place_scan(buf, gate, 100 * ms, 3, 0.035, MOUNT, 250 * ms)
+    assert isinstance(placed, Placed) and placed.beams is not None
+    assert placed.laser == pytest.approx(compose((0.1, 0.0, 0.0), MOUNT))
+    lx, _, _ = placed.beams
+    assert lx == pytest.approx([0.1 + MOUNT[0], 0.135 + MOUNT[0], 0.17 + MOUNT[0]])
+    # the same place again within a second: not mapped twice
+    assert place_scan(buf, gate, 120 * ms, 3, 0.035, MOUNT, 250 * ms) == "scans_still"
+    # one instant (no beam timing): the laser's pose for every beam
+    one = place_scan(buf, MoveGate(), 100 * ms, 3, 0.0, MOUNT, 250 * ms)
+    assert isinstance(one, Placed) and one.beams is None

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from autochair.geometry import Pose, wrap_angle
+from autochair.geometry import Pose, compose, sweep_poses, wrap_angle
 from autochair_msgs import OccupancyGrid, Odometry, PointCloud
 
 F64 = npt.NDArray[np.float64]
@@ -240,3 +240,31 @@ class OdomBuffer:
             yaw = math.atan2(math.sin(a[2] + f * dyaw), math.cos(a[2] + f * dyaw))
             return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), yaw)
         return self.nearest(stamp_ns, max_dt_ns)
+
+
+@dataclass(frozen=True)
+class Placed:
+    """Where a scan was taken: the laser's pose at its stamp, and each beam's (x, y, yaw)
+    along the sweep (None: one instant, or odometry cannot say where it ended)."""
+
+    laser: Pose
+    beams: tuple[F64, F64, F64] | None
+
+
+def place_scan(odom: OdomBuffer, gate: MoveGate, stamp_ns: int, beams: int,
+               time_increment_s: float, mount: Pose, max_dt_ns: int,
+               no_odom: Pose | None = None) -> Placed | str:
+    """The mapping service's decision for one scan: placed by odometry at its stamp and last
+    beam (each beam from where the laser was when it took it: the sweep lasts ~70 ms, 0.27 m
+    at 4.5 m turning at 0.9 rad/s), or why it is not mapped (its health counter's name).
+    `no_odom`: the pose to map at when odometry cannot say (None: the scan is skipped)."""
+    pose = odom.at(stamp_ns, max_dt_ns)
+    if pose is None:
+        if no_odom is None:
+            return "scans_no_odom"
+        pose = no_odom
+    if not gate.take(pose, stamp_ns):
+        return "scans_still"
+    last = odom.at_last_beam(stamp_ns, beams, time_increment_s, max_dt_ns)
+    return Placed(compose(pose, mount),
+                  sweep_poses(pose, last, mount, beams) if last is not None else None)
