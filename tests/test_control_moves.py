@@ -357,6 +357,51 @@ def test_people_are_moved_on_as_far_as_the_chair_lags_the_plan(lead: bool) -> No
     assert req.people[0].x_m - 3.0 == pytest.approx(lag, abs=0.025)
 
 
+def stop_after_a_late_tick(gap_ticks: int, once: bool = False) -> tuple[float, str]:
+    """A 6 m straight goal in lockstep whose control loop misses `gap_ticks` of its ticks once,
+    where its stop begins (5.3 s), as the node's loop does under load: the PID holds the last
+    command meanwhile, and the late tick is stepped by the whole gap (Node.due). `once`: that
+    tick advances the plan in one step of the gap (as before). Where the chair comes to rest
+    past the goal (m), and the goal's state."""
+    rig = Rig(make_pid("tuned"), start=(0.0, 0.0, 0.0))
+    cfg = ControlConfig()
+    core = ControlCore(cfg)
+    every = round(1.0 / (cfg.rate_hz * LOCKSTEP_DT))
+    stall = range(530, 530 + gap_ticks * every)
+    last: float | None = None
+    for k in range(round(10.0 / LOCKSTEP_DT)):
+        t = k * LOCKSTEP_DT
+        st = rig.sense()
+        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
+        if k == 0:
+            assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 0.0, 0.0)]), t).ok
+        out = None
+        if k % every == 0 and k not in stall:
+            dt = None if last is None else t - last
+            if once and dt is not None and dt > 1.5 / cfg.rate_hz:
+                core._last_t = t
+                out = core._tick(t, dt)
+            else:
+                out = core.step(t, dt)
+            last = t
+        rig.act(t, st.v, st.omega, out)
+    assert abs(rig.chair.v) < 1e-4
+    return rig.chair.x - 6.0, core.state
+
+
+def test_a_late_control_tick_does_not_carry_the_stop_past_the_goal() -> None:
+    """Under load the control's loop misses ticks (Node.every skips them) and its next tick
+    steps the plan by the whole gap. One 0.2 s stall where a 6 m goal's stop begins: the late
+    tick runs the ticks it missed, and the chair arrives within 1.5 cm (1.1); stepped once by
+    the gap it came to rest 12 cm past (positive control; before, with the step clamped to
+    0.1 s, 15 cm), which a forward-only chair cannot take back: "no progress" (issue 14's
+    residual through the processes: 9.4 cm past after a late plan under load)."""
+    past, state = stop_after_a_late_tick(10)
+    assert state == "arrived" and abs(past) < 0.015, (past, state)
+    past, state = stop_after_a_late_tick(10, once=True)
+    assert past > 0.08, past
+
+
 def test_predictor_defaults_are_the_identified_drive_chain() -> None:
     cfg, pid = ControlConfig(), PidConfig()
     assert pid.v_model is not None and pid.omega_model is not None
