@@ -332,6 +332,31 @@ def test_blocked_names_only_an_obstacle_that_is_there() -> None:
     assert why.startswith("blocked by an obstacle at (4.0"), why
 
 
+def test_a_chair_the_map_shows_touching_a_wall_is_not_turned_further_into_it() -> None:
+    """The clearance reads 0 at and inside an obstacle. With the chair's own pose at 0 (a live
+    map's face drawn a cell towards it as it is seen again), "only getting closer is a hit"
+    made nothing a hit: MPEPC turned the chair in place, its front corner 6 cm further into
+    the wall at x = 4 (helper B, nav_eval --map scans: 1-8 contacts in the cluttered room)."""
+    fld = corridor_with_wall()
+    ctg = fld.cost_to_go(6.0, 2.0)
+    assert ctg is not None
+    outline = FP.outline(0.02)
+
+    def front_reach(path: np.ndarray) -> float:
+        return max(float(place(outline, x, y, yaw)[:, 0].max()) for x, y, yaw in path[:, :3])
+
+    for x in (3.06, 3.1):  # the front 1 and 5 cm into the wall's cell
+        pose = (x, 1.0, 0.0)
+        assert fld.footprint_clearance(*pose) == 0.0
+        res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, (6.0, 2.0, 0.0), fld, ctg, None, LAW))
+        assert res.blocked_by.startswith("blocked by an obstacle"), (x, res.blocked_by)
+        assert res.plan is not None and front_reach(res.plan.path) > x + FP.front_m + 0.01
+    # positive control: further back the chair plans its way round
+    clear = compute(PlanRequest(1, 0, (2.0, 1.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), fld, ctg, None,
+                                LAW))
+    assert clear.blocked_by == "" and clear.plan is not None
+
+
 def test_a_chair_blocked_a_few_degrees_off_a_doors_axis_turns_in_place_first() -> None:
     # nav_eval seed 7, "door: through to room B", plans taking effect 0.1 s after they were
     # asked for: at rest 0.24 m before the 0.9 m door (0.1 m a side), 4.3° off its axis, the

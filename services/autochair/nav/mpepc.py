@@ -306,6 +306,8 @@ class Plan:
 # The core drops the goal on its own final approach where Plan.goal_clearance_m is under this
 # (control/core.py): the lowest margin the prediction's clearance is compared with.
 GOAL_DROP_M = 0.02
+# A predicted clearance under this is always a hit, even for a chair already closer (H57).
+TOUCH_M = 0.005
 # How fast a footprint reading can fall as the outline moves (per m): the bilinear reading of
 # a distance field, each partial derivative within ±1 (NavField.clearance_at).
 SLOPE = math.sqrt(2.0)
@@ -812,8 +814,10 @@ class Mpepc:
         # Already closer than `contact_m` (a noisy live map, a chair nudged to a wall): only
         # getting closer still counts as a hit, so the chair can move away instead of freezing.
         # (each read as what it is compared with: the prediction coarse, the committed fine)
-        hit_under = min(p.contact_m, float(fld.footprint_clearance(
-            *pose, fine=False, below=self.predict_below)) - 0.005)
+        # Not below TOUCH_M: the clearance reads 0 at and inside an obstacle, so "closer" than
+        # 0 was nothing, and a chair the map shows touching one could turn or drive into it.
+        hit_under = max(min(p.contact_m, float(fld.footprint_clearance(
+            *pose, fine=False, below=self.predict_below)) - TOUCH_M), TOUCH_M)
         # (poses read under both it and the 0.02 m the core drops its own approach at,
         # Plan.goal_clearance_m, decide alike whatever the exact reading: left bilinear)
         d_static, to_people = self.outline_distances(xs, ys, yaws, people, t,
@@ -825,7 +829,7 @@ class Mpepc:
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
         # Both that motion and its stop as the core's limiter really drives them (committed).
-        need = min(p.brake_clear_m, d0 - 0.005)
+        need = max(min(p.brake_clear_m, d0 - TOUCH_M), TOUCH_M)
         # (read between its poses only where that can decide: not for a motion that is a hit
         # already, except row 0, the goal's own, which the core may be driving)
         between: npt.NDArray[np.bool_] = np.logical_not(hit.any(1))
