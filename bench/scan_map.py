@@ -25,7 +25,7 @@ import numpy as np
 
 from autochair.geometry import Pose
 from autochair.lidar.core import LaserParams, ScanDecoder
-from autochair.mapping.core import GridSpec, MoveGate, OccupancyMapper, OdomBuffer, place_scan
+from autochair.mapping.core import MoveGate, OdomBuffer, place_scan
 from autochair.mapping.node import MappingConfig
 from autochair.nav.field import GridMap
 from autochair.protocol import scip
@@ -57,9 +57,7 @@ class ScanMap:
         self.dec = ScanDecoder(LaserParams.from_pp(p.pp()), req, "laser", lambda *_: None)
         self.period_s = 1.0 / p.scan_rate_hz
         self.rng = np.random.default_rng(seed)
-        self.mapper = OccupancyMapper(GridSpec(cfg.resolution_m, cfg.width_m, cfg.height_m,
-                                               cfg.origin_x_m, cfg.origin_y_m),
-                                      cfg.l_hit, cfg.l_miss)
+        self.mapper = cfg.mapper()
         self.gate = MoveGate(max_age_ns=ns(cfg.still_period_s))
         self.odom = OdomBuffer()
         self.next_odom_s = -math.inf

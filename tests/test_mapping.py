@@ -6,12 +6,20 @@ import math
 
 import numpy as np
 import pytest
+import scipy.ndimage as ndi
 
 from autochair.geometry import compose
-from autochair.mapping.core import GridSpec, OccupancyMapper, OdomBuffer, VoxelCloud, scan_points
+from autochair.mapping.core import (
+    GridSpec,
+    NoReturn,
+    OccupancyMapper,
+    OdomBuffer,
+    VoxelCloud,
+    scan_points,
+)
 from autochair.runtime.config import ChairGeometry
 from autochair.sim.lidar.scanner import UrgParams, ray_scan
-from autochair.sim.world import load_world
+from autochair.sim.world import World, load_world, parse_world, raycast
 from autochair_msgs import Odometry
 
 MOUNT = ChairGeometry().laser_mount  # (0.8636, 0.2032, 0.0), the [chair] default
@@ -153,3 +161,106 @@ def test_a_scan_is_placed_by_odometry_along_its_sweep_or_skipped_with_a_reason()
     # one instant (no beam timing): the laser's pose for every beam
     one = place_scan(buf, MoveGate(), 100 * ms, 3, 0.0, MOUNT, 250 * ms)
     assert isinstance(one, Placed) and one.beams is None
+
+
+# No-return beams (mapping/core.py NoReturn): a laser pose's scan of a world, NaN where
+# nothing is within the URG's 5.6 m (as the ingest gives it).
+URG = UrgParams()
+INC = 2 * math.pi / URG.ares
+AMIN = (URG.amin - URG.afrt) * INC
+ANGLES = AMIN + INC * np.arange(URG.amax - URG.amin + 1, dtype=np.float64)
+
+
+def laser_scan(world: World, pose: tuple[float, float, float]) -> np.ndarray:
+    r = raycast(world, pose[0], pose[1], ANGLES + pose[2], URG.dmax_mm / 1000.0)
+    return np.where(np.isfinite(r), r, np.nan)
+
+
+def stray(mapper: OccupancyMapper, walls: World, x: float) -> int:
+    """Occupied cells (as the control service reads them: ≥ 65 %) more than 0.1 m from every
+    wall of `walls`, within 0.4 m of `x` in x."""
+    pts = mapper.cell_centres(mapper.occupied(0.62))
+    pts = pts[np.abs(pts[:, 0] - x) <= 0.4]
+    return int((walls.distance_to(pts) > 0.1).sum())
+
+
+def test_a_walkers_trail_is_cleared_by_beams_with_no_return_up_to_their_range() -> None:
+    """A hall 5 m wide whose far end is beyond the laser's range, the chair parked (a scan a
+    second, MoveGate), someone crossing it 1.5 m (or 3.5 m) ahead at 0.4 m/s: the beams past
+    them find nothing, and before, their trail stayed mapped for good (nav_eval --map scans:
+    the person cases ×3.0–3.3 the least time). Cleared within NoReturn.range_m (2 m) of the
+    laser, not beyond."""
+    walls = parse_world("wall -1 -2.5 30 -2.5\nwall -1 2.5 30 2.5")
+    laser = (0.0, 0.0, 0.0)
+    trail: dict[tuple[float, bool], int] = {}
+    for x in (1.5, 3.5):
+        maps = {clear: OccupancyMapper(GridSpec(0.05, 12.0, 6.0, -2.0, -3.0),
+                                       no_return=NoReturn() if clear else None)
+                for clear in (False, True)}
+        for y in [*np.arange(-2.0, 2.1, 0.4), None, None, None]:  # 0.4 m a scan, then gone
+            world = walls if y is None else parse_world(
+                f"wall -1 -2.5 30 -2.5\nwall -1 2.5 30 2.5\ncircle {x} {y} 0.25")
+            for m in maps.values():
+                m.integrate(laser_scan(world, laser), AMIN, INC, laser)
+        trail |= {(x, clear): stray(m, walls, x) for clear, m in maps.items()}
+    assert trail[1.5, False] >= 5  # as before
+    assert trail[1.5, True] == 0
+    # beyond range_m it stays (a dark obstacle there is not erased either)
+    assert trail[3.5, True] == trail[3.5, False] >= 5
+
+
+def test_an_obstacle_with_no_return_from_some_angles_stays_mapped() -> None:
+    """HAZARD: a dark or glancing surface gives no return either, and erasing it from the
+    map would plan the chair into it (the safety monitor keeps no memory: a beam with no
+    return is no point to it). A dark bin in a room, seen from the chair driving towards it
+    (2.5 m of scans, one each 10 cm), then giving no return as the chair passes and stands
+    1.6 m beyond it for 30 scans: the map is no more optimistic than without clearing (the
+    distance to the nearest occupied cell, read round the bin, is the same: cells behind its
+    face may go, 2 of 20). Positive control: without the floor (`keep_above`) the bin is
+    eroded (11 of 20 cells) and the map reads farther from it."""
+    room = "wall -1 -2 7 -2\nwall 7 -2 7 2\nwall 7 2 -1 2\nwall -1 2 -1 -2"
+    world, walls = parse_world(room + "\nbox 3.0 0.8 0.4 0.4"), parse_world(room)
+    variants = (None, NoReturn(), NoReturn(keep_above=math.inf))
+    maps = [OccupancyMapper(GridSpec(0.05, 10.0, 6.0, -2.0, -3.0), no_return=nr)
+            for nr in variants]
+    for k in range(61):
+        laser = (min(k * 0.1, 4.0), -0.5, 0.0)
+        r = laser_scan(world, laser)
+        if laser[0] >= 2.5:  # past its face: no return from it
+            r[laser_scan(walls, laser) != r] = np.nan
+        for m in maps:
+            m.integrate(r, AMIN, INC, laser)
+    m = maps[0]
+    iy, ix = np.mgrid[0:m.h, 0:m.w]
+    pts = np.stack([m.spec.origin_x_m + (ix.ravel() + 0.5) * m.res,
+                    m.spec.origin_y_m + (iy.ravel() + 0.5) * m.res], axis=1)
+    inside = (np.abs(pts[:, 0] - 3.0) < 0.2) & (np.abs(pts[:, 1] - 0.8) < 0.2)
+    d_bin = parse_world("box 3.0 0.8 0.4 0.4").distance_to(pts)
+    around = ~inside & (d_bin >= 0.1) & (d_bin <= 1.0)
+    edt = [ndi.distance_transform_edt(~mm.occupied(0.62)).ravel()[around] for mm in maps]
+    assert (edt[0] < 10).sum() > 100  # the bin was mapped: cells round it read it
+    assert np.array_equal(edt[1], edt[0])
+    assert (edt[2] > edt[0]).any()  # the floor is what keeps it
+
+
+def test_a_blinded_laser_clears_nothing() -> None:
+    """A scan with fewer than NoReturn.min_valid of its beams valid (a blinded or dazzled
+    laser: error codes everywhere) clears nothing; with enough valid beams its no-return
+    ones do (positive control)."""
+    world = parse_world("box 1.52 0.0 0.4 0.4")
+    m = OccupancyMapper(GridSpec(0.05, 6.0, 6.0, -3.0, -3.0), no_return=NoReturn())
+    laser = (0.0, 0.0, 0.0)
+    m.integrate(laser_scan(world, laser), AMIN, INC, laser)  # the box seen once
+    box = m.cells(np.array([[1.33, 0.0]]))[0]
+    hit = float(m.logodds.reshape(-1)[box])
+    assert hit > 0.62
+    third = ANGLES.size // 3
+    scan = np.full(ANGLES.size, np.nan)  # the box's way (0°) gives no return in both
+    scan[:third] = 3.0  # a third valid (nothing within 3 m that way)
+    for _ in range(5):
+        m.integrate(scan, AMIN, INC, laser)
+    assert m.logodds.reshape(-1)[box] == hit
+    scan[-third:] = 3.0  # two thirds valid
+    for _ in range(2):
+        m.integrate(scan, AMIN, INC, laser)
+    assert m.logodds.reshape(-1)[box] < 0.62

@@ -24,6 +24,7 @@ from .core import (
     ODOM_RING,
     GridSpec,
     MoveGate,
+    NoReturn,
     OccupancyMapper,
     OdomBuffer,
     VoxelCloud,
@@ -42,6 +43,10 @@ class MappingConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     origin_y_m: float = -10.0
     l_hit: float = 0.85  # log-odds added to a cell a beam ends in
     l_miss: float = -0.4  # log-odds added to a cell a beam passes through
+    # Beams with no return clear free space this far (m; 0: not at all), bounded as
+    # mapping/core.py NoReturn says (a dark or glancing obstacle gives none either; off: it
+    # let the planner into contacts, measured there)
+    no_return_m: Annotated[float, msgspec.Meta(ge=0)] = 0.0
     max_odom_dt_s: float = 0.25  # scan stamp to nearest odometry sample, else the scan is skipped
     require_odom: bool = True  # False: map scans at the origin when there is no odometry
     voxel_m: float = 0.05  # point-cloud voxel size
@@ -55,6 +60,12 @@ class MappingConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     # while localization places them, so navigation plans round them and refuses goals in them.
     keepout_map: str = ""
 
+    def mapper(self) -> OccupancyMapper:
+        return OccupancyMapper(GridSpec(self.resolution_m, self.width_m, self.height_m,
+                                        self.origin_x_m, self.origin_y_m),
+                               self.l_hit, self.l_miss, no_return=NoReturn(self.no_return_m)
+                               if self.no_return_m > 0 else None)
+
     def __post_init__(self) -> None:
         if self.width_m * self.height_m / self.resolution_m**2 > 50e6:
             raise ValueError("grid over 50 M cells; coarsen resolution_m or shrink it")
@@ -65,9 +76,7 @@ class MappingService:
 
     def __init__(self, node: Node, cfg: MappingConfig) -> None:
         self.node, self.cfg = node, cfg
-        self.mapper = OccupancyMapper(GridSpec(cfg.resolution_m, cfg.width_m, cfg.height_m,
-                                               cfg.origin_x_m, cfg.origin_y_m),
-                                      cfg.l_hit, cfg.l_miss)
+        self.mapper = cfg.mapper()
         self.cloud = VoxelCloud(cfg.voxel_m, cfg.max_points)
         self.odom = OdomBuffer()
         # 50 Hz, taken in as each scan is integrated (interpolated at its stamps): no thread
