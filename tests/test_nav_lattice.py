@@ -742,3 +742,54 @@ def test_a_new_fields_first_planning_cycle_finds_its_costs_to_go_lattice_and_pla
     assert res.plan is not None and len(built) == n + 1  # no lattice, ctg nor planner made
     again, last = lattice.build(new, req.goal, fresh.phi, start=req.pose), built[-1]
     assert again is not None and last is not None and np.array_equal(again.cost, last.cost)
+
+
+def office_a_as_the_laser_draws_it() -> NavField:
+    """Office A's side of the hallway as the live map draws it where walls lie on cell
+    boundaries: the corridor wall, the door's jamb and its open leaf each a cell thicker
+    towards the chair (hits with 1 cm of noise fall in the near cell): the 1.0 m door is
+    0.90 m on the grid (x 4.05-4.95)."""
+    walls = [[2.0, 1.4, 4.0, 1.4], [5.0, 1.4, 7.0, 1.4], [5.0, 1.4, 5.0, 1.6],
+             [4.0, 1.45, 4.0, 2.3], [2.5, 1.4, 2.5, 4.4], [2.5, 4.4, 6.5, 4.4],
+             [6.5, 4.4, 6.5, 1.4], [2.0, -1.4, 7.0, -1.4]]
+    gm = GridMap.from_shapes(np.array(walls), np.zeros((0, 3)), frame_id="map")
+    xs = np.arange(2.0, 7.0, 0.01)
+    thicker = [(x, 1.375) for x in xs if not 3.99 < x < 5.0]  # the wall's near cells
+    thicker += [(4.975, y) for y in np.arange(1.4, 1.6, 0.01)]  # the jamb's
+    thicker += [(x, -1.375) for x in xs]
+    gm.mark(np.array(thicker))
+    return NavField(gm, FP)
+
+
+def test_a_chair_blocked_before_a_door_it_cannot_turn_into_gets_the_lattices_stage() -> None:
+    # nav_eval --map scans, "into office A" (seed 7): no line-up before the door, the chair
+    # came along the corridor 0.64 m off its middle and stopped before the door at 5°, where
+    # turning in towards it swings the front into the wall. The lattice has a way (turn
+    # right, drive 0.3 m, turn in place onto 90°, drive through), but its stages were only
+    # offered within lattice_within_m (2 m) of the goal on the 2-D costs-to-go, which the
+    # narrow door makes 4.7 there, and nothing else moved the chair: blocked till aborted.
+    # Now the lattice's stage is the last resort there.
+    fld = office_a_as_the_laser_draws_it()
+    goal, here = (4.5, 3.0, math.pi / 2), (4.305, 0.644, math.radians(5.1))
+    ctg = fld.cost_to_go(*goal[:2])
+    assert ctg is not None  # (the case: the lattice is not active there)
+    assert ctg.at(fld.map, np.array(here[:2])) > MpepcParams().lattice_within_m
+
+    def plan(params: MpepcParams) -> tuple[object, str]:
+        f = office_a_as_the_laser_draws_it()  # (planner.py keeps one planner per field)
+        res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, f, None, None, LAW), params)
+        assert res.plan is not None
+        return res.plan, res.blocked_by
+
+    # positive control: without stages the chair stands there, blocked
+    p, blocked = plan(MpepcParams(stages=False))
+    assert blocked
+    p, blocked = plan(MpepcParams())
+    assert not blocked and p.final_turn  # type: ignore[attr-defined]  # the stage's turn
+    assert p.then is not None  # type: ignore[attr-defined]  # ... and its straight
+    psi = p.target[2]  # type: ignore[attr-defined]
+    n = FP.turn_samples(psi - here[2], 0.01)
+    assert fld.footprint_clearance(np.full(n, here[0]), np.full(n, here[1]),
+                                   np.linspace(here[2], psi, n)).min() \
+        >= MpepcParams().contact_m
+

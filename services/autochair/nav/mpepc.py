@@ -1324,14 +1324,16 @@ class Mpepc:
                    ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                    rates: tuple[float, float] = (0.0, 0.0),
                    straight_to: tuple[float, float] | None = None,
-                   v0: float = 0.0, turn_to: float | None = None, land: bool = False
-                   ) -> Plan | None:
+                   v0: float = 0.0, turn_to: float | None = None, land: bool = False,
+                   anywhere: bool = False) -> Plan | None:
         """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
         with `straight_to` (the landing of a straight stage under way, or of a stage's turn
         done), the rest of that straight if it still lies ahead on the chair's line and
         sweeps clear; or with `turn_to` as well (a stage's turn under way), the rest of that
         turn if it sweeps clear; or with `land`, the stage onto the goal of a chair at rest
-        just outside its tolerance (Mpepc.landing). Each is also evaluated as MPEPC's
+        just outside its tolerance (Mpepc.landing). A stage is offered where the lattice is
+        active (`lattice_active`), or with `anywhere` wherever the chair's state has a way on
+        it (planner.compute's last resort). Each is also evaluated as MPEPC's
         candidates are (`_costs`: people, the stop after the plan period) and dropped if
         that predicts a hit. None: no stage."""
         x, y, yaw = pose
@@ -1358,8 +1360,8 @@ class Mpepc:
                 return None
             if land:
                 got = self.landing(pose, goal)
-            elif hf is None or not self.lattice_active(hf, pose, float(ctg.at(
-                    self.field.map, np.array(pose[:2])))):
+            elif hf is None or not (anywhere or self.lattice_active(hf, pose, float(ctg.at(
+                    self.field.map, np.array(pose[:2]))))):
                 return None
             else:
                 got = self.stage(pose, goal, hf)

@@ -357,5 +357,15 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
                                   blocked_progress_m, blocked_gain, req.rates, req.chain)
         if along is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, along, given_up=given_up)
+    if blocked and at_rest and hf is not None:
+        # ... else the lattice's next stage, beyond lattice_within_m too: before a narrow door
+        # its 2-D costs-to-go are twice the way's length (slow near its frame), and a chair
+        # stopped 2.4 m from office A's goal, where it could not turn in, read 4.7: blocked
+        # till aborted though the lattice had a way (turn away, drive 0.3 m, turn onto the
+        # door; nav_eval --map scans, walls a cell thick towards the chair)
+        staged = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
+                                anywhere=True)
+        if staged is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, staged, given_up=given_up)
     return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked,
                       given_up=given_up)
