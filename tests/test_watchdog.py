@@ -312,6 +312,24 @@ def test_a_loop_that_fails_on_every_tick_triggers_the_watchdog(
         t.join(10)
 
 
+def test_a_loop_allowed_to_be_slow_gets_its_own_bound_and_the_others_keep_theirs() -> None:
+    """H58: the control service's plan and map loops (a blocked cycle took 2.2 s under load)
+    are not declared stuck before `slow_s`; the 50 Hz loop beside them still is after 1.5 s
+    (positive control), and the slow one too once past its bound."""
+    node = Node("wdtest", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
+    try:
+        t0 = time.monotonic()
+        node.every(0.25, lambda: None, "plan", slow_s=5.0)
+        node.every(0.02, lambda: None, "control")
+        mine = ("loop control", "loop plan")  # (the node's own health loop aside)
+        late = [x.what for x in node.liveness.late(t0 + 2.2) if x.what in mine]
+        assert late == ["loop control"]
+        late = [x.what for x in node.liveness.late(t0 + 5.2) if x.what in mine]
+        assert late == ["loop control", "loop plan"]
+    finally:
+        node.close()
+
+
 def test_a_worker_that_ends_at_shutdown_is_no_fault(supervised: NotifyChannel) -> None:
     node = Node("wdtest", ZenohSettings(connect=[], listen=["tcp/127.0.0.1:0"]))
 

@@ -58,6 +58,8 @@ from .core import (
     OdomSample,
 )
 
+SLOW_LOOP_S = 5.0  # the plan and map loops' watchdog bound (Node.every slow_s)
+
 
 class ControlNode:
     def __init__(self, node: Node, cfg: ControlConfig) -> None:
@@ -363,8 +365,12 @@ def start(node: Node, cfg: ControlConfig) -> None:
     node.serve(keys.GOAL_CANCEL, c.on_cancel)
     node.serve(keys.GOAL_GET, lambda _: c.status_msg())
     node.every(1.0 / cfg.rate_hz, c.tick, "control")
-    node.every(0.5 / cfg.plan_rate_hz, c.plan_tick, "plan")
-    node.every(0.5, c.map_tick, "map")
+    # A blocked goal's planning cycle took up to 2.2 s under load, a field's build 1.8 s: past
+    # the watchdog's 1.5 s the service was killed mid-goal (H58). Neither moves the chair: a
+    # plan older than three periods is a stop (ControlCore._plan_stale), and a late field
+    # leaves the plans on the map before it, the safety monitor on live scans meanwhile.
+    node.every(0.5 / cfg.plan_rate_hz, c.plan_tick, "plan", slow_s=SLOW_LOOP_S)
+    node.every(0.5, c.map_tick, "map", slow_s=SLOW_LOOP_S)
     node.every(1.0 / cfg.status_rate_hz, c.status_tick, "status")
 
 

@@ -31,7 +31,7 @@ from .config import (
     load_zenoh,
 )
 from .session import open_session
-from .watchdog import CHECK_PERIOD_S, Liveness, Notifier
+from .watchdog import CHECK_PERIOD_S, LOOP_PERIODS, Liveness, Notifier
 
 T = TypeVar("T", bound=msgspec.Struct)
 C = TypeVar("C")
@@ -381,7 +381,8 @@ class Node:
         self._health_pub.put(self.health.snapshot())
 
     # --- time ----------------------------------------------------------------------------------
-    def every(self, period_s: float, fn: Callable[[], None], name: str) -> None:
+    def every(self, period_s: float, fn: Callable[[], None], name: str,
+              slow_s: float = 0.0) -> None:
         """Call `fn` every `period_s` on its own thread, drift-free on the monotonic clock.
 
         Missed ticks are skipped (not bunched) and counted as `overruns:<name>`; `due[name]` is
@@ -390,9 +391,11 @@ class Node:
         tick is reported to the watchdog: a loop stuck for max(stale.watchdog_s, 3 × period_s)
         gets the process restarted (see the class docstring). A tick that raises is counted and
         reported but not completed, so a loop that fails on every tick is restarted like a stuck
-        one instead of counting as alive; one failure among good ticks is not.
+        one instead of counting as alive; one failure among good ticks is not. `slow_s`: a
+        loop whose ticks may take this long under load (and whose lateness stops nothing that
+        moves the chair) is not declared stuck before it.
         """
-        self.liveness.add_loop(name, period_s, time.monotonic())
+        self.liveness.add_loop(name, max(period_s, slow_s / LOOP_PERIODS), time.monotonic())
 
         def loop() -> None:
             next_t = time.monotonic()
