@@ -395,6 +395,7 @@ class Node:
         loop whose ticks may take this long under load (and whose lateness stops nothing that
         moves the chair) is not declared stuck before it.
         """
+        # (the watchdog's bound is LOOP_PERIODS × the period it is given: slow_s at least)
         self.liveness.add_loop(name, max(period_s, slow_s / LOOP_PERIODS), time.monotonic())
 
         def loop() -> None:
