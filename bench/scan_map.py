@@ -25,7 +25,7 @@ import numpy as np
 
 from autochair.geometry import Pose
 from autochair.lidar.core import LaserParams, ScanDecoder
-from autochair.mapping.core import MoveGate, OdomBuffer, place_scan
+from autochair.mapping.core import OdomBuffer, place_scan
 from autochair.mapping.node import MappingConfig
 from autochair.nav.field import GridMap
 from autochair.protocol import scip
@@ -58,7 +58,7 @@ class ScanMap:
         self.period_s = 1.0 / p.scan_rate_hz
         self.rng = np.random.default_rng(seed)
         self.mapper = cfg.mapper()
-        self.gate = MoveGate(max_age_ns=ns(cfg.still_period_s))
+        self.gate = cfg.gate()
         self.odom = OdomBuffer()
         self.next_odom_s = -math.inf
         self.next_scan_s = -math.inf

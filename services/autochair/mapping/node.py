@@ -66,6 +66,9 @@ class MappingConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
                                self.l_hit, self.l_miss, no_return=NoReturn(self.no_return_m)
                                if self.no_return_m > 0 else None)
 
+    def gate(self) -> MoveGate:
+        return MoveGate(max_age_ns=int(self.still_period_s * 1e9))
+
     def __post_init__(self) -> None:
         if self.width_m * self.height_m / self.resolution_m**2 > 50e6:
             raise ValueError("grid over 50 M cells; coarsen resolution_m or shrink it")
@@ -82,7 +85,7 @@ class MappingService:
         # 50 Hz, taken in as each scan is integrated (interpolated at its stamps): no thread
         # wakes per sample.
         self.odom_waiting = node.queued(keys.ODOM_SLOW, ODOM_RING)
-        self.gate = MoveGate(max_age_ns=int(cfg.still_period_s * 1e9))
+        self.gate = cfg.gate()
         self.mount: Pose = node.chair.laser_mount
         self.tf_error = ""
         self.lock = threading.Lock()
