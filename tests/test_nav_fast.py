@@ -5,6 +5,8 @@ figures are compared to the plan cycle: any difference would show there as chaos
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from autochair.control.core import ControlConfig
@@ -274,6 +276,8 @@ def test_the_timing_band_read_in_one_call_is_read_move_by_move() -> None:
     got = mp._banded(pose, v0, x, y, yaw, d.copy(), need, band, False)
     assert np.array_equal(got, want) and (got < d).any()
     # (the start pose's readings kept per pose and keywords: the same numbers)
-    for kw in ({}, {"fine": False, "below": mp.predict_below}, {"need": need, "upto": band}):
+    kws: list[dict[str, Any]] = [{}, {"fine": False, "below": mp.predict_below},
+                                 {"need": need, "upto": band}]
+    for kw in kws:
         for p in (pose, (2.0, 1.0, -0.4)):
             assert mp.pose_clearance(p, **kw) == float(fld.footprint_clearance(*p, **kw))
