@@ -5,6 +5,8 @@ figures are compared to the plan cycle: any difference would show there as chaos
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from autochair.control.core import ControlConfig
@@ -201,3 +203,81 @@ def test_braking_both_axes_in_one_call_is_braking_each() -> None:
     want = np.stack(kept, -1)
     assert got.shape == want.shape and np.array_equal(got, want)
     assert np.abs(np.diff(got[0], axis=1)).max() > 0.01  # (positive control: it moved)
+
+
+def test_descent_at_one_point_is_the_batched_one() -> None:
+    """CostToGo.descent_xy (the descent paths' point-by-point steps) gives descent's number,
+    bit for bit, inside the map, on its last cell centres and off it (clamped, then 0)."""
+    fld = room()
+    ctg = fld.cost_to_go(1.0, 1.0)
+    assert ctg is not None
+    gm, (h, w) = fld.map, fld.clearance.shape
+    rng = np.random.default_rng(6)
+    pts = [(float(x), float(y)) for x, y in rng.uniform(-1.0, 8.0, (3000, 2))]
+    # (on the edges' cell centres, where _sample_at's clamp and `inside` part)
+    for fx, fy in ((0.0, 0.0), (w - 1.0, h - 1.0), (w - 1.00005, 3.0), (-1e-12, 2.0)):
+        pts.append((gm.origin_x_m + (fx + 0.5) * gm.resolution_m,
+                    gm.origin_y_m + (fy + 0.5) * gm.resolution_m))
+    got = np.array([ctg.descent_xy(gm, x, y) for x, y in pts])
+    want = np.array([float(ctg.descent(gm, np.array([x, y]))) for x, y in pts])
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))
+    assert any(fld.cell(x, y) is None for x, y in pts)  # (off the map: ∇ 0, ±π)
+    assert (np.abs(want) == np.pi).any() and (np.abs(want) < 3.0).any()
+
+
+def test_a_stop_beside_the_law_brakes_as_one_with_vmax_0() -> None:
+    """Mpepc.law_step(law_upto=k): the candidates from k on brake without the law worked out
+    for them, to the same numbers as the law with their vmax 0 (simulate's stops); and
+    braking without its poses gives the same commands."""
+    mp = Mpepc(room(), ControlConfig().law(0.025), MpepcParams())
+    rng = np.random.default_rng(7)
+    n, k = 60, 35
+    x, y, yaw = rng.uniform(1, 5, n), rng.uniform(1, 3, n), rng.uniform(-3, 3, n)
+    tgt = np.stack([rng.uniform(0, 6, n), rng.uniform(0, 4, n), rng.uniform(-3, 3, n)], 1)
+    vmax = rng.uniform(0.15, 1.2, n)
+    vmax[3] = 0.0  # (the stop seed among the law's)
+    st0 = np.stack([rng.uniform(-0.2, 1.2, n), rng.uniform(-1.0, 1.0, n),
+                    rng.uniform(-0.9, 0.9, n), rng.uniform(-2.0, 2.0, n)])
+    turning0 = rng.random(n) < 0.3
+    halted = vmax.copy()
+    halted[k:] = 0.0
+    out = []
+    for upto, vm in ((None, halted), (k, vmax)):
+        st, turning, arrived = st0.copy(), turning0.copy(), np.zeros(n, dtype=np.bool_)
+        pose = mp.law_step(x, y, yaw, st, tgt, vm, turning, arrived, None, 0.05,
+                           jerk_from=20, law_upto=upto)
+        out.append((np.stack(pose), st, turning[:k], arrived[:k]))
+    for a, b in zip(*out, strict=True):
+        assert np.array_equal(a, b)
+    cmds: list[list[np.ndarray]] = [[], []]
+    for poses, c in zip((True, False), cmds, strict=True):
+        got = mp.braking(x, y, yaw, st0.copy(), cmds=c, poses=poses)
+        assert got.shape[:2] == (3, n) and (got.shape[2] > 0) == poses
+    assert len(cmds[0]) == len(cmds[1]) > 10
+    assert all(np.array_equal(a, b) for a, b in zip(*cmds, strict=True))
+
+
+def test_the_timing_band_read_in_one_call_is_read_move_by_move() -> None:
+    """Mpepc._banded reads both moves of the start (±stop_timing_s·v0) in one call: the
+    numbers of reading each in turn."""
+    fld = room()
+    mp = Mpepc(fld, ControlConfig().law(0.025), MpepcParams())
+    x, y, yaw = (a.ravel() for a in poses(300, 1, 8, False))
+    need, band, v0, pose = 0.05, 0.09, 0.8, (2.0, 1.0, 0.4)
+    d = fld.footprint_clearance(x, y, yaw, need=need, upto=band)
+    near = d < band
+    assert near.any() and not near.all()
+    want = d.copy()
+    e = mp.p.stop_timing_s
+    for ds in (e * v0, -e * v0):
+        want[near] = np.minimum(want[near], fld.footprint_clearance(
+            x[near] + ds * np.cos(pose[2]), y[near] + ds * np.sin(pose[2]), yaw[near],
+            need=need))
+    got = mp._banded(pose, v0, x, y, yaw, d.copy(), need, band, False)
+    assert np.array_equal(got, want) and (got < d).any()
+    # (the start pose's readings kept per pose and keywords: the same numbers)
+    kws: list[dict[str, Any]] = [{}, {"fine": False, "below": mp.predict_below},
+                                 {"need": need, "upto": band}]
+    for kw in kws:
+        for p in (pose, (2.0, 1.0, -0.4)):
+            assert mp.pose_clearance(p, **kw) == float(fld.footprint_clearance(*p, **kw))

@@ -380,6 +380,7 @@ class Mpepc:
         self._global = lo + unit * (hi - lo)
         self._rng = np.random.default_rng(p.seed)
         self._free: tuple[Chain, dict[float, tuple[F64, F64]]] | None = None
+        self._at_pose: dict[tuple[bytes, tuple[Any, ...]], float] = {}
 
     def bounds(self) -> tuple[F64, F64]:
         p = self.p
@@ -461,7 +462,9 @@ class Mpepc:
         g, dt = self.law, self.p.dt_s
         n = z.shape[0]
         in_place = z[:, 0] < self.p.in_place_r_m
-        tgt = np.where(in_place[:, None], self.in_place_targets(pose, z), self.targets(pose, z))
+        # (column-major: law_step reads the targets' x, y and yaw columns every step)
+        tgt = np.asfortranarray(np.where(in_place[:, None], self.in_place_targets(pose, z),
+                                         self.targets(pose, z)))
         vmax = z[:, 3]
         x, y, yaw = np.full(n, pose[0]), np.full(n, pose[1]), np.full(n, pose[2])
         st = np.empty((4, n))
@@ -487,7 +490,7 @@ class Mpepc:
         # (the law's v and ω 0: the limiter brakes, as `braking` does, the same numbers).
         both = np.concatenate([st, st], 1)
         xx, yy, ww = np.concatenate([x, x]), np.concatenate([y, y]), np.concatenate([yaw, yaw])
-        tgt2, vmax2 = np.concatenate([tgt, tgt]), np.concatenate([vmax, vmax])
+        tgt2, vmax2 = np.asfortranarray(np.concatenate([tgt, tgt])), np.concatenate([vmax, vmax])
         turning2, arrived2 = np.concatenate([turning, turning]), np.concatenate([arrived, arrived])
         final2 = None if on_final is None else np.concatenate([on_final, on_final])
         dts = np.full(2 * n, span / n_c)  # (the prediction's half set per step)
@@ -499,12 +502,16 @@ class Mpepc:
         # the commands of the committed motion and its stop, (v, ω) (2, N) after each step of
         # exact_dt_s, for chain_sweep
         cmds: list[F64] | None = [] if chain is not None else None
+        # The rollout's own poses of the committed motion and its stop are its sweep only
+        # without the chain: with it, chain_sweep makes the sweep from the commands.
+        own = chain is None
         spin = self.spin(in_place, z, w0, q0)
         for j, (step_dt, k) in enumerate(sched):
             dts[:n] = step_dt
             yaw_was = ww[n:].copy() if j_b < 0 and spin is not None else None
             xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
-                                       dts, jerk_from=0 if self.p.v_jerk else n)
+                                       dts, jerk_from=0 if self.p.v_jerk else n,
+                                       law_upto=None if j_b < 0 else n)
             if yaw_was is not None and spin is not None:
                 ww[n:] = self.spin_step(spin, yaw_was, ww[n:], both[:, n:], tgt, turning2[n:],
                                         span / n_c)
@@ -514,25 +521,28 @@ class Mpepc:
                 out[0, :, k], out[1, :, k], out[2, :, k] = xx[:n], yy[:n], ww[:n]
                 out[3, :, k], out[4, :, k] = both[0, :n], both[2, :n]
             if j_b < 0:
-                if (j + 1) % every == 0 or j == n_c - 1:
+                if own and ((j + 1) % every == 0 or j == n_c - 1):
                     kept.append(np.stack([xx[n:], yy[n:], ww[n:]]))
                 if j == n_c - 1:  # committed: the stop from here
                     vmax2[n:], dts[n:], j_b = 0.0, self.p.exact_dt_s, 0
                 continue
             done = not both[:, n:].any()  # (braking: every candidate at rest)
-            if (j_b + 1) % every == 0 or j_b == n_b - 1 or done:
+            if own and ((j_b + 1) % every == 0 or j_b == n_b - 1 or done):
                 stop.append(np.stack([xx[n:], yy[n:], ww[n:]]))
             j_b += 1
             if done or j_b == n_b:
                 m, stopped = j + 1, True
                 break
         side = (xx[n:], yy[n:], ww[n:], both[:, n:].copy())
+        sure = np.empty((3, n, 0))
         if j_b < 0:  # (the committed motion outlasts the prediction)
             sure = self.committed(*side, tgt, vmax, turning2[n:].copy(), arrived2[n:].copy(),
                                   on_final, span, m, kept, cmds, spin)
-        else:  # (the stop goes on alone where it outlasts the prediction)
+        elif own:  # (the stop goes on alone where it outlasts the prediction)
             sure = np.concatenate([np.stack(kept, -1), np.stack(stop, -1) if stopped
                                    else self.braking(*side, j_b, stop, cmds)], -1)
+        elif not stopped:  # (its commands only)
+            self.braking(*side, j_b, stop, cmds, poses=False)
         origin = None
         if chain is not None and cmds:
             after = np.stack(cmds, -1)
@@ -703,11 +713,26 @@ class Mpepc:
     def law_step(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                  turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
                  final: npt.NDArray[np.bool_] | None, dt: float | F64, v_jerk: bool = False,
-                 jerk_from: int | None = None) -> tuple[F64, F64, F64]:
+                 jerk_from: int | None = None, law_upto: int | None = None
+                 ) -> tuple[F64, F64, F64]:
         """The 50 Hz loop over dt (per candidate if an array): the law (or the in-place turn)
         towards the targets, then the limiter; `turning` and `arrived` are updated in place.
         `final`: the candidates on the core's final approach (None: none). `jerk_from`: v's
-        jerk limit for the candidates from this index on only (else `v_jerk` for all)."""
+        jerk limit for the candidates from this index on only (else `v_jerk` for all).
+        `law_upto`: the candidates from this index on brake (vmax 0; their law is not worked
+        out, nor their `turning` and `arrived`: simulate's stops, side by side)."""
+        k = x.size if law_upto is None else law_upto
+        vd, wd = self._law(x[:k], y[:k], yaw[:k], st[:, :k], tgt[:k], vmax[:k], turning[:k],
+                           arrived[:k], None if final is None else final[:k])
+        if k < x.size:  # (the law's v and ω with vmax 0, as below: 0)
+            rest = np.zeros(x.size - k)
+            vd, wd = np.concatenate([vd, rest]), np.concatenate([wd, rest])
+        return self.advance(x, y, yaw, st, vd, wd, dt, v_jerk, jerk_from)
+
+    def _law(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
+             turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
+             final: npt.NDArray[np.bool_] | None) -> tuple[F64, F64]:
+        """law_step's desired (v, ω), before the limiter."""
         g = self.law
         tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
         dx, dy = tx - x, ty - y
@@ -754,7 +779,7 @@ class Mpepc:
         halt = vmax <= 0.0
         if halt.any():
             vd, wd = np.where(halt, 0.0, vd), np.where(halt, 0.0, wd)
-        return self.advance(x, y, yaw, st, vd, wd, dt, v_jerk, jerk_from)
+        return vd, wd
 
     def advance(self, x: F64, y: F64, yaw: F64, st: F64, vd: F64, wd: F64, dt: float | F64,
                 v_jerk: bool = True, jerk_from: int | None = None) -> tuple[F64, F64, F64]:
@@ -770,11 +795,13 @@ class Mpepc:
         return max(1, math.ceil(stop_s / self.p.exact_dt_s))
 
     def braking(self, x: F64, y: F64, yaw: F64, st: F64, start: int = 0,
-                kept: list[F64] | None = None, cmds: list[F64] | None = None) -> F64:
+                kept: list[F64] | None = None, cmds: list[F64] | None = None,
+                poses: bool = True) -> F64:
         """(3, N, B) poses while the limiter brakes to rest (v, ω desired 0, as the core does
         when a plan says blocked) from state st, at `exact_dt_s` (kept every ~0.1 s), until
         every candidate is at rest; from its step `start` on (the poses kept before it in
-        `kept`: simulate runs the first steps alongside the prediction)."""
+        `kept`: simulate runs the first steps alongside the prediction). Without `poses`
+        only the commands (`cmds`; chain_sweep makes the sweep from them): (3, N, 0)."""
         g, h = self.law, self.p.exact_dt_s
         steps = self.brake_steps()
         every = max(1, round(0.5 * self.p.dt_s / h))  # poses kept: the sweep at ~0.1 s
@@ -789,17 +816,18 @@ class Mpepc:
         for k in range(start, steps):
             # advance(…, zero, zero, h), less the limiter's curvature work, which leaves a
             # desired (0, 0) as it is: the same numbers, the planner's longest loop.
-            old = vw.copy()
+            old = vw.copy() if poses else None
             vw[...], rates[...] = scurve(vw, rates, zero, *lim, h)
-            x, y, yaw = move(x, y, yaw, old[0], old[1], st, h)
+            if old is not None:
+                x, y, yaw = move(x, y, yaw, old[0], old[1], st, h)
             if cmds is not None:
                 cmds.append(vw.copy())
             done = not st.any()  # every candidate at rest: the rest is where it stands
-            if (k + 1) % every == 0 or k == steps - 1 or done:
+            if poses and ((k + 1) % every == 0 or k == steps - 1 or done):
                 kept.append(np.stack([x, y, yaw]))
             if done:
                 break
-        return np.stack(kept, -1)
+        return np.stack(kept, -1) if poses else np.empty((3, x.size, 0))
 
     # --- cost ---------------------------------------------------------------------------------
     def evaluate(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
@@ -816,15 +844,15 @@ class Mpepc:
         # (each read as what it is compared with: the prediction coarse, the committed fine)
         # Not below TOUCH_M: the clearance reads 0 at and inside an obstacle, so "closer" than
         # 0 was nothing, and a chair the map shows touching one could turn or drive into it.
-        hit_under = max(min(p.contact_m, float(fld.footprint_clearance(
-            *pose, fine=False, below=self.predict_below)) - TOUCH_M), TOUCH_M)
+        hit_under = max(min(p.contact_m, self.pose_clearance(
+            pose, fine=False, below=self.predict_below) - TOUCH_M), TOUCH_M)
         # (poses read under both it and the 0.02 m the core drops its own approach at,
         # Plan.goal_clearance_m, decide alike whatever the exact reading: left bilinear)
         d_static, to_people = self.outline_distances(xs, ys, yaws, people, t,
                                                      min(hit_under, GOAL_DROP_M))  # (N, T)
         pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
         hit = d_static < hit_under
-        d0 = float(fld.footprint_clearance(*pose))
+        d0 = self.pose_clearance(pose)
         # A motion is only as safe as the stop after it: the next plan can brake the chair
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
@@ -913,7 +941,7 @@ class Mpepc:
         # (x, y, yaw, a lower bound of the reading) of those sweeps' poses, from the start pose
         # on: the first pose kept is ~0.1 s into the motion
         o = pose if origin is None else origin
-        lb0 = fld.reading_floor(fld.footprint_clearance(*o, need=need, upto=band), need,
+        lb0 = fld.reading_floor(np.array(self.pose_clearance(o, need=need, upto=band)), need,
                                 band) if start is None else fld.reading_floor(np.array(start))
         q = np.concatenate([np.broadcast_to(np.array([*o, float(lb0)])[:, None, None],
                                             (4, rows.size, 1)),
@@ -949,11 +977,25 @@ class Mpepc:
         near = d < band
         if near.any():
             e, t0 = self.p.stop_timing_s, pose[2]
-            for ds in (e * v0, -e * v0):
-                d[near] = np.minimum(d[near], self.field.footprint_clearance(
-                    x[near] + ds * math.cos(t0), y[near] + ds * math.sin(t0), yaw[near],
-                    need=need))
+            xn, yn, yawn = x[near], y[near], yaw[near]
+            # (both moves read in one call: the same numbers, pose by pose)
+            moved = self.field.footprint_clearance(
+                np.concatenate([xn + ds * math.cos(t0) for ds in (e * v0, -e * v0)]),
+                np.concatenate([yn + ds * math.sin(t0) for ds in (e * v0, -e * v0)]),
+                np.concatenate([yawn, yawn]), need=need)
+            d[near] = np.minimum(np.minimum(d[near], moved[:xn.size]), moved[xn.size:])
         return d
+
+    def pose_clearance(self, pose: tuple[float, float, float], **kw: Any) -> float:
+        """NavField.footprint_clearance at one pose (with its keywords), kept: each of a
+        planning cycle's evaluations reads the same start pose (~75 µs a reading)."""
+        key = (np.array(pose, dtype=np.float64).tobytes(), tuple(sorted(kw.items())))
+        got = self._at_pose.get(key)
+        if got is None:
+            if len(self._at_pose) >= 64:
+                self._at_pose.clear()
+            got = self._at_pose[key] = float(self.field.footprint_clearance(*pose, **kw))
+        return got
 
     @property
     def predict_below(self) -> float:
@@ -1632,7 +1674,7 @@ class Mpepc:
         while i < len(at_m) and travelled < at_m[-1] + 1e-9:
             if math.hypot(goal[0] - x, goal[1] - y) < step_m:
                 break
-            heading = float(ctg.descent(gm, np.array([x, y])))
+            heading = ctg.descent_xy(gm, x, y)
             x, y = x + step_m * math.cos(heading), y + step_m * math.sin(heading)
             travelled += step_m
             if travelled >= at_m[i] - 1e-9:

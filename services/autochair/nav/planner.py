@@ -173,7 +173,7 @@ def blocker(fld: NavField, ctg: CostToGo, pose: tuple[float, float, float],
         return f"blocked by a person at ({p.x_m:.2f}, {p.y_m:.2f}), {d:.1f} m away"
     pts, px, py = [(x, y)], x, y
     for _ in range(20):
-        heading = float(ctg.descent(fld.map, np.array([px, py])))
+        heading = ctg.descent_xy(fld.map, px, py)
         px, py = px + 0.1 * math.cos(heading), py + 0.1 * math.sin(heading)
         pts.append((px, py))
     arr = np.array(pts)
