@@ -6,8 +6,9 @@ Loop at the drive chain's rate (autochair.tune.lockstep.DT), as bench/control_ev
 timed) → the velocity PID as [pid] configures it → joystick volts → ChairModel. The navigation
 field is the world rasterised at 0.05 m (what a perfect map would hold); with `--map scans`, the
 mapping service's grid grown from the simulated laser's scans as the chair drives, from what it
-saw standing 1 s at the start (bench/scan_map.py: what the live chair plans on; unseen cells are
-free, so a goal in an unseen room is accepted; the references below stay on the exact map).
+saw standing 1 s at the start, or for a case that starts where an earlier goal ended, on the way
+there (DRIVEN) (bench/scan_map.py: what the live chair plans on; unseen cells are free, so a goal
+in an unseen room is accepted; the references below stay on the exact map).
 People are given to the planner from the world's ground truth (a perfect tracker: the stack has
 none yet). Metrics come
 from the simulator's ground truth: footprint clearance against the exact world (people included)
@@ -103,6 +104,9 @@ CASES: list[tuple[str, str, Pose, Pose, bool]] = [
     ("hallway: README example 3 0 90", "hallway", (0, 0, 0), (3.0, 0.0, D(90)), False),
     ("hallway: back to the start", "hallway", (10, 0, 0), (1.0, 0.0, D(180)), False),
     ("hallway: office A to office B", "hallway", (4.5, 3.0, D(-90)), (12.4, 2.5, D(90)), True),
+    # (where the chair arrives in office A: facing in, it must turn round past the door leaf)
+    ("hallway: office A (facing in) to office B", "hallway", (4.5, 3.0, D(90)),
+     (12.4, 2.5, D(90)), True),
     ("hallway: store room to dead end", "hallway", (8.5, -2.3, D(90)), (20.9, 0.5, 0), True),
     ("L: past the cabinet", "l_corridor", (0, 0, 0), (6.0, 0.0, 0), False),
     ("L: into the corner", "l_corridor", (0, 0, 0), (8.0, 0.0, D(90)), False),
@@ -124,6 +128,12 @@ CASES: list[tuple[str, str, Pose, Pose, bool]] = [
     ("person: passing head-on", "passing", (0, 0, 0), (11.0, 0.5, 0), False),
     ("person: overtaken, then met", "passing", (2.0, 0.6, 0), (6.0, 0.6, 0), False),
 ]
+# With `--map scans`, cases that start where the chair arrived on an earlier goal: their map is
+# the one grown on the way there (the laser's scans along these poses, bench/scan_map.py
+# ScanMap.driven), not a look from the start alone, which sees little behind the chair.
+DRIVEN: dict[str, list[Pose]] = {
+    "hallway: office A (facing in) to office B": [(0, 0, 0), (4.5, 0.0, 0), (4.5, 3.0, D(90))],
+}
 # Goals that must be refused at once: (name, world, start, goal).
 REFUSED: list[tuple[str, str, Pose, Pose]] = [
     ("README's old example (front in the wall)", "hallway", (0, 0, 0), (3.0, 1.0, D(90))),
@@ -237,12 +247,13 @@ def people_at(world: World, t: float) -> list[Person]:
 
 def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig,
              fp: Footprint, params: MpepcParams | None = None, plan_delay_s: float = 0.0,
-             scans: ScanMap | None = None) -> dict[str, Any]:
+             scans: ScanMap | None = None, driven: list[Pose] | None = None
+             ) -> dict[str, Any]:
     """One goal in lockstep. `plan_delay_s`: each plan takes effect this long after it was
     asked for (the node plans on its own thread meanwhile, the core driving the previous
     plan; 0: at once, as the figures are made). `scans`: the chair plans on the map grown
     from its laser's scans (bench/scan_map.py), not on `fld` (the exact world, which the
-    metrics' references keep)."""
+    metrics' references keep); `driven`: that map grown along these poses first (DRIVEN)."""
     from autochair_msgs import GoalRequest, Pose2D
 
     rig = Rig(make_pid("tuned"), start=start)  # the PID as the node configures it
@@ -263,7 +274,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         core.on_field(fld)
     else:
         t0 = time.perf_counter()
-        parked = scans.parked(0.0, start)
+        parked = scans.parked(0.0, start) if driven is None else scans.driven(0.0, driven)
         core.on_field(NavField(parked, fp))
         grid_key = parked.occupied.tobytes()
         map_ms.append((time.perf_counter() - t0) * 1e3)
@@ -534,7 +545,8 @@ def main(argv: list[str] | None = None) -> int:
         r = run_case(world, fld, start, goal, cfg, fp,
                      MpepcParams(seed=args.seed,
                                  heading_lattice=MpepcParams().heading_lattice
-                                 and not args.no_lattice), args.plan_delay_s, scans)
+                                 and not args.no_lattice), args.plan_delay_s, scans,
+                     DRIVEN.get(name))
         r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
         runs.append(r)
         if r["state"] == "refused":

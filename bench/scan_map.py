@@ -75,6 +75,42 @@ class ScanMap:
         assert grid is not None
         return grid
 
+    def driven(self, t0: float, way: list[Pose], v_mps: float = 0.5, omega_radps: float = 0.9
+               ) -> GridMap:
+        """The chair driven along `way` before `t0` (from its first pose: an in-place turn onto
+        each next point, a straight to it, at the end a turn onto the last pose's yaw, then
+        PARKED_S standing there; odometry exact): the grid published at t0. As a goal given
+        where the chair arrived, having mapped its way there (bench/nav_eval.py DRIVEN)."""
+        poses: list[tuple[Pose, tuple[float, float]]] = []
+        dt = 0.01
+
+        def turn(x: float, y: float, a: float, b: float) -> float:
+            e = math.remainder(b - a, 2 * math.pi)
+            n = max(1, math.ceil(abs(e) / (omega_radps * dt)))
+            poses.extend(((x, y, a + e * (i + 1) / n), (0.0, math.copysign(omega_radps, e)))
+                         for i in range(n))
+            return b
+
+        x, y, yaw = way[0]
+        for nx, ny, _ in way[1:]:
+            yaw = turn(x, y, yaw, math.atan2(ny - y, nx - x))
+            d = math.hypot(nx - x, ny - y)
+            n = max(1, math.ceil(d / (v_mps * dt)))
+            poses.extend(((x + (nx - x) * (i + 1) / n, y + (ny - y) * (i + 1) / n, yaw),
+                          (v_mps, 0.0)) for i in range(n))
+            x, y = nx, ny
+        turn(x, y, yaw, way[-1][2])
+        # (begun standing at the first pose, so that a grid is published at t0, once a period)
+        period = self.cfg.publish_period_s
+        pad = round(math.ceil((PARKED_S + dt * len(poses)) / period) * period / dt) \
+            - round(PARKED_S / dt) - len(poses)
+        poses[:0] = [(way[0], (0.0, 0.0))] * pad
+        t = t0 - PARKED_S - dt * len(poses)
+        for pose, twist in poses:
+            self.step(t, pose, pose, twist)
+            t += dt
+        return self.parked(t0, way[-1])
+
     def step(self, t: float, odom: Pose, truth: Pose, twist: tuple[float, float]
              ) -> GridMap | None:
         """Time `t`: the odometry's pose `odom`, the chair's true pose and twist (v, ω); the

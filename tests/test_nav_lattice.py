@@ -793,3 +793,55 @@ def test_a_chair_blocked_before_a_door_it_cannot_turn_into_gets_the_lattices_sta
                                    np.linspace(here[2], psi, n)).min() \
         >= MpepcParams().contact_m
 
+
+
+def office_a_and_the_hallway() -> NavField:
+    """The hallway world's office A (sim/worlds/hallway.world): a 1 m door at x 4-5, its
+    leaf open along the west jamb to y 2.3, the hallway below it."""
+    return field([[-2, 1.4, 4, 1.4], [5, 1.4, 12, 1.4], [-2, -1.4, 12, -1.4],
+                  [2.5, 1.4, 2.5, 4.4], [2.5, 4.4, 6.5, 4.4], [6.5, 4.4, 6.5, 1.4],
+                  [5, 1.4, 5, 1.6], [4, 1.45, 4, 2.3]])
+
+
+def test_a_chair_in_a_room_facing_in_turns_onto_the_door_then_drives_through() -> None:
+    # nav_eval "office A (facing in) to office B" (seed 7) and live, 4 of 4: the chair
+    # arrived in office A facing in, 1.35 m from the door's narrowest point (no line-up is
+    # placed that near: field.door_approaches). MPEPC, on the 2-D field (its descent bows
+    # 0.27 m east round the door leaf), turned on an arc and stood at (4.74, 2.82, -90°),
+    # off the door's line: every way through touched the leaf or the jamb, blocked till
+    # aborted. Now it turns in place onto a straight through the door, then drives it.
+    start, goal = (4.5, 3.0, math.pi / 2), (9.0, 0.0, 0.0)
+    mp = MpepcParams()
+
+    def plan(pose: tuple[float, float, float], then: tuple[float, float] | None = None
+             ) -> object:
+        f = office_a_and_the_hallway()  # (planner.py keeps one planner per field)
+        prev = None if then is None else (*then, pose[2], mp.v_min_mps)
+        res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, f, None, prev, LAW,
+                                  final=False, then=then), mp)
+        assert res.plan is not None and not res.blocked_by
+        return res.plan
+
+    fld = office_a_and_the_hallway()
+    pose, turns = start, 0
+    while True:
+        p = plan(pose, None if pose == start else pose[:2])
+        if not p.final_turn:  # type: ignore[attr-defined]
+            break
+        # a turn in place, clockwise (anticlockwise the front swings into the leaf), at
+        # most 90° a stage, its sweep clear by the contact margin
+        psi = p.target[2]  # type: ignore[attr-defined]
+        assert -math.pi / 2 - 0.01 <= psi - pose[2] < 0.0
+        n = FP.turn_samples(psi - pose[2], 0.01)
+        assert fld.footprint_clearance(np.full(n, pose[0]), np.full(n, pose[1]),
+                                       np.linspace(pose[2], psi, n)).min() >= mp.contact_m
+        pose, turns = (pose[0], pose[1], psi), turns + 1
+        assert turns <= 2
+    # ... onto the door's line, then straight through it into the hallway
+    assert turns == 2 and abs(pose[2] + math.pi / 2) < math.radians(5.0)
+    d = p.straight_m  # type: ignore[attr-defined]
+    assert p.target[1] < 1.4 - FP.rear_m and d > 1.5  # type: ignore[attr-defined]
+    assert fld.straight_clearance(pose, np.arange(0.0, d + 0.02, 0.01)) >= mp.contact_m
+    # a chair facing the door on its own (the bench's "office A to office B") is left to
+    # MPEPC's plan, as before
+    assert plan((4.5, 3.0, -math.pi / 2)).straight_m == 0.0  # type: ignore[attr-defined]

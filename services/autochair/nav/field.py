@@ -768,6 +768,26 @@ class NavField:
             i = j
         return out
 
+    def passage_ahead(self, ctg: CostToGo, x: float, y: float, within_m: float,
+                      narrow_m: float = 0.6) -> tuple[F64, int, int] | None:
+        """The first narrow passage (a door: the axle's clearance under `narrow_m`, as
+        `door_approaches`) on the way from (x, y) whose narrowest point lies within `within_m`
+        along it: the way's points (N, 2) up to the passage's end, the narrowest point's index
+        and the end's (the first point past it with `narrow_m` again); None: none that near."""
+        path = self.descent_path(ctg, x, y, max_m=within_m + 2.0)
+        clr = self.clearance_at(path)
+        narrow = np.flatnonzero(clr < narrow_m)
+        if narrow.size == 0:
+            return None
+        i = int(narrow[0])
+        wide = np.flatnonzero(clr[i:] >= narrow_m)
+        if wide.size == 0:  # (the way ends in it, or runs on beyond what was searched)
+            return None
+        j = i + int(wide[0])
+        k = i + int(np.argmin(clr[i:j]))
+        walked = float(np.hypot(*np.diff(path[:k + 1], axis=0).T).sum()) if k else 0.0
+        return (path[:j + 1], k, j) if walked <= within_m else None
+
     def start_cost(self, ctg: CostToGo, x: float, y: float, search_m: float = 0.3) -> float:
         """Cost-to-go from the chair at (x, y): φ there if the axle stands on a reachable
         cell, else the least φ + distance over reachable cells within `search_m` (the chair may

@@ -252,6 +252,18 @@ class MpepcParams:
     # `stage_beam` most promising landings at each depth tried (~10–25 ms each).
     stage_depth: int = 3
     stage_beam: int = 4
+    # A chair at rest this near a door on its way (along the way to its narrowest point; the
+    # goal's line-up poses are placed only farther out, field.door_approaches) and not on a
+    # clear straight through it turns onto one, then drives it (Mpepc.through_door): the
+    # 2-D field's descent bows round the door's frame, the law's arc along it left the chair
+    # 0.24 m off the door's line, facing it, with no way through (office A, facing in, to
+    # office B: blocked till aborted, nav_eval and live).
+    door_ahead_m: float = 1.8
+    door_turn_step_deg: float = 1.0  # the straights' headings tried (Mpepc.through_door)
+    # ... if it faces away from the way through the door by more than this, or has just
+    # turned (a stage): nearer its heading MPEPC's own arc through is left as it was (at 17°,
+    # a straight after a turn cost the cluttered room's far side 7 s; measured)
+    door_away_rad: float = 0.5 * math.pi
     n_global: int = 128  # rounded to a power of 2 (Sobol)
     n_local: int = 64
     local_rounds: int = 3
@@ -1361,6 +1373,69 @@ class Mpepc:
         total = np.where(ok & (turn <= 0.5 * math.pi + 1e-9),
                          cost + hf.params.turn_m_per_rad * turn, math.inf)
         return np.asarray(total.min(-1), dtype=float)
+
+    def through_door(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                     ctg: CostToGo, hf: HeadingField | None, people: list[Person],
+                     rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
+                     turned: bool = False, spare_deg: float = 2.0, spare_m: float = 0.01
+                     ) -> Plan | None:
+        """For a chair at rest within `door_ahead_m` of a door on its way (NavField
+        .passage_ahead), the goal beyond it, that faces away from the way through the door by
+        more than `door_away_rad` or has just turned a stage (`turned`; else None: MPEPC's own
+        arc through is kept): the straight through the door along the chair's heading, to
+        where the way leaves the door, if it sweeps clear by `contact_m` (to `spare_m` +
+        `final_overshoot_m` past its end) and passes within 0.1 m of the door's narrowest point
+        on the way; else an in-place turn (at most `stage_turn_deg`) towards the heading within
+        30° of the way through the door whose straight does that with the most clearance, the
+        way round whose whole turn onto it (`spare_deg` past) sweeps clear by `contact_m`.
+        Stages (as Mpepc.stage_plan's), evaluated as MPEPC's candidates are (`_costs`: people,
+        the stop after the plan period); the next plan from rest looks again. None: no door
+        that near, no clear straight through it, or no clear turn onto one."""
+        p, fld = self.p, self.field
+        x, y, yaw = pose
+        found = fld.passage_ahead(ctg, x, y, p.door_ahead_m)
+        if found is None or math.hypot(goal[0] - x, goal[1] - y) <= p.door_ahead_m:
+            return None
+        path, k, j = found
+        if math.hypot(goal[0] - path[j, 0], goal[1] - path[j, 1]) < 1.0:
+            return None  # (the goal just past the door: its own approach, the lattice's)
+        k0, k1 = path[max(k - 6, 0)], path[min(k + 6, j)]
+        way = math.atan2(k1[1] - k0[1], k1[0] - k0[0])
+        if not turned and abs(float(wrap(np.array(way - yaw)))) <= p.door_away_rad:
+            return None
+        psi = np.concatenate([[yaw], way + np.radians(np.arange(-30.0, 30.0 + 1e-9,
+                                                                p.door_turn_step_deg))])
+        c, s = np.cos(psi), np.sin(psi)
+        along = (path[j, 0] - x) * c + (path[j, 1] - y) * s  # (N,) the straight's length
+        lateral = np.abs((path[k, 1] - y) * c - (path[k, 0] - x) * s)
+        ds = np.arange(0.0, float(along.max()) + spare_m + p.final_overshoot_m + 0.005, 0.01)
+        line = fld.footprint_clearance(x + ds * c[:, None], y + ds * s[:, None],
+                                       np.broadcast_to(psi[:, None], (psi.size, ds.size)))
+        reach = ds[None, :] <= (along + spare_m + p.final_overshoot_m)[:, None]
+        clear = np.where(reach, line, math.inf).min(1)
+        ok = (clear >= p.contact_m) & (lateral <= 0.1) & (along > 0.0)
+        if ok[0]:  # on a clear straight through: drive it
+            d = float(along[0])
+            return self._one_stage(pose, (d, 0.0), (x + d * c[0], y + d * s[0], yaw), False,
+                                   ctg, people, goal, hf, rates, final=final)
+        if not ok.any():
+            return None
+        best = float(psi[int(np.argmax(np.where(ok, clear, -math.inf)))])
+        e = float(wrap(np.array(best - yaw)))
+        spare = math.radians(spare_deg)
+        for turn in (e, e - math.copysign(2 * math.pi, e)):  # the short way round first
+            end = turn + math.copysign(spare, turn)
+            n = fld.footprint.turn_samples(end)
+            if float(fld.footprint_clearance(np.full(n, x), np.full(n, y),
+                                             yaw + np.linspace(0.0, end, n)).min()) \
+                    < p.contact_m:
+                continue
+            step = math.copysign(min(abs(turn), math.radians(p.stage_turn_deg)), turn)
+            # (`then`, the chair's own point: the turn is carried on through the planning
+            # cycles while it runs, and from rest this looks again)
+            return self._one_stage(pose, (0.0, step), (x, y, yaw + step), True, ctg, people,
+                                   goal, hf, rates, final=final, then=(x, y))
+        return None
 
     def stage_plan(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                    ctg: CostToGo, hf: HeadingField | None, people: list[Person],

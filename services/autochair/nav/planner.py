@@ -305,10 +305,17 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
             return hf
         return lattice_for(fld, req.goal, ctg, req.pose)
 
+    at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
+    if at_rest and mp.stages:
+        # At rest near a door on the way: onto a straight through it, and through (a goal
+        # begun in a room, facing in, at its door: Mpepc.through_door)
+        door = mpc.through_door(req.pose, req.goal, ctg, hf, req.people, req.rates, req.final,
+                                turned=req.then is not None)
+        if door is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, door, given_up=given_up)
     plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
                     req.rates, req.final, hf, chain=req.chain, on_line=req.straight_final)
     r_goal = math.hypot(req.goal[0] - req.pose[0], req.goal[1] - req.pose[1])
-    at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
     if plan.goal_withheld and stuck(plan) and at_rest:
         # Withheld for the core's turn onto the goal's yaw (Mpepc.goal_turn_clearance), with
         # nothing else to do: a stage (its sweeps keep contact_m), else handed over as before
