@@ -362,7 +362,8 @@ class NavField:
 
     def signed_xy(self, x: F64, y: F64) -> F64:
         """`clearance_xy`, and where that reads 0 (at or inside an occupied cell's square)
-        minus the depth: the exact distance to the nearest free cell's square (`_inside`);
+        minus the depth: the exact distance to the nearest free cell's square (`_inside`,
+        within its EXACT_BELOW_M);
         off the map −1e3. Unsigned, moving deeper into an obstacle cannot be told from
         moving out of it (H57). Where the clearance reads > 0, these are its numbers."""
         v = self.clearance_xy(x, y)
@@ -370,15 +371,25 @@ class NavField:
         if at.any():
             inner = self._inside
             d, i, ax, ay = _sample_at(inner.clearance, *_cell_xy(inner.map, x[at], y[at]), 1e3)
-            v[at] = -inner._exactly(np.array(d, dtype=np.float64), i, ax, ay)
+            d = np.array(d, dtype=np.float64)
+            if inner._corner is not None:
+                # (the exact reading, not the least of it and the bilinear one, which reads
+                # under it between two faces: shallower, in the middle of a thick wall)
+                sel = (d < inner.exact_below_m) & inner._corner.take(i)
+                d[sel] = inner._exact(i[sel], ax[sel], ay[sel])
+            v[at] = -d
         return v
 
     @cached_property
     def _inside(self) -> NavField:
-        """The field of the map's complement (its clearance: the depth into the obstacles);
-        built when first read (a chair the map shows touching something: rare)."""
+        """The field whose obstacles are the free cells next to the map's (its clearance, in
+        an occupied square: the depth, the distance to the nearest free one, which always
+        borders an occupied cell); built when first read (a chair the map shows within a
+        margin: rare). (All the free cells: 4–5 times the field's own build, 110 ms against
+        25 on nav_eval's world; these: ~25, the same readings in the occupied squares.)"""
         gm = self.map
-        return NavField(GridMap(~gm.occupied, gm.resolution_m, gm.origin_x_m, gm.origin_y_m,
+        edge = ~gm.occupied & ndi.binary_dilation(gm.occupied, np.ones((3, 3), dtype=np.bool_))
+        return NavField(GridMap(edge, gm.resolution_m, gm.origin_x_m, gm.origin_y_m,
                                 gm.frame_id), self.footprint)
 
     def contact(self, x: float, y: float, yaw: float, slack: float) -> Contact:

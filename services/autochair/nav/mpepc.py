@@ -820,8 +820,7 @@ class Mpepc:
         # drawn under its front) would be blocked by every motion: what is a hit for it is
         # told by the escape rule instead (`escapes`, `stop_keeps`: getting out, on the
         # signed clearance, nothing deeper in nor nearer).
-        touch = fld.contact(*pose, TOUCH_M) \
-            if d0 < max(p.contact_m, p.brake_clear_m) + TOUCH_M else None
+        touch = fld.contact(*pose, TOUCH_M) if d0 < self.escape_below else None
         # (poses read under both contact_m and the 0.02 m the core drops its own approach at,
         # Plan.goal_clearance_m, decide alike whatever the exact reading: left bilinear)
         d_static, to_people = self.outline_distances(
@@ -1011,6 +1010,12 @@ class Mpepc:
                     x[near] + ds * math.cos(t0), y[near] + ds * math.sin(t0), yaw[near],
                     need=need))
         return d
+
+    @property
+    def escape_below(self) -> float:
+        """A chair whose footprint reads under this stands within a margin: what is a hit for
+        it is told by the escape rule (`escapes`)."""
+        return max(self.p.contact_m, self.p.brake_clear_m) + TOUCH_M
 
     @property
     def predict_below(self) -> float:
@@ -1632,6 +1637,11 @@ class Mpepc:
             rows += [[0.0, turn, 0.0, vmax], [0.0, turn, 0.0, self.p.v_min_mps]]
         if previous is not None:
             rows.append(list(previous))
+        if float(self.field.footprint_clearance(*pose)) < self.escape_below:
+            # (the escape rule's: the way out is often a small turn in place alone, which the
+            # quasi-random set rarely lands on: 1 in 80 of its targets turns in place)
+            rows += [[0.0, a, 0.0, self.p.v_min_mps] for a in (
+                0.05, -0.05, 0.1, -0.1, 0.2, -0.2, 0.4, -0.4, 0.8, -0.8)]
         # Points down the navigation function, heading along it: in clutter and doorways the
         # quasi-random set rarely lands on the narrow band of targets that threads a gap.
         for x, y, heading in self.descent_path(pose, ctg, goal):
