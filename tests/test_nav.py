@@ -472,7 +472,7 @@ def test_a_chair_getting_out_of_one_obstacle_is_not_swept_into_another() -> None
 
     # positive control: the footprint's least reading alone takes turns into the post
     def naive(self: NavField, c: nav_field.Contact, x: np.ndarray, y: np.ndarray,
-              yaw: np.ndarray, margin: float) -> np.ndarray:
+              yaw: np.ndarray, margin: float, far: np.ndarray | None = None) -> np.ndarray:
         d = self.signed_xy(*nav_field.place_xy(c.outline, x, y, yaw)).min(-1)
         return np.asarray(d >= min(margin, float(c.now.min()) - c.slack))
 

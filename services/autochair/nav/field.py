@@ -419,22 +419,25 @@ class NavField:
         inside = np.minimum(np.minimum(u + fp.rear_m, fp.front_m - u), fp.half_width_m - w)
         return np.asarray(inside + self.map.resolution_m / 2, dtype=np.float64)
 
-    def keeps(self, c: Contact, x: F64, y: F64, yaw: F64, margin: float) -> npt.NDArray[np.bool_]:
+    def keeps(self, c: Contact, x: F64, y: F64, yaw: F64, margin: float,
+              far: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
         """Per pose (...): no point of the outline reads under min(`margin`, its own reading
         at `c` − slack), and no cell the body overlapped at `c` reaches into it deeper than
         the deepest did but by the slack: nothing deeper in, nothing else nearer than the
         margin (the footprint's least reading alone let a turn keep the deepest point where
         it was and sweep another part of the body into another obstacle). (Per cell, a
         corner sliding along a wall at the same depth was deeper into the next cell.) A cell
-        the body did not overlap can come in only past the outline's points, which read it."""
+        the body did not overlap can come in only past the outline's points, which read it.
+        `far`: poses known to read over `margin` everywhere on the outline (not read)."""
         shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(yaw))
         xs, ys, yaws = (np.broadcast_to(np.asarray(a, dtype=np.float64), shape).reshape(-1)
                         for a in (x, y, yaw))
         under = np.minimum(margin, c.now - c.slack)
-        ok = np.empty(xs.size, dtype=np.bool_)
+        ok = np.ones(xs.size, dtype=np.bool_)
+        near = np.arange(xs.size) if far is None else np.flatnonzero(~far.reshape(-1))
         step = max(1, BATCH_POINTS // len(c.outline))
-        for i in range(0, xs.size, step):
-            b = slice(i, i + step)
+        for i in range(0, near.size, step):
+            b = near[i:i + step]
             ok[b] = (self.signed_xy(*place_xy(c.outline, xs[b], ys[b], yaws[b])) >= under).all(-1)
         if c.cells.size:
             ok &= (self.body_depth(c.cells, xs, ys, yaws) <= c.deepest + c.slack).all(-1)

@@ -42,7 +42,7 @@ from autochair.control.law import Gains
 from autochair.control.limits import AxisState, ComfortLimiter, SCurveAxis
 from autochair.geometry import along_lateral
 
-from .field import BATCH_POINTS, Contact, CostToGo, NavField, place_xy
+from .field import BATCH_POINTS, COARSE_SPACING_M, Contact, CostToGo, NavField, place_xy
 from .lattice import HeadingField
 
 F64 = npt.NDArray[np.float64]
@@ -826,7 +826,8 @@ class Mpepc:
         d_static, to_people = self.outline_distances(
             xs, ys, yaws, people, t, min(p.contact_m, GOAL_DROP_M))  # (N, T)
         pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
-        hit = d_static < p.contact_m if touch is None else ~self.escapes(touch, xs, ys, yaws)
+        hit = d_static < p.contact_m if touch is None else ~self.escapes(touch, xs, ys, yaws,
+                                                                         d_static)
         # A motion is only as safe as the stop after it: the next plan can brake the chair
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
@@ -942,7 +943,8 @@ class Mpepc:
                                                        rest).min(1))
         return np.asarray(least, dtype=np.float64)
 
-    def escapes(self, near: Contact, xs: F64, ys: F64, yaws: F64) -> npt.NDArray[np.bool_]:
+    def escapes(self, near: Contact, xs: F64, ys: F64, yaws: F64, d: F64
+                ) -> npt.NDArray[np.bool_]:
         """(N, T): which predicted poses of a chair that stood under its margin at `near`
         are clear. Every pose keeps what it had (NavField.keeps, `contact_m`: no point of the
         outline closer, or deeper in, than it was but by TOUCH_M, nor under `contact_m` if
@@ -952,8 +954,13 @@ class Mpepc:
         unsigned clearance, 0 at and in an obstacle, could not tell moving out of one from
         moving in (a chair the map shows touching could not move at all); the footprint's
         least reading could not tell one obstacle from another (a turn keeping the deepest
-        point's depth swept another part of the body into the next one)."""
-        ok = self.field.keeps(near, xs, ys, yaws, self.p.contact_m)
+        point's depth swept another part of the body into the next one). `d`: the poses'
+        coarse readings (`outline_distances`); where one is half a cell (the most the
+        bilinear reading is over the exact one) over √(contact_m² + (s/2)²), no point of the
+        fine outline reads under contact_m (`NavField._refined`): not read again."""
+        far = d >= math.hypot(self.p.contact_m, COARSE_SPACING_M / 2) \
+            + self.field.map.resolution_m / 2
+        ok = self.field.keeps(near, xs, ys, yaws, self.p.contact_m, far)
         out = min(self.p.contact_m, float(near.now.min()) + TOUCH_M)
         end = self.field.signed_xy(*place_xy(near.outline, xs[:, -1], ys[:, -1], yaws[:, -1]))
         ok[:, -1] &= end.min(-1) >= out
