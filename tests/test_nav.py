@@ -10,7 +10,7 @@ import pytest
 from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
 from autochair.nav import field as nav_field
 from autochair.nav.field import Footprint, GridMap, NavField, bilinear, place
-from autochair.nav.mpepc import LawParams, Mpepc, MpepcParams, Person, Plan
+from autochair.nav.mpepc import TOUCH_M, LawParams, Mpepc, MpepcParams, Person, Plan
 from autochair.nav.planner import PlanRequest, blocker, compute, free_field
 from autochair.sim.world import World, WorldError, parse_world
 from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
@@ -355,6 +355,155 @@ def test_a_chair_the_map_shows_touching_a_wall_is_not_turned_further_into_it() -
     clear = compute(PlanRequest(1, 0, (2.0, 1.0, 0.0), 0.0, 0.0, (6.0, 2.0, 0.0), fld, ctg, None,
                                 LAW))
     assert clear.blocked_by == "" and clear.plan is not None
+
+
+def block_room(post: tuple[float, float] | None = None) -> NavField:
+    """A 9 × 5 m room (0.05 m cells) with a 0.5 m thick block at x 4.0–4.5 up to y 1.4 (its
+    depth is the depth into it, not the distance to its far side), and a 7.5 cm post."""
+    occ = np.zeros((100, 180), dtype=np.bool_)
+    occ[:, :2] = occ[:, -2:] = occ[:2, :] = occ[-2:, :] = True
+    occ[:38, 90:100] = True
+    gm = GridMap(occ, 0.05, -0.5, -0.5)
+    if post is not None:
+        cx, cy = gm.centres()
+        gm.occupied[np.hypot(cx - post[0], cy - post[1]) <= 0.075] = True
+    return NavField(gm, FP)
+
+
+def into_block(depth: float) -> tuple[float, float, float]:
+    """The chair at 30°, its front right corner `depth` into the block's face at x = 4."""
+    yaw = math.radians(30)
+    return 4.0 + depth - (FP.front_m * math.cos(yaw) + FP.half_width_m * math.sin(yaw)), 1.0, yaw
+
+
+def test_the_signed_clearance_is_the_depth_inside_and_the_clearance_outside() -> None:
+    fld = block_room()
+    y = np.full(5, 0.5)
+    got = fld.signed_xy(np.array([3.9, 3.99, 4.0, 4.01, 4.03]), y)
+    assert np.allclose(got, [0.1, 0.01, 0.0, -0.01, -0.03], rtol=0, atol=1e-12)
+    # a pose's outline 3 cm into it
+    pts = place(np.concatenate([fld.outline, fld.outline_fine]), *into_block(0.03))
+    assert abs(float(fld.signed_xy(pts[:, 0], pts[:, 1]).min()) + 0.03) < 1e-9
+    # where the clearance reads > 0, its numbers bit for bit (nav_eval's worlds at 0.05 m)
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+    world = load_world(DEFAULT_WORLD)
+    room = NavField(GridMap.from_shapes(world.segments, world.circles), FP)
+    h, w = room.map.occupied.shape
+    rng = np.random.default_rng(3)
+    x = room.map.origin_x_m + rng.uniform(0.0, w * 0.05, 200000)
+    y = room.map.origin_y_m + rng.uniform(0.0, h * 0.05, 200000)
+    c, s = room.clearance_xy(x, y), room.signed_xy(x, y)
+    assert np.array_equal(s[c > 0], c[c > 0]) and (s[c <= 0] <= 0).all() and (s < 0).sum() > 100
+    # inside, the distance to the nearest free square (random clutter, brute force)
+    occ = rng.random((40, 40)) < 0.4
+    clutter = NavField(GridMap(occ, 0.05, 0.0, 0.0), FP)
+    q = rng.uniform(0.1, 1.9, (20000, 2))
+    q = q[occ[(q[:, 1] / 0.05).astype(int), (q[:, 0] / 0.05).astype(int)]]
+    fy, fx = np.nonzero(~occ)
+    gx = np.maximum(np.abs(q[:, :1] - (fx + 0.5) * 0.05) - 0.025, 0.0)
+    gy = np.maximum(np.abs(q[:, 1:] - (fy + 0.5) * 0.05) - 0.025, 0.0)
+    truth = np.hypot(gx, gy).min(1)
+    assert len(q) > 5000
+    assert np.allclose(clutter.signed_xy(q[:, 0], q[:, 1]), -truth, rtol=0, atol=1e-9)
+
+
+def kept(fld: NavField, pose: tuple[float, float, float], path: np.ndarray,
+         slack: float = TOUCH_M) -> float:
+    """The least over the path's poses of each outline point's signed clearance less the
+    least it may read (min(contact_m, its own at `pose` − slack); < 0: some point came
+    closer, or deeper in, than it was, or under the margin though it was not)."""
+    pts = np.concatenate([fld.outline, fld.outline_fine])
+    low = np.minimum(MpepcParams().contact_m, fld.signed_xy(*place(pts, *pose).T) - slack)
+    return min(float((fld.signed_xy(*place(pts, *q).T) - low).min()) for q in path[:, :3])
+
+
+@pytest.mark.parametrize("depth", [0.01, 0.03, 0.05])
+def test_a_chair_the_map_shows_in_an_obstacle_gets_a_plan_out_of_it(depth: float) -> None:
+    """H57's residual: with the clearance unsigned (0 at and inside an obstacle) a chair whose
+    corner the map shows in a block was blocked whatever it did, even turning away. Signed,
+    it turns out: no point of its outline ever deeper, or closer, than it was (but by
+    TOUCH_M), each at the end at least as far out as it was."""
+    fld = block_room()
+    goal = (6.5, 2.5, 0.0)
+    ctg = fld.cost_to_go(*goal[:2])
+    assert ctg is not None
+    pose = into_block(depth)
+    assert fld.footprint_clearance(*pose) == 0.0
+    res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, ctg, None, LAW))
+    assert res.blocked_by == "" and res.plan is not None and res.plan.escape, res.blocked_by
+    path = res.plan.path
+    assert kept(fld, pose, path) >= 0.0
+    assert kept(fld, pose, path[-1:], 0.0) >= 0.0  # (each as far out as it was, at least)
+    assert abs(float(path[-1, 2]) - pose[2]) > 0.1  # it moves (turns away)
+
+
+def test_a_chair_getting_out_of_one_obstacle_is_not_swept_into_another() -> None:
+    """A turn out of the block that keeps the deepest point's depth can sweep another part of
+    the body into a post: judged by the footprint's least signed reading alone (nothing
+    deeper than the deepest) a turn 4.7 cm into it was clear. Each point of the outline
+    keeps its own clearance instead."""
+    post = (3.381, 1.958)  # left of the front, in the way of the turn out
+    fld = block_room(post)
+    only = NavField(GridMap(fld.map.occupied & ~block_room().map.occupied, 0.05, -0.5, -0.5),
+                    FP)
+    goal = (6.5, 2.5, 0.0)
+    ctg = fld.cost_to_go(*goal[:2])
+    assert ctg is not None
+    pose = into_block(0.05)
+    pts = np.concatenate([fld.outline, fld.outline_fine])
+    assert float(only.signed_xy(*place(pts, *pose).T).min()) > 0.15
+
+    def least(path: np.ndarray) -> float:  # the outline against the post alone
+        return min(float(only.signed_xy(*place(pts, *q).T).min()) for q in path[:, :3])
+
+    # in-place turns either way, turn only and turn then go
+    z = np.array([[0.0, a, 0.0, v] for a in np.linspace(-1.0, 1.0, 41) for v in (0.15, 0.6)])
+
+    def clear(mp: Mpepc) -> list[float]:
+        _, info = mp.evaluate(pose, 0.0, 0.0, z, ctg, [])
+        return [least(np.stack([info["x"][j], info["y"][j], info["yaw"][j]], -1))
+                for j in np.flatnonzero(info["hit"] == 0.0)]
+
+    kept = clear(planner(fld))
+    assert kept and min(kept) >= MpepcParams().contact_m  # (some turns get out, clear of it)
+    res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, ctg, None, LAW))
+    assert res.plan is not None
+    assert res.blocked_by != "" or least(res.plan.path) >= MpepcParams().contact_m
+
+    # positive control: the footprint's least reading alone takes turns into the post
+    def naive(self: NavField, c: nav_field.Contact, x: np.ndarray, y: np.ndarray,
+              yaw: np.ndarray, margin: float, far: np.ndarray | None = None) -> np.ndarray:
+        d = self.signed_xy(*nav_field.place_xy(c.outline, x, y, yaw)).min(-1)
+        return np.asarray(d >= min(margin, float(c.now.min()) - c.slack))
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(NavField, "keeps", naive)
+        assert min(clear(planner(fld))) < -0.04
+
+
+@pytest.mark.parametrize("front", [4.015, 4.025])
+def test_a_chair_over_a_thin_obstacle_is_not_driven_on_through_it(front: float) -> None:
+    """A one-cell post (a table leg) under the front edge, between two of its points: each
+    point's depth (to the nearest free square, behind or ahead) reads as shallow or
+    shallower whichever way the edge moves, so driving on over the post looked like getting
+    out. No cell the body overlaps may reach deeper into it than the deepest did."""
+    occ = np.zeros((100, 180), dtype=np.bool_)
+    occ[:, :2] = occ[:, -2:] = occ[:2, :] = occ[-2:, :] = True
+    occ[40, 90] = True  # x 4.0–4.05, y 1.5–1.55
+    fld = NavField(GridMap(occ, 0.05, -0.5, -0.5), FP)
+    goal = (7.0, 1.5, 0.0)
+    ctg = fld.cost_to_go(*goal[:2])
+    assert ctg is not None
+    pose = (front - FP.front_m, 1.525, 0.0)
+    res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, ctg, None, LAW))
+    assert res.blocked_by.startswith("blocked by an obstacle"), res.blocked_by
+    # positive control: judged by the outline alone, it is driven on over the post
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(NavField, "body_depth", lambda self, cells, x, y, yaw: np.full(
+            (*np.shape(x), len(cells)), -1.0))
+        through = compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, ctg, None, LAW))
+    assert through.blocked_by == "" and through.plan is not None
+    assert float(through.plan.path[-1, 0]) > pose[0] + 0.5
 
 
 def test_a_chair_blocked_a_few_degrees_off_a_doors_axis_turns_in_place_first() -> None:

@@ -42,7 +42,7 @@ from autochair.control.law import Gains
 from autochair.control.limits import AxisState, ComfortLimiter, SCurveAxis
 from autochair.geometry import along_lateral
 
-from .field import BATCH_POINTS, CostToGo, NavField, place_xy
+from .field import BATCH_POINTS, COARSE_SPACING_M, Contact, CostToGo, NavField, place_xy
 from .lattice import HeadingField
 
 F64 = npt.NDArray[np.float64]
@@ -313,12 +313,16 @@ class Plan:
     # keeps `brake_clear_m` over what it commits the chair to and the stop after it
     # (`stop_clearance`, its timing band included); True where the goal is out of reach.
     goal_stop_clear: bool = True
+    # The chair stood under its margin and this motion gets it out by MPEPC's escape rule
+    # (Mpepc.escapes): its least clearance is under contact_m, yet it is not a contact.
+    escape: bool = False
 
 
 # The core drops the goal on its own final approach where Plan.goal_clearance_m is under this
 # (control/core.py): the lowest margin the prediction's clearance is compared with.
 GOAL_DROP_M = 0.02
-# A predicted clearance under this is always a hit, even for a chair already closer (H57).
+# A chair within a margin already may read this much closer (deeper) than it stands at any
+# point of its outline (Mpepc.escapes: the map's noise, not a motion; H57).
 TOUCH_M = 0.005
 # How fast a footprint reading can fall as the outline moves (per m): the bilinear reading of
 # a distance field, each partial derivative within ±1 (NavField.clearance_at).
@@ -851,31 +855,33 @@ class Mpepc:
         xs, ys, yaws, vs, ws, brake, origin = self.simulate(pose, v0, w0, z, a0, q0, goal, last,
                                                             chain)
         t = np.asarray((np.arange(self.steps) + 1) * dt, dtype=np.float64)
-        # Already closer than `contact_m` (a noisy live map, a chair nudged to a wall): only
-        # getting closer still counts as a hit, so the chair can move away instead of freezing.
-        # (each read as what it is compared with: the prediction coarse, the committed fine)
-        # Not below TOUCH_M: the clearance reads 0 at and inside an obstacle, so "closer" than
-        # 0 was nothing, and a chair the map shows touching one could turn or drive into it.
-        hit_under = max(min(p.contact_m, self.pose_clearance(
-            pose, fine=False, below=self.predict_below) - TOUCH_M), TOUCH_M)
-        # (poses read under both it and the 0.02 m the core drops its own approach at,
-        # Plan.goal_clearance_m, decide alike whatever the exact reading: left bilinear)
-        d_static, to_people = self.outline_distances(xs, ys, yaws, people, t,
-                                                     min(hit_under, GOAL_DROP_M))  # (N, T)
-        pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
-        hit = d_static < hit_under
         d0 = self.pose_clearance(pose)
+        # A chair already within a margin (a noisy live map, a chair nudged to a wall, a cell
+        # drawn under its front) would be blocked by every motion: what is a hit for it is
+        # told by the escape rule instead (`escapes`, `stop_keeps`: getting out, on the
+        # signed clearance, nothing deeper in nor nearer).
+        touch = fld.contact(*pose, TOUCH_M) if d0 < self.escape_below else None
+        # (poses read under both contact_m and the 0.02 m the core drops its own approach at,
+        # Plan.goal_clearance_m, decide alike whatever the exact reading: left bilinear)
+        d_static, to_people = self.outline_distances(
+            xs, ys, yaws, people, t, min(p.contact_m, GOAL_DROP_M))  # (N, T)
+        pc = np.exp(-(d_static / p.sigma_static_m) ** 2)
+        hit = d_static < p.contact_m if touch is None else ~self.escapes(touch, xs, ys, yaws,
+                                                                         d_static)
         # A motion is only as safe as the stop after it: the next plan can brake the chair
         # after `commit_s` at the earliest, so that stop must end clear too (else the chair
         # is committed to a contact by the time it sees one, as it was in the cluttered room).
         # Both that motion and its stop as the core's limiter really drives them (committed).
-        need = max(min(p.brake_clear_m, d0 - TOUCH_M), TOUCH_M)
         # (read between its poses only where that can decide: not for a motion that is a hit
         # already, except row 0, the goal's own, which the core may be driving)
         between: npt.NDArray[np.bool_] = np.logical_not(hit.any(1))
         between[0] = True
-        stop_hit = self.stop_clearance(pose, v0, w0, brake, need, between,
-                                       d0 if origin is None else None, origin) < need
+        if touch is None:
+            need = p.brake_clear_m
+            stop_hit = self.stop_clearance(pose, v0, w0, brake, need, between,
+                                           d0 if origin is None else None, origin) < need
+        else:
+            stop_hit = ~self.stop_keeps(pose, v0, w0, brake, touch, between, origin)
         hit[:, -1] |= stop_hit
         d_all = d_static
         for person, (to_path, to_here) in zip(people, to_people, strict=True):
@@ -919,6 +925,8 @@ class Mpepc:
                       "in_lattice": in_lattice.astype(np.float64),
                       "hit": hit.any(1).astype(np.float64),
                       "stop_hit": stop_hit.astype(np.float64),
+                      "escape": (np.full(len(z), touch is not None) & ~hit.any(1)).astype(
+                          np.float64),
                       "x": xs, "y": ys, "yaw": yaws}
 
     def stop_clearance(self, pose: tuple[float, float, float], v0: float, w0: float,
@@ -975,6 +983,61 @@ class Mpepc:
                                                        rest).min(1))
         return np.asarray(least, dtype=np.float64)
 
+    def escapes(self, near: Contact, xs: F64, ys: F64, yaws: F64, d: F64
+                ) -> npt.NDArray[np.bool_]:
+        """(N, T): which predicted poses of a chair that stood under its margin at `near`
+        are clear. Every pose keeps what it had (NavField.keeps, `contact_m`: no point of the
+        outline closer, or deeper in, than it was but by TOUCH_M, nor under `contact_m` if
+        it was not; nothing it overlaps deeper into the body), and the last gets out: its
+        least reading TOUCH_M more than now (or `contact_m`). Standing still, or sliding
+        along at the same depth, stays a hit (the chair is blocked, as before). H57: the
+        unsigned clearance, 0 at and in an obstacle, could not tell moving out of one from
+        moving in (a chair the map shows touching could not move at all); the footprint's
+        least reading could not tell one obstacle from another (a turn keeping the deepest
+        point's depth swept another part of the body into the next one). `d`: the poses'
+        coarse readings (`outline_distances`); where one is half a cell (the most the
+        bilinear reading is over the exact one) over √(contact_m² + (s/2)²), no point of the
+        fine outline reads under contact_m (`NavField._refined`): not read again."""
+        far = d >= math.hypot(self.p.contact_m, COARSE_SPACING_M / 2) \
+            + self.field.map.resolution_m / 2
+        ok = self.field.keeps(near, xs, ys, yaws, self.p.contact_m, far)
+        out = min(self.p.contact_m, float(near.now.min()) + TOUCH_M)
+        end = self.field.signed_xy(*place_xy(near.outline, xs[:, -1], ys[:, -1], yaws[:, -1]))
+        ok[:, -1] &= end.min(-1) >= out
+        return ok
+
+    def stop_keeps(self, pose: tuple[float, float, float], v0: float, w0: float, sweep: F64,
+                   near: Contact, rows: npt.NDArray[np.bool_],
+                   origin: tuple[float, float, float] | None = None) -> npt.NDArray[np.bool_]:
+        """(N,): whether the committed sweeps (3, N, B) of a chair that stood under its
+        margin at `near` (`escapes`) keep what it had against `brake_clear_m`, read from
+        the sweep's start (`origin`, else `pose`) at most 2·TOUCH_M of the outline's travel
+        apart (a point's reading between two is then at most TOUCH_M under theirs), each
+        also moved by ±stop_timing_s·v0 along the heading (stop_clearance's band). Only
+        `rows` are read (the others: False)."""
+        o = pose if origin is None else origin
+        r = np.nonzero(rows)[0]
+        q = np.concatenate([np.broadcast_to(np.array(o)[:, None, None], (3, r.size, 1)),
+                            sweep[:, r]], 2)
+        a, b = q[:, :, :-1].reshape(3, -1), q[:, :, 1:].reshape(3, -1)
+        m = np.maximum(np.ceil(self._travel(a, b) / (2 * TOUCH_M)), 1).astype(np.intp)
+        k = np.repeat(np.arange(m.size), m)  # (each pair's poses: from a on, b the next's)
+        f = (np.arange(k.size) - np.repeat(np.cumsum(m) - m, m)) / m[k]
+        x = a[0, k] + (b[0, k] - a[0, k]) * f
+        y = a[1, k] + (b[1, k] - a[1, k]) * f
+        yaw = a[2, k] + wrap(b[2, k] - a[2, k]) * f
+        x, y, yaw = (np.concatenate([v, e]) for v, e in zip((x, y, yaw), q[:, :, -1], strict=True))
+        row = np.concatenate([k // sweep.shape[2], np.arange(r.size)])
+        ok = self.field.keeps(near, x, y, yaw, self.p.brake_clear_m)
+        e = self.p.stop_timing_s
+        if e > 0.0 and (abs(v0) >= 1e-3 or abs(w0) >= 1e-3):
+            for ds in (e * v0, -e * v0):
+                ok &= self.field.keeps(near, x + ds * math.cos(pose[2]),
+                                       y + ds * math.sin(pose[2]), yaw, self.p.brake_clear_m)
+        out = np.zeros(len(rows), dtype=np.bool_)
+        out[r] = np.bincount(row, (~ok).astype(np.float64), r.size) == 0
+        return out
+
     def _travel(self, a: F64, b: F64) -> F64:
         """How far any point of the outline moves from poses a to poses b (x, y, yaw, ...)."""
         return np.asarray(np.hypot(b[0] - a[0], b[1] - a[1]) + np.abs(wrap(b[2] - a[2]))
@@ -1008,6 +1071,12 @@ class Mpepc:
                 self._at_pose.clear()
             got = self._at_pose[key] = float(self.field.footprint_clearance(*pose, **kw))
         return got
+
+    @property
+    def escape_below(self) -> float:
+        """A chair whose footprint reads under this stands within a margin: what is a hit for
+        it is told by the escape rule (`escapes`)."""
+        return max(self.p.contact_m, self.p.brake_clear_m) + TOUCH_M
 
     @property
     def predict_below(self) -> float:
@@ -1528,7 +1597,8 @@ class Mpepc:
         return Plan((float(z[0]), float(z[1]), float(z[2]), float(z[3])), tgt, float(z[3]),
                     cost, float(row["phi0"] - row["phi_end"]), float(row["survival"]),
                     float(row["clearance"]), np.stack([row["x"], row["y"], row["yaw"]], -1),
-                    is_goal, goal_clearance_m, stop_cost, evaluations, **kw)
+                    is_goal, goal_clearance_m, stop_cost, evaluations,
+                    escape=bool(row["escape"]), **kw)
 
     def turn_first(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                    ctg: CostToGo, people: list[Person], final: bool,
@@ -1691,6 +1761,11 @@ class Mpepc:
             rows += [[0.0, turn, 0.0, vmax], [0.0, turn, 0.0, self.p.v_min_mps]]
         if previous is not None:
             rows.append(list(previous))
+        if self.pose_clearance(pose) < self.escape_below:
+            # (the escape rule's: the way out is often a small turn in place alone, which the
+            # quasi-random set rarely lands on: 1 in 80 of its targets turns in place)
+            rows += [[0.0, a, 0.0, self.p.v_min_mps] for a in (
+                0.05, -0.05, 0.1, -0.1, 0.2, -0.2, 0.4, -0.4, 0.8, -0.8)]
         # Points down the navigation function, heading along it: in clutter and doorways the
         # quasi-random set rarely lands on the narrow band of targets that threads a gap.
         for x, y, heading in self.descent_path(pose, ctg, goal):

@@ -284,9 +284,10 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
             return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
 
     def stuck(plan: Plan) -> bool:
-        if plan.min_clearance_m < mp.contact_m:
+        if plan.min_clearance_m < mp.contact_m and not plan.escape:
             # Every motion is predicted to touch something: stand still (blocked) rather than
-            # take the least bad contact.
+            # take the least bad contact. (An escape, from where the chair stands under its
+            # margin, reads under it as it gets out.)
             return True
         # No progress, and nothing (a turn towards the path included) beats standing still; or
         # braking to rest is the best motion (the core brakes while blocked, as predicted).
