@@ -745,6 +745,14 @@ class NavField:
         return float(self.footprint_clearance(x + ds * math.cos(yaw), y + ds * math.sin(yaw),
                                               np.full(ds.size, yaw)).min())
 
+    def turn_clearance(self, pose: tuple[float, float, float], angle_rad: float) -> float:
+        """Least clearance of the footprint turned in place from `pose` through `angle_rad`
+        (Footprint.turn_samples: the far corners at most 5 cm apart)."""
+        x, y, yaw = pose
+        n = self.footprint.turn_samples(angle_rad)
+        return float(self.footprint_clearance(np.full(n, x), np.full(n, y),
+                                              yaw + np.linspace(0.0, angle_rad, n)).min())
+
     def cell(self, x: float, y: float) -> tuple[int, int] | None:
         gm = self.map
         ix = math.floor((x - gm.origin_x_m) / gm.resolution_m)

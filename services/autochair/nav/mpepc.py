@@ -1378,10 +1378,7 @@ class Mpepc:
             yaw = heading
         if e == 0.0:
             return True
-        n = self.field.footprint.turn_samples(e)
-        return float(self.field.footprint_clearance(
-            np.full(n, pose[0]), np.full(n, pose[1]), pose[2] + np.linspace(0.0, e, n)).min()) \
-            >= self.p.contact_m
+        return self.field.turn_clearance(pose, e) >= self.p.contact_m
 
     def stage_way(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                   hf: HeadingField, pairs: tuple[F64, F64, F64, F64, F64, F64, F64]
@@ -1493,11 +1490,7 @@ class Mpepc:
         e = float(wrap(np.array(best - yaw)))
         spare = math.radians(spare_deg)
         for turn in (e, e - math.copysign(2 * math.pi, e)):  # the short way round first
-            end = turn + math.copysign(spare, turn)
-            n = fld.footprint.turn_samples(end)
-            if float(fld.footprint_clearance(np.full(n, x), np.full(n, y),
-                                             yaw + np.linspace(0.0, end, n)).min()) \
-                    < p.contact_m:
+            if fld.turn_clearance(pose, turn + math.copysign(spare, turn)) < p.contact_m:
                 continue
             step = math.copysign(min(abs(turn), math.radians(p.stage_turn_deg)), turn)
             # (`then`, the chair's own point: the turn is carried on through the planning
@@ -1528,9 +1521,7 @@ class Mpepc:
             # (onto ψ and 2° past: the spare Mpepc.stage checked the turn with)
             e = float(wrap(np.array(turn_to - yaw)))
             spare = math.copysign(math.radians(2.0), e)
-            n = self.field.footprint.turn_samples(e + spare)
-            if float(self.field.footprint_clearance(np.full(n, x), np.full(n, y), yaw
-                     + np.linspace(0.0, e + spare, n)).min()) < self.p.contact_m:
+            if self.field.turn_clearance(pose, e + spare) < self.p.contact_m:
                 return None
             psi, dist = yaw + e, math.hypot(straight_to[0] - x, straight_to[1] - y)
         elif straight_to is not None:
