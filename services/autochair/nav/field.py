@@ -19,6 +19,7 @@ predicted pose and by `check_goal` on the goal pose.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -308,6 +309,33 @@ def _sample_one(grid: F64, gm: GridMap, x: float, y: float, outside: float) -> f
     v = (float(flat[i]) * bx * by + float(flat[i + 1]) * ax * by
          + float(flat[i + w]) * bx * ay + float(flat[i + w + 1]) * ax * ay)
     return v if inside else outside
+
+
+def passages(clr: F64, narrow_m: float) -> Iterator[tuple[int, int]]:
+    """The narrow passages (doors) along a way whose clearances are `clr` (N,): each one's
+    end (the first index past it with `narrow_m` again; N: the way ends in it) and its
+    narrowest point's index."""
+    i, n = 0, len(clr)
+    while i < n:
+        if clr[i] >= narrow_m:
+            i += 1
+            continue
+        j = i
+        while j < n and clr[j] < narrow_m:
+            j += 1
+        yield j, i + int(np.argmin(clr[i:j]))
+        i = j
+
+
+def heading_through(path: F64, k: int) -> float:
+    """The way's heading (rad) through its point k (N, 2): over 6 points each side."""
+    a, b = path[max(k - 6, 0)], path[min(k + 6, len(path) - 1)]
+    return math.atan2(b[1] - a[1], b[0] - a[0])
+
+
+def walked_to(path: F64, k: int) -> float:
+    """The way's length (m) from its start to its point k."""
+    return float(np.hypot(*np.diff(path[:k + 1], axis=0).T).sum()) if k else 0.0
 
 
 @dataclass(frozen=True)
@@ -852,26 +880,14 @@ class NavField:
         (forward only, it can neither turn in place under the door nor curve in), so it lines
         up first, as a wheelchair user does."""
         path = self.descent_path(ctg, x, y)
-        clr = self.clearance_at(path)
         out: list[tuple[float, float, float]] = []
-        i, n = 0, len(path)
-        while i < n:
-            if clr[i] >= narrow_m:
-                i += 1
-                continue
-            j = i
-            while j < n and clr[j] < narrow_m:
-                j += 1
-            k = i + int(np.argmin(clr[i:j]))  # the narrowest point of this passage
-            a, b = path[max(k - 6, 0)], path[min(k + 6, n - 1)]
-            yaw = math.atan2(b[1] - a[1], b[0] - a[0])
+        for _, k in passages(self.clearance_at(path), narrow_m):
+            yaw = heading_through(path, k)
             px, py = path[k, 0] - back_m * math.cos(yaw), path[k, 1] - back_m * math.sin(yaw)
-            walked = float(np.hypot(*np.diff(path[:k + 1], axis=0).T).sum()) if k else 0.0
-            if walked > back_m + 0.3 and self.check_goal(px, py, yaw) == "" \
+            if walked_to(path, k) > back_m + 0.3 and self.check_goal(px, py, yaw) == "" \
                     and math.hypot(ctg.goal_xy[0] - path[k, 0],
                                    ctg.goal_xy[1] - path[k, 1]) > 0.3:
                 out.append((px, py, yaw))
-            i = j
         return out
 
     def passage_ahead(self, ctg: CostToGo, x: float, y: float, within_m: float,
@@ -881,18 +897,10 @@ class NavField:
         along it: the way's points (N, 2) up to the passage's end, the narrowest point's index
         and the end's (the first point past it with `narrow_m` again); None: none that near."""
         path = self.descent_path(ctg, x, y, max_m=within_m + 2.0)
-        clr = self.clearance_at(path)
-        narrow = np.flatnonzero(clr < narrow_m)
-        if narrow.size == 0:
+        j, k = next(passages(self.clearance_at(path), narrow_m), (len(path), 0))
+        if j == len(path):  # (none, or the way ends in it or runs on beyond what was searched)
             return None
-        i = int(narrow[0])
-        wide = np.flatnonzero(clr[i:] >= narrow_m)
-        if wide.size == 0:  # (the way ends in it, or runs on beyond what was searched)
-            return None
-        j = i + int(wide[0])
-        k = i + int(np.argmin(clr[i:j]))
-        walked = float(np.hypot(*np.diff(path[:k + 1], axis=0).T).sum()) if k else 0.0
-        return (path[:j + 1], k, j) if walked <= within_m else None
+        return (path[:j + 1], k, j) if walked_to(path, k) <= within_m else None
 
     def start_cost(self, ctg: CostToGo, x: float, y: float, search_m: float = 0.3) -> float:
         """Cost-to-go from the chair at (x, y): φ there if the axle stands on a reachable

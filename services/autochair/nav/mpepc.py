@@ -42,7 +42,15 @@ from autochair.control.law import Gains
 from autochair.control.limits import AxisState, ComfortLimiter, SCurveAxis
 from autochair.geometry import along_lateral
 
-from .field import BATCH_POINTS, COARSE_SPACING_M, Contact, CostToGo, NavField, place_xy
+from .field import (
+    BATCH_POINTS,
+    COARSE_SPACING_M,
+    Contact,
+    CostToGo,
+    NavField,
+    heading_through,
+    place_xy,
+)
 from .lattice import HeadingField
 
 F64 = npt.NDArray[np.float64]
@@ -1465,8 +1473,7 @@ class Mpepc:
         path, k, j = found
         if math.hypot(goal[0] - path[j, 0], goal[1] - path[j, 1]) < 1.0:
             return None  # (the goal just past the door: its own approach, the lattice's)
-        k0, k1 = path[max(k - 6, 0)], path[min(k + 6, j)]
-        way = math.atan2(k1[1] - k0[1], k1[0] - k0[0])
+        way = heading_through(path, k)  # (path ends at j)
         if not turned and abs(float(wrap(np.array(way - yaw)))) <= p.door_away_rad:
             return None
         psi = np.concatenate([[yaw], way + np.radians(np.arange(-30.0, 30.0 + 1e-9,
