@@ -31,6 +31,7 @@ import skfmm
 from . import gil
 
 F64 = npt.NDArray[np.float64]
+IntOrArray = int | npt.NDArray[np.intp]
 Bool = npt.NDArray[np.bool_]
 
 OCCUPIED_PCT = 65  # an OccupancyGrid cell ≥ this (percent, not 255 = unknown) is an obstacle
@@ -205,11 +206,14 @@ class GridMap:
         return GridMap(occ, self.resolution_m * factor, self.origin_x_m, self.origin_y_m,
                        self.frame_id, unknown)
 
+    def centre(self, ix: IntOrArray, iy: IntOrArray) -> tuple[F64, F64]:
+        """World centres (x, y) of the cells at column(s) ix, row(s) iy."""
+        return (np.asarray(self.origin_x_m + (ix + 0.5) * self.resolution_m, dtype=np.float64),
+                np.asarray(self.origin_y_m + (iy + 0.5) * self.resolution_m, dtype=np.float64))
+
     def centres(self) -> tuple[F64, F64]:
         h, w = self.occupied.shape
-        xs = self.origin_x_m + (np.arange(w) + 0.5) * self.resolution_m
-        ys = self.origin_y_m + (np.arange(h) + 0.5) * self.resolution_m
-        return np.meshgrid(xs, ys)
+        return np.meshgrid(*self.centre(np.arange(w), np.arange(h)))
 
     def mark(self, pts: F64) -> None:
         """Set the cells holding world points (N, 2) occupied (outside ones are ignored)."""
@@ -454,9 +458,7 @@ class NavField:
         now = self.signed_xy(*place_xy(pts, x, y, yaw))
         iy, ix = self.cells_under(x, y, yaw, grow=self.map.resolution_m)
         occ = self.map.occupied[iy, ix]
-        gm = self.map
-        cells = np.stack([gm.origin_x_m + (ix[occ] + 0.5) * gm.resolution_m,
-                          gm.origin_y_m + (iy[occ] + 0.5) * gm.resolution_m], -1)
+        cells = np.stack(self.map.centre(ix[occ], iy[occ]), -1)
         depth = self.body_depth(cells, np.array(x), np.array(y), np.array(yaw))
         return Contact(pts, now, cells[depth > 0.0], float(depth.max(initial=0.0)), slack)
 
@@ -638,10 +640,8 @@ class NavField:
         c = self.cell(x, y)
         if c is None or not self.map.occupied.any():
             return None
-        iy, ix = int(self._nearest[0][c]), int(self._nearest[1][c])
-        gm = self.map
-        return (gm.origin_x_m + (ix + 0.5) * gm.resolution_m,
-                gm.origin_y_m + (iy + 0.5) * gm.resolution_m)
+        cx, cy = self.map.centre(int(self._nearest[1][c]), int(self._nearest[0][c]))
+        return float(cx), float(cy)
 
     def footprint_clearance(self, x: F64 | float, y: F64 | float, yaw: F64 | float,
                             fine: bool = True, need: float | None = None,
@@ -852,8 +852,8 @@ class NavField:
         h, w = gm.occupied.shape
         c1 = self.cell(x + reach, y + reach) or (h - 1, w - 1)
         iy, ix = np.mgrid[c0[0]:c1[0] + 1, c0[1]:c1[1] + 1]
-        px = gm.origin_x_m + (ix + 0.5) * gm.resolution_m - x
-        py = gm.origin_y_m + (iy + 0.5) * gm.resolution_m - y
+        cx, cy = gm.centre(ix, iy)
+        px, py = cx - x, cy - y
         c, s = math.cos(yaw), math.sin(yaw)
         inside = fp.contains(np.stack([c * px + s * py, -s * px + c * py], -1))
         return iy[inside], ix[inside]
@@ -918,7 +918,6 @@ class NavField:
         if not win.any():
             return math.inf
         iy, ix = np.nonzero(win)
-        cx = gm.origin_x_m + (ix + ix0 + 0.5) * gm.resolution_m
-        cy = gm.origin_y_m + (iy + iy0 + 0.5) * gm.resolution_m
+        cx, cy = gm.centre(ix + ix0, iy + iy0)
         phi = ctg.phi[iy + iy0, ix + ix0] + np.hypot(cx - x, cy - y)
         return float(phi.min())
