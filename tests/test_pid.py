@@ -648,3 +648,18 @@ def test_a_sample_with_an_absurd_dt_leaves_the_reference_finite(bad_dt: float) -
     assert not outs[2].active
     assert all(math.isfinite(v) for o in outs for v in (o.longitudinal_v, o.angular_v))
     assert outs[4].active and outs[4].longitudinal_v > 2.6
+
+
+def test_a_commands_age_is_taken_at_its_first_use() -> None:
+    """PidStatus.command_age_s: how old a command was when a loop step first followed it (the
+    control service moves its prediction on by it); a second step on the same command does
+    not age it again."""
+    core = core_()
+    assert drive(core, 0.5, 0.0, 0.1) is Verdict.OK
+    core.update(0.0, 0.0, 0.01, 0.112, ns(0.112))
+    assert core.command_age_s == pytest.approx(0.012, abs=1e-6)
+    core.update(0.0, 0.0, 0.01, 0.122, ns(0.122))
+    assert core.command_age_s == pytest.approx(0.012, abs=1e-6)  # (the same command)
+    assert drive(core, 0.5, 0.0, 0.12) is Verdict.OK
+    core.update(0.0, 0.0, 0.01, 0.125, ns(0.125))
+    assert core.command_age_s == pytest.approx(0.005, abs=1e-6)

@@ -95,6 +95,9 @@ class PidStatus(msgspec.Struct, kw_only=True, frozen=True):
     # Why the PID obeys no command now ("" while it does): e.g. "e-stop latched", "stopped
     # (owner change): waiting for a command begun after the stop".
     inhibit: str = ""
+    # How old the newest command was when the loops first followed it (its stamp to that
+    # step, s): the way from its sender plus the wait for an encoder sample.
+    command_age_s: float = 0.0
 
 
 class GroundTruth(msgspec.Struct, kw_only=True, frozen=True):

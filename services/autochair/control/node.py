@@ -103,6 +103,7 @@ class ControlNode:
         self.odom_in: OdomSample | None = None
         self._taken: OdomSample | None = None
         self.pid_status = node.latest(keys.PID_STATUS)
+        self._pid_seen_ns = 0  # the newest PID status taken in (tick)
 
     @contextmanager
     def held(self) -> Iterator[None]:
@@ -171,7 +172,11 @@ class ControlNode:
     # --- loops ------------------------------------------------------------------------------
     def tick(self) -> None:
         core = self.core
+        pid = self.pid_status()
         with self.held():
+            if pid is not None and pid.active and pid.stamp_ns != self._pid_seen_ns:
+                self._pid_seen_ns = pid.stamp_ns
+                core.on_command_age(pid.command_age_s)
             # The plan steps by the loop's schedule, not by when its thread woke: that jitter
             # (8-35 ms apart, measured) taken for time made the plan's acceleration chatter
             # (±0.2 m/s², its jerk ±1.8 m/s³ tick to tick); the commands are a 50 Hz stream.

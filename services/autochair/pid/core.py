@@ -316,6 +316,11 @@ class VelocityPidCore:
     _last_update_t: float | None = None
     _link: tuple[int, int] | None = None
     _stream_ns: int = 0  # the start of the newest stream obeyed
+    # How old the newest command was when a loop step first followed it (its sender's stamp to
+    # that step, s): its way here and the wait for a sample, a delay the sender's model of the
+    # chain does not hold (ControlCore.on_command_age).
+    command_age_s: float = 0.0
+    _aged_ns: int = 0  # the stamp of the command command_age_s is of
 
     def __post_init__(self) -> None:
         lo = (self.min_v - NEUTRAL_V) / VOLTS_PER_EFFORT
@@ -478,6 +483,9 @@ class VelocityPidCore:
             self.stop("non-finite measurement", now_ns)
             v_meas = omega_meas = 0.0
         desired = self.desired(ahead, now_ns)
+        if desired is not None and self._desired_ns != self._aged_ns:
+            self._aged_ns = self._desired_ns
+            self.command_age_s = max((now_ns - self._desired_ns) / 1e9, 0.0)
         at_rest = desired is not None and desired == (0.0, 0.0) and \
             abs(v_meas) < self.stop_eps and abs(omega_meas) < self.stop_eps
         # (a first sample has dt 0; a non-finite or absurd dt is skipped the same way)

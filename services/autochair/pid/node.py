@@ -111,7 +111,7 @@ class PidWiring:
                                    (odom.mcu_restarts, odom.link_epoch))
             inhibit = self.core.inhibit(now)
             ended = was and not self.core.obeying
-            owner = self.core.owner
+            owner, command_age = self.core.owner, self.core.command_age_s
         self.stopped(ended)
         stamp = time.time_ns()
         self.joy_pub.put(JoystickCommand(stamp_ns=stamp, longitudinal_v=out.longitudinal_v,
@@ -121,7 +121,8 @@ class PidWiring:
             stamp_ns=stamp, v_desired_mps=out.desired[0], v_measured_mps=odom.v_mps,
             v_effort=out.v_effort, omega_desired_radps=out.desired[1],
             omega_measured_radps=odom.omega_radps, omega_effort=out.omega_effort,
-            active=out.active, saturated=out.saturated, inhibit=inhibit))
+            active=out.active, saturated=out.saturated, inhibit=inhibit,
+            command_age_s=round(command_age, 4)))
         self.node.health.count("updates")
         self.node.health.detail = f"owner {owner}: " + (
             f"tuning probe ({out.probe})" if out.probe else inhibit or "driving")
