@@ -357,36 +357,42 @@ def test_people_are_moved_on_as_far_as_the_chair_lags_the_plan(lead: bool) -> No
     assert req.people[0].x_m - 3.0 == pytest.approx(lag, abs=0.025)
 
 
-def stop_after_a_late_tick(gap_ticks: int, once: bool = False) -> tuple[float, str]:
-    """A 6 m straight goal in lockstep whose control loop misses `gap_ticks` of its ticks once,
-    where its stop begins (5.3 s), as the node's loop does under load: the PID holds the last
-    command meanwhile, and the late tick is stepped by the whole gap (Node.due). `once`: that
-    tick advances the plan in one step of the gap (as before). Where the chair comes to rest
-    past the goal (m), and the goal's state."""
+def straight_stop(goal_m: float, gap_ticks: int = 0, once: bool = False,
+                  delay_ticks: int = 0, known: bool = False) -> tuple[float, str]:
+    """A straight goal `goal_m` ahead in lockstep, as the node runs it under load. Its control
+    loop misses `gap_ticks` of its ticks once, where a 6 m goal's stop begins (5.3 s): the PID
+    holds the last command meanwhile, and the late tick is stepped by the whole gap (Node.due;
+    `once`: the plan advanced in one step of the gap, as before). Each command reaches the PID
+    `delay_ticks` ticks of the chain late (its way through Zenoh and the wait for a sample);
+    `known`: the core hears that age as the PID measures it (PidStatus.command_age_s). Where
+    the chair comes to rest past the goal (m), and the goal's state."""
     rig = Rig(make_pid("tuned"), start=(0.0, 0.0, 0.0))
     cfg = ControlConfig()
     core = ControlCore(cfg)
     every = round(1.0 / (cfg.rate_hz * LOCKSTEP_DT))
     stall = range(530, 530 + gap_ticks * every)
     last: float | None = None
+    sent: list[tuple[int, tuple[float, float] | None]] = []
     for k in range(round(10.0 / LOCKSTEP_DT)):
         t = k * LOCKSTEP_DT
         st = rig.sense()
         core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
         if k == 0:
-            assert core.set_goal(GoalRequest(waypoints=[Pose2D(6.0, 0.0, 0.0)]), t).ok
-        out = None
+            assert core.set_goal(GoalRequest(waypoints=[Pose2D(goal_m, 0.0, 0.0)]), t).ok
         if k % every == 0 and k not in stall:
+            if known:
+                core.on_command_age(delay_ticks * LOCKSTEP_DT)
             dt = None if last is None else t - last
             if once and dt is not None and dt > 1.5 / cfg.rate_hz:
                 core._last_t = t
-                out = core._tick(t, dt)
+                sent.append((k + delay_ticks, core._tick(t, dt)))
             else:
-                out = core.step(t, dt)
+                sent.append((k + delay_ticks, core.step(t, dt)))
             last = t
+        out = sent.pop(0)[1] if sent and sent[0][0] == k else None
         rig.act(t, st.v, st.omega, out)
     assert abs(rig.chair.v) < 1e-4
-    return rig.chair.x - 6.0, core.state
+    return rig.chair.x - goal_m, core.state
 
 
 def test_a_late_control_tick_does_not_carry_the_stop_past_the_goal() -> None:
@@ -396,36 +402,10 @@ def test_a_late_control_tick_does_not_carry_the_stop_past_the_goal() -> None:
     the gap it came to rest 12 cm past (positive control; before, with the step clamped to
     0.1 s, 15 cm), which a forward-only chair cannot take back: "no progress" (issue 14's
     residual through the processes: 9.4 cm past after a late plan under load)."""
-    past, state = stop_after_a_late_tick(10)
+    past, state = straight_stop(6.0, 10)
     assert state == "arrived" and abs(past) < 0.015, (past, state)
-    past, state = stop_after_a_late_tick(10, once=True)
+    past, state = straight_stop(6.0, 10, once=True)
     assert past > 0.08, past
-
-
-def stop_with_late_commands(delay_ticks: int, known: bool) -> tuple[float, str]:
-    """A 3 m straight goal in lockstep whose commands each reach the PID `delay_ticks` ticks
-    of the chain late (their way through Zenoh and the wait for a sample, live). `known`: the
-    core hears their age as the PID measures it (PidStatus.command_age_s). Where the chair
-    comes to rest past the goal (m), and the goal's state."""
-    rig = Rig(make_pid("tuned"), start=(0.0, 0.0, 0.0))
-    cfg = ControlConfig()
-    core = ControlCore(cfg)
-    every = round(1.0 / (cfg.rate_hz * LOCKSTEP_DT))
-    sent: list[tuple[int, tuple[float, float] | None]] = []
-    for k in range(round(10.0 / LOCKSTEP_DT)):
-        t = k * LOCKSTEP_DT
-        st = rig.sense()
-        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
-        if k == 0:
-            assert core.set_goal(GoalRequest(waypoints=[Pose2D(3.0, 0.0, 0.0)]), t).ok
-        if k % every == 0:
-            if known:
-                core.on_command_age(delay_ticks * LOCKSTEP_DT)
-            sent.append((k + delay_ticks, core.step(t)))
-        out = sent.pop(0)[1] if sent and sent[0][0] == k else None
-        rig.act(t, st.v, st.omega, out)
-    assert abs(rig.chair.v) < 1e-4
-    return rig.chair.x - 3.0, core.state
 
 
 def test_the_commands_way_to_the_pid_is_in_the_prediction() -> None:
@@ -434,9 +414,9 @@ def test_the_commands_way_to_the_pid_is_in_the_prediction() -> None:
     ended 1.6-7.8 cm past the goal and 3 of 10 aborted ("no progress": forward only). Told
     the commands' age, the core moves its prediction on by it: 60 ms late, the chair stops
     within 1.5 cm and arrives; unknown (positive control) it stops over 5 cm past."""
-    past, state = stop_with_late_commands(6, known=True)
+    past, state = straight_stop(3.0, delay_ticks=6, known=True)
     assert state == "arrived" and abs(past) < 0.015, (past, state)
-    past, state = stop_with_late_commands(6, known=False)
+    past, state = straight_stop(3.0, delay_ticks=6)
     assert past > 0.05, past
 
 
