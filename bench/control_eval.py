@@ -239,6 +239,8 @@ def run_case(start: tuple[float, float, float], goal: tuple[float, float, float]
         if k % ctrl_every == 0:
             if planning is not None:
                 planning.tick(t)
+            if cmd_delay_ticks:  # (as the node hears it from the PID: PidStatus.command_age_s)
+                core.on_command_age(cmd_delay_ticks * DT)
             out = core.step(t)
         if out is not None:  # the plan (what is sent leads it past the PID's prefilter)
             cmds.append((core.limiter.v.value, core.limiter.w.value))
