@@ -16,7 +16,7 @@ from autochair.control.core import ControlConfig, ControlCore, OdomSample
 from autochair.geometry import along_lateral
 from autochair.nav import lattice, planner
 from autochair.nav.field import Footprint, GridMap, NavField
-from autochair.nav.mpepc import Mpepc, MpepcParams
+from autochair.nav.mpepc import Mpepc, MpepcParams, Plan
 from autochair.nav.planner import PlanRequest, compute, free_field
 from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
 
@@ -792,6 +792,72 @@ def test_a_chair_blocked_before_a_door_it_cannot_turn_into_gets_the_lattices_sta
     assert fld.footprint_clearance(np.full(n, here[0]), np.full(n, here[1]),
                                    np.linspace(here[2], psi, n)).min() \
         >= MpepcParams().contact_m
+
+
+
+def test_a_turn_first_turn_is_carried_on_while_the_half_turned_chair_reads_blocked() -> None:
+    # Live, office A from the start (2 of 6 runs; lockstep on the laser map, from (4.44,
+    # 0.41, -55°) and (4.44, 0.41, 34°)): before the door, 0.41 m off the wall, blocked at
+    # rest at 20°, the chair got an in-place turn onto 88° (Mpepc.turn_first); looked at
+    # again half-way round, MPEPC's plan turned it back: the same turn again, and back, till
+    # "no progress". The turn now says where it is carried (`then`) and is carried on.
+    fld = office_a_as_the_laser_draws_it()
+    goal, here = (4.5, 3.0, math.pi / 2), (4.44, 0.41, math.radians(20.0))
+    res = compute(PlanRequest(1, 0, here, 0.0, 0.0, goal, fld, None, None, LAW))
+    p = res.plan
+    assert p is not None and not res.blocked_by and p.final_turn and p.straight_m == 0.0
+    assert p.then == here[:2] and p.turn_first
+    psi = p.target[2]
+    assert psi - here[2] > math.radians(45.0)
+    prev = (*p.target, p.vmax_mps)
+    mid = (here[0], here[1], here[2] + 0.3 * (psi - here[2]))
+
+    def half_way(then: tuple[float, float] | None) -> tuple[Plan, str]:
+        res = compute(PlanRequest(1, 0, mid, 0.0, 0.76, goal, fld, None, prev, LAW, then=then,
+                                  turn_first=then is not None))
+        assert res.plan is not None
+        return res.plan, res.blocked_by
+
+    q, blocked = half_way(p.then)
+    assert not blocked and q.final_turn and q.target[2] == pytest.approx(psi)
+    assert q.then == p.then and q.turn_first  # (next cycle too)
+    n = FP.turn_samples(psi - here[2], 0.01)
+    assert fld.footprint_clearance(np.full(n, here[0]), np.full(n, here[1]),
+                                   np.linspace(here[2], psi, n)).min() \
+        >= MpepcParams().contact_m
+    # positive control: looked at afresh from the half-turned chair (the old cycle), MPEPC's
+    # plan makes no progress (it turns back)
+    q, blocked = half_way(None)
+    assert q.progress_m < 0.1 and q.target[2] < mid[2]
+
+
+def test_a_turn_first_turn_gives_way_to_a_plan_that_moves_on_and_is_no_stage_turn() -> None:
+    # Carried always (and counted a stage's turn by through_door), turn_first's turns cost
+    # nav_eval's cluttered room 4 and 15 s, where MPEPC undid them half-way for quicker ways.
+    goal, mid, then = (3.0, 2.0, math.pi / 2), (0.0, 0.0, 0.3), (0.0, 0.0)
+
+    def half_way(turn_first: bool) -> Plan:
+        f = field([[-3, -3, 5, -3], [5, -3, 5, 4], [5, 4, -3, 4], [-3, 4, -3, -3]])
+        res = compute(PlanRequest(1, 0, mid, 0.0, 0.6, goal, f, None, (0.0, 0.0, math.pi / 2,
+                                  0.15), LAW, then=then, turn_first=turn_first))
+        assert res.plan is not None and not res.blocked_by
+        return res.plan
+
+    p = half_way(True)  # half-way round in the open: MPEPC's own plan, on towards the goal
+    assert not p.final_turn and p.progress_m > 0.1 and p.then is None
+    p = half_way(False)  # positive control: a stage's turn is carried on regardless
+    assert p.final_turn and p.target[2] == pytest.approx(math.pi / 2)
+
+    def at_rest(turn_first: bool) -> Plan:  # turned (in the room, facing its door)
+        f, pose = office_a_and_the_hallway(), (4.5, 3.0, -math.pi / 2)
+        res = compute(PlanRequest(1, 0, pose, 0.0, 0.0, (9.0, 0.0, 0.0), f, None,
+                                  (*pose, 0.15), LAW, final=False, then=pose[:2],
+                                  turn_first=turn_first))
+        assert res.plan is not None and not res.blocked_by
+        return res.plan
+
+    assert at_rest(True).straight_m == 0.0  # MPEPC's own plan
+    assert at_rest(False).straight_m > 1.5  # through_door's
 
 
 

@@ -902,7 +902,8 @@ class ControlCore:
                            self.index == len(self.waypoints) - 1,
                            self.plan is not None and self.plan.straight_m > 0.0,
                            None if self.plan is None else self.plan.then, given_up,
-                           self.final, self._chain_now(o, now), self.final and self.straight)
+                           self.final, self._chain_now(o, now), self.final and self.straight,
+                           self.plan is not None and self.plan.turn_first)
 
     def _chain_now(self, o: OdomSample, now: float) -> Chain | None:
         """The drive chain as it holds the plan's commands now, for MPEPC's committed sweeps

@@ -31,7 +31,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -313,6 +313,9 @@ class Plan:
     # (the planner continues the stage rather than look again from the turned chair, where
     # MPEPC's small turns towards the lattice's heading undid it: nav_eval seed 1).
     then: tuple[float, float] | None = None
+    # The turn is Mpepc.turn_first's (`then` the chair's own point): carried on only while the
+    # half-turned chair's own plan is blocked, and not a stage's turn (through_door's `turned`)
+    turn_first: bool = False
     # The goal was not handed over only because the core's turn onto its yaw would not keep
     # `contact_m` (Mpepc.goal_turn_clearance); planner.compute hands it over after all where
     # the chair is otherwise blocked (the check must not make a goal unreachable).
@@ -1639,8 +1642,12 @@ class Mpepc:
         if best is None:
             return None
         e = best[1]
-        return self._one_stage(pose, (0.0, e), (x, y, float(wrap(np.array(yaw + e)))), True,
-                               ctg, people, goal, hf, final=final)
+        # (`then`, the chair's own point: looked at again half-way round, every way on read
+        # blocked and the chair turned back, 25° to 86° and back before office A's door till
+        # "no progress"; planner.compute carries the turn on while that is so)
+        plan = self._one_stage(pose, (0.0, e), (x, y, float(wrap(np.array(yaw + e)))), True,
+                               ctg, people, goal, hf, final=final, then=(x, y))
+        return None if plan is None else replace(plan, turn_first=True)
 
     def along_lattice(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                       ctg: CostToGo, people: list[Person], final: bool, hf: HeadingField,

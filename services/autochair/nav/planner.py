@@ -8,7 +8,7 @@ without it, and the core applies the `PlanResult` if the goal is still the same.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from dataclasses import field as dc_field
 
 import numpy as np
@@ -43,6 +43,7 @@ class PlanRequest:
     # checked (Mpepc.chain_sweep); None: as the rollout drives them from `pose`
     chain: Chain | None = None
     straight_final: bool = False  # the core drives its straight final (ControlCore.straight)
+    turn_first: bool = False  # the turn under way (`then`) is Mpepc.turn_first's (Plan's)
 
 
 @dataclass(frozen=True)
@@ -275,13 +276,16 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
                             straight_to=req.previous[:2], v0=req.v)
         if on is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
+    carried: Plan | None = None
     if req.then is not None and req.previous is not None and abs(req.v) < 0.01:
         # A stage's turn under way: its rest; done (at rest): its straight; each rechecked.
         on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
                             straight_to=req.then,
                             turn_to=req.previous[2] if abs(req.omega) >= 0.01 else None)
-        if on is not None:
+        if on is not None and not req.turn_first:
             return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
+        # (turn_first's turn: carried on only where the chair's own plan is stuck, below)
+        carried = None if on is None else replace(on, turn_first=True)
 
     def stuck(plan: Plan) -> bool:
         if plan.min_clearance_m < mp.contact_m and not plan.escape:
@@ -311,11 +315,19 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         # At rest near a door on the way: onto a straight through it, and through (a goal
         # begun in a room, facing in, at its door: Mpepc.through_door)
         door = mpc.through_door(req.pose, req.goal, ctg, hf, req.people, req.rates, req.final,
-                                turned=req.then is not None)
+                                turned=req.then is not None and not req.turn_first)
         if door is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, door, given_up=given_up)
     plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
                     req.rates, req.final, hf, chain=req.chain, on_line=req.straight_final)
+    if carried is not None and (stuck(plan) or not (
+            plan.is_goal or plan.final_turn or plan.progress_m >= blocked_progress_m)):
+        # Mpepc.turn_first's turn under way, the half-turned chair's own plan blocked or
+        # making no progress (turning back beats braking the turn): the turn carried on (else
+        # MPEPC turned it back, a back-and-forth at rest before office A's door till "no
+        # progress"); where its own plan moves on, that plan (MPEPC undid such turns
+        # half-way to quicker ways through nav_eval's cluttered room).
+        return PlanResult(req.goal_id, req.index, fld, ctg, carried, given_up=given_up)
     r_goal = math.hypot(req.goal[0] - req.pose[0], req.goal[1] - req.pose[1])
     if plan.goal_withheld and stuck(plan) and at_rest:
         # Withheld for the core's turn onto the goal's yaw (Mpepc.goal_turn_clearance), with
