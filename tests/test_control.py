@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Callable
@@ -11,11 +12,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import autochair.control.core as core_mod
 from autochair.control.core import ControlConfig, ControlCore, DriveGates, OdomSample
 from autochair.control.law import Gains, braking_speed, egocentric, park_kuipers
 from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
 from autochair.geometry import compose, inverse
 from autochair.geometry import wrap_angle as wrap
+from autochair.nav import planner
 from autochair.nav.field import Footprint
 from autochair.nav.planner import compute
 from autochair_msgs import GoalRequest, Pose2D
@@ -493,6 +496,32 @@ def test_a_goal_without_progress_aborts() -> None:
         core.on_odom(OdomSample(0.1 * math.sin(t), 0.1 * math.cos(t), t, out[0], 0.3, t))
         t += 0.02
     assert core.state == "aborted" and "no progress for 3 s" in core.reason
+
+
+@pytest.mark.parametrize("manoeuvring", [True, False])
+def test_progress_on_the_goals_lattice_counts_as_progress(manoeuvring: bool,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """A chair on the lattice's stages round a jamb (turned away from the goal, then onto the
+    door) gets no nearer on the 2-D distance for a while, but its lattice cost-to-go falls:
+    that is progress (live, office A from the hallway was aborted half-way through such
+    stages). Positive control: the lattice cost standing still, "no progress"."""
+    t = 0.0
+
+    def planned(req: planner.PlanRequest) -> planner.PlanResult:
+        return dataclasses.replace(planner.compute(req),
+                                   lattice_left=9.0 - (0.2 * t if manoeuvring else 0.0))
+
+    monkeypatch.setattr(core_mod, "compute", planned)
+    core = fresh_core(ControlConfig(no_progress_s=3.0, lead=False))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+    while core.active and t < 10:
+        out = core.step(t) or (0.0, 0.0)
+        core.on_odom(OdomSample(0.1 * math.sin(t), 0.1 * math.cos(t), t, out[0], 0.3, t))
+        t += 0.02
+    if manoeuvring:
+        assert core.active, core.reason
+    else:
+        assert core.state == "aborted" and "no progress for 3 s" in core.reason
 
 
 def test_goals_beyond_the_maximum_distance_are_refused() -> None:

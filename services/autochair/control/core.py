@@ -539,6 +539,8 @@ class ControlCore:
         self._still_since: float | None = None  # commanded to move, measured at rest, since
         self._best_left = math.inf  # least remaining cost seen, and when
         self._best_t = 0.0
+        self._lattice_left: float | None = None  # the newest plan's (PlanResult.lattice_left)
+        self._best_lattice = math.inf  # its least seen
         self._last_t: float | None = None
         self._ended_t = -math.inf
         self.counters: dict[str, int] = {}
@@ -702,6 +704,7 @@ class ControlCore:
         self._last_blocked = ("", -math.inf)
         self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
+        self._lattice_left, self._best_lattice = None, math.inf
         self._count("goals")
         return GoalReply(ok=True, goal_id=self.goal_id)
 
@@ -934,6 +937,7 @@ class ControlCore:
         # field, and a map may have come since)
         self.ctg, self._ctg_field, self._ctg_index = res.ctg, res.field, res.index
         self.given_up = res.given_up
+        self._lattice_left = res.lattice_left
         if res.error or res.plan is None:
             # The map closed the way: blocked (at rest) while the path is recomputed each
             # cycle on the newest map, aborted if it stays closed.
@@ -1039,8 +1043,16 @@ class ControlCore:
             return
         goal = self.waypoints[-1]
         left = self.status().distance_left_m + 0.5 * abs(wrap(goal.yaw_rad - o.yaw))
-        if left < self._best_left - 0.05:
-            self._best_left, self._best_t = left, now
+        # Progress on the 2-D distance left, or on the goal's lattice: a stage that turns the
+        # chair away to get round a jamb adds to the first, and live before office A's door a
+        # chair on such stages, turning onto the door at last, was aborted half-way round.
+        lat, progressed = self._lattice_left, left < self._best_left - 0.05
+        if progressed:
+            self._best_left = left
+        if lat is not None and lat < self._best_lattice - 0.05:
+            self._best_lattice, progressed = lat, True
+        if progressed:
+            self._best_t = now
         elif now - self._best_t > cfg.no_progress_s:
             # Blocked, driving round, blocked again...: say what blocked it last.
             why, t = self._last_blocked

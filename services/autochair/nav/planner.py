@@ -58,6 +58,9 @@ class PlanResult:
     # Cells the chair cannot get to (give_up), kept out of the costs-to-go to this waypoint
     # (the core hands them back with every request; on a new map they are applied again).
     given_up: GridMap | None = None
+    # The goal's lattice's cost-to-go at the request's pose (None: no lattice there): progress
+    # as the chair manoeuvres (ControlCore._watch_progress)
+    lattice_left: float | None = None
 
 
 _planners: dict[int, tuple[NavField, Mpepc]] = {}
@@ -265,6 +268,19 @@ def _setup(req: PlanRequest, mp: MpepcParams
 
 def compute(req: PlanRequest, params: MpepcParams | None = None,
             blocked_progress_m: float = 0.1, blocked_gain: float = 0.1) -> PlanResult:
+    """One planning cycle (_compute), with the goal's lattice's cost-to-go where the chair is,
+    if the lattice is made: a stage that turns the chair away from the goal to get round a
+    jamb adds to the 2-D distance left, not to this."""
+    res = _compute(req, params, blocked_progress_m, blocked_gain)
+    hit = _lattices.get((id(req.field), req.goal))
+    if hit is None or hit[0] is not req.field or hit[1] is None:
+        return res
+    cost, ok = hit[1].at(np.array(req.pose[0]), np.array(req.pose[1]), np.array(req.pose[2]))
+    return replace(res, lattice_left=float(cost)) if bool(ok) else res
+
+
+def _compute(req: PlanRequest, params: MpepcParams | None,
+             blocked_progress_m: float, blocked_gain: float) -> PlanResult:
     fld, mp = req.field, params or MpepcParams()
     ctg, given_up, error, hf = _setup(req, mp)
     if error or ctg is None:
