@@ -103,6 +103,17 @@ def braking_speed(distance: float, a: float, j: float) -> float:
     return 0.5 * (-a * a / j + math.sqrt((a * a / j) ** 2 + 8.0 * a * distance))
 
 
+def heads_for(along: float, lateral: float, yaw_error: float, v: float, tol_m: float,
+              omega_acc: float) -> bool:
+    """Whether a chair at v heads for a goal `along` ahead of it and `lateral` beside its
+    heading, whose yaw is `yaw_error` from its own: facing its way (within 90°: against it,
+    the law loops round to it), on its line (within two tolerances) or able still to steer
+    onto it before passing it (an S-turn at ω̇ = `omega_acc` shifts the chair 2·v·ω̇·T³
+    sideways over 4T, i.e. ω̇·along³/32v² within `along`)."""
+    return along > 0.0 and math.cos(yaw_error) > 0.0 and (
+        abs(lateral) < 2.0 * tol_m or 32.0 * abs(lateral) * v * v <= omega_acc * along ** 3)
+
+
 def align_omega(yaw_error: float, omega_max: float, brake_radps2: float,
                 gain_1ps: float) -> float:
     """In-place turn rate to remove `yaw_error` (goal yaw − yaw, wrapped).

@@ -498,6 +498,7 @@ class Mpepc:
         st[0], st[1], st[2], st[3] = v0, a0, w0, q0
         turning, arrived = in_place.copy(), np.zeros(n, dtype=np.bool_)
         final = np.zeros(n, dtype=np.bool_)
+        cap = goal if goal is not None and last else None  # (the core's cap: _law)
         if goal is not None and last and self.p.final_approach:  # targets = the last waypoint
             final = (np.abs(tgt[:, 0] - goal[0]) < 1e-6) \
                 & (np.abs(tgt[:, 1] - goal[1]) < 1e-6) & ~in_place
@@ -538,7 +539,7 @@ class Mpepc:
             yaw_was = ww[n:].copy() if j_b < 0 and spin is not None else None
             xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
                                        dts, jerk_from=0 if self.p.v_jerk else n,
-                                       law_upto=None if j_b < 0 else n)
+                                       law_upto=None if j_b < 0 else n, cap=cap)
             if yaw_was is not None and spin is not None:
                 ww[n:] = self.spin_step(spin, yaw_was, ww[n:], both[:, n:], tgt, turning2[n:],
                                         span / n_c)
@@ -564,7 +565,7 @@ class Mpepc:
         sure = np.empty((3, n, 0))
         if j_b < 0:  # (the committed motion outlasts the prediction)
             sure = self.committed(*side, tgt, vmax, turning2[n:].copy(), arrived2[n:].copy(),
-                                  on_final, span, m, kept, cmds, spin)
+                                  on_final, span, m, kept, cmds, spin, cap)
         elif own:  # (the stop goes on alone where it outlasts the prediction)
             sure = np.concatenate([np.stack(kept, -1), np.stack(stop, -1) if stopped
                                    else self.braking(*side, j_b, stop, cmds)], -1)
@@ -580,7 +581,7 @@ class Mpepc:
         turning, arrived = turning2[:n].copy(), arrived2[:n].copy()
         for step_dt, k in sched[m:]:
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, on_final,
-                                      step_dt, self.p.v_jerk)
+                                      step_dt, self.p.v_jerk, cap=cap)
             if k >= 0:
                 out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
                 out[3, :, k], out[4, :, k] = st[0], st[2]
@@ -590,12 +591,12 @@ class Mpepc:
                   turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
                   final: npt.NDArray[np.bool_] | None, span_s: float, start: int = 0,
                   kept: list[F64] | None = None, cmds: list[F64] | None = None,
-                  spin: Spin | None = None) -> F64:
+                  spin: Spin | None = None, cap: tuple[float, float, float] | None = None) -> F64:
         """(3, N, B) poses of what a plan commits the chair to: its first `span_s` as the
         core's limiter drives it (v's jerk on, steps of `exact_dt_s`), then braking to rest from
         there (from its step `start` on, the poses kept before it in `kept`: simulate runs the
         first steps alongside the prediction; in-place candidates turned by the core's own
-        move, `spin`: spin_step). The drive chain's lag (dead time, the PID's
+        move, `spin`: spin_step; `cap`: law_step's). The drive chain's lag (dead time, the PID's
         prefilter: control/core.py ChainAxis) is in the start pose: the core plans from its
         chain predictor's pose (where the chair would stand once the commands already sent
         have acted), and what the chain passes on integrates to the commands, so the stop ends
@@ -609,7 +610,7 @@ class Mpepc:
         for k in range(start, n):
             yaw_was = yaw.copy()
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
-                                      span_s / n, True)
+                                      span_s / n, True, cap=cap)
             if spin is not None:
                 yaw = self.spin_step(spin, yaw_was, yaw, st, tgt, turning, span_s / n)
             if cmds is not None:
@@ -740,17 +741,18 @@ class Mpepc:
     def law_step(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
                  turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
                  final: npt.NDArray[np.bool_] | None, dt: float | F64, v_jerk: bool = False,
-                 jerk_from: int | None = None, law_upto: int | None = None
-                 ) -> tuple[F64, F64, F64]:
+                 jerk_from: int | None = None, law_upto: int | None = None,
+                 cap: tuple[float, float, float] | None = None) -> tuple[F64, F64, F64]:
         """The 50 Hz loop over dt (per candidate if an array): the law (or the in-place turn)
         towards the targets, then the limiter; `turning` and `arrived` are updated in place.
         `final`: the candidates on the core's final approach (None: none). `jerk_from`: v's
         jerk limit for the candidates from this index on only (else `v_jerk` for all).
         `law_upto`: the candidates from this index on brake (vmax 0; their law is not worked
-        out, nor their `turning` and `arrived`: simulate's stops, side by side)."""
+        out, nor their `turning` and `arrived`: simulate's stops, side by side). `cap`: the
+        last waypoint, towards which the core caps v (_law; None: not the last)."""
         k = x.size if law_upto is None else law_upto
         vd, wd = self._law(x[:k], y[:k], yaw[:k], st[:, :k], tgt[:k], vmax[:k], turning[:k],
-                           arrived[:k], None if final is None else final[:k])
+                           arrived[:k], None if final is None else final[:k], cap)
         if k < x.size:  # (the law's v and ω with vmax 0, as below: 0)
             rest = np.zeros(x.size - k)
             vd, wd = np.concatenate([vd, rest]), np.concatenate([wd, rest])
@@ -758,7 +760,8 @@ class Mpepc:
 
     def _law(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
              turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
-             final: npt.NDArray[np.bool_] | None) -> tuple[F64, F64]:
+             final: npt.NDArray[np.bool_] | None, cap: tuple[float, float, float] | None = None
+             ) -> tuple[F64, F64]:
         """law_step's desired (v, ω), before the limiter."""
         g = self.law
         tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
@@ -789,6 +792,20 @@ class Mpepc:
         vd = vmax / (1 + g.beta * akappa ** g.lam)
         vd = np.maximum(vd, np.minimum(vmax, g.omega_floor_radps / np.maximum(akappa, 1e-9)))
         vd = np.minimum(vd, vmax * r / g.r_thresh_m)
+        if cap is not None:  # (control/core.py _follow_plan: heading for the last waypoint, v
+            # within a stop on it at the limiter's full braking; unpredicted, office B's door
+            # was rolled into 6-9 cm further in 1 s than the core drove: tests/test_control.py)
+            c, s = np.cos(yaw), np.sin(yaw)
+            gx, gy = cap[0] - x, cap[1] - y
+            along, lat = gx * c + gy * s, np.abs(gy * c - gx * s)
+            heads = (along > 0.0) & (np.cos(cap[2] - yaw) > 0.0) & (
+                (lat < 2.0 * g.tolerance_m)
+                | (32.0 * lat * st[0] ** 2 <= g.omega_acc_radps2 * np.maximum(along, 0.0) ** 3))
+            if heads.any():  # (control/law.py heads_for, batched)
+                swing = np.maximum(st[1] + g.a_mps2, 0.0) / g.jerk_mps3
+                stop = braking_speed(along - np.maximum(st[0], 0.0) * swing, g.a_mps2,
+                                     g.jerk_mps3)
+                vd = np.where(heads, np.minimum(vd, stop), vd)
         if final is not None:  # (control/core.py _desired: braking curve from where the limiter
             # will have swung its acceleration round to braking)
             f = g.brake_fraction
