@@ -826,9 +826,10 @@ def test_a_turn_first_turn_is_carried_on_while_the_half_turned_chair_reads_block
                                    np.linspace(here[2], psi, n)).min() \
         >= MpepcParams().contact_m
     # positive control: looked at afresh from the half-turned chair (the old cycle), MPEPC's
-    # plan makes no progress (it turns back)
+    # plan makes no progress and is not the turn onto the door (it turned back; with its
+    # rollouts braking for the goal, H62, it aims elsewhere)
     q, blocked = half_way(None)
-    assert q.progress_m < 0.1 and q.target[2] < mid[2]
+    assert q.progress_m < 0.1 and q.target[2] != pytest.approx(psi, abs=0.05)
 
 
 def test_a_turn_first_turn_gives_way_to_a_plan_that_moves_on_and_is_no_stage_turn() -> None:
