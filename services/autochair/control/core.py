@@ -1274,7 +1274,7 @@ class ControlCore:
         along, lateral = along_lateral((o.x, o.y, o.yaw), goal.x_m, goal.y_m)
         lv = self.limiter.v
         if out.v_mps > 0.0 and heads_for(along, lateral, goal.yaw_rad - o.yaw, lv.value,
-                                         self.tol_m, self.limiter.w.amax):
+                                         self.tol_m, self.limiter.w.amax).item():
             swing = max(lv.rate + lv.amax, 0.0) / lv.jmax
             cap = braking_speed(along - max(lv.value, 0.0) * swing, lv.amax, lv.jmax)
             if out.v_mps > cap:

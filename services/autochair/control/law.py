@@ -29,6 +29,8 @@ import math
 from dataclasses import dataclass
 
 import msgspec
+import numpy as np
+import numpy.typing as npt
 
 from autochair.geometry import wrap_angle as wrap
 
@@ -103,15 +105,17 @@ def braking_speed(distance: float, a: float, j: float) -> float:
     return 0.5 * (-a * a / j + math.sqrt((a * a / j) ** 2 + 8.0 * a * distance))
 
 
-def heads_for(along: float, lateral: float, yaw_error: float, v: float, tol_m: float,
-              omega_acc: float) -> bool:
+def heads_for(along: npt.ArrayLike, lateral: npt.ArrayLike, yaw_error: npt.ArrayLike,
+              v: npt.ArrayLike, tol_m: float, omega_acc: float) -> npt.NDArray[np.bool_]:
     """Whether a chair at v heads for a goal `along` ahead of it and `lateral` beside its
     heading, whose yaw is `yaw_error` from its own: facing its way (within 90°: against it,
     the law loops round to it), on its line (within two tolerances) or able still to steer
     onto it before passing it (an S-turn at ω̇ = `omega_acc` shifts the chair 2·v·ω̇·T³
-    sideways over 4T, i.e. ω̇·along³/32v² within `along`)."""
-    return along > 0.0 and math.cos(yaw_error) > 0.0 and (
-        abs(lateral) < 2.0 * tol_m or 32.0 * abs(lateral) * v * v <= omega_acc * along ** 3)
+    sideways over 4T, i.e. ω̇·along³/32v² within `along`). Elementwise: the core asks it of
+    the chair, MPEPC of each candidate it rolls out (Mpepc._law), the same test."""
+    along, v, lat = np.asarray(along), np.asarray(v), np.abs(lateral)
+    return np.asarray((along > 0.0) & (np.cos(yaw_error) > 0.0) & (
+        (lat < 2.0 * tol_m) | (32.0 * lat * v * v <= omega_acc * np.maximum(along, 0.0) ** 3)))
 
 
 def align_omega(yaw_error: float, omega_max: float, brake_radps2: float,

@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import qmc
 
-from autochair.control.law import Gains
+from autochair.control.law import Gains, heads_for
 from autochair.control.limits import AxisState, ComfortLimiter, SCurveAxis
 from autochair.geometry import along_lateral
 
@@ -797,11 +797,10 @@ class Mpepc:
             # was rolled into 6-9 cm further in 1 s than the core drove: tests/test_control.py)
             c, s = np.cos(yaw), np.sin(yaw)
             gx, gy = cap[0] - x, cap[1] - y
-            along, lat = gx * c + gy * s, np.abs(gy * c - gx * s)
-            heads = (along > 0.0) & (np.cos(cap[2] - yaw) > 0.0) & (
-                (lat < 2.0 * g.tolerance_m)
-                | (32.0 * lat * st[0] ** 2 <= g.omega_acc_radps2 * np.maximum(along, 0.0) ** 3))
-            if heads.any():  # (control/law.py heads_for, batched)
+            along = gx * c + gy * s
+            heads = heads_for(along, gy * c - gx * s, cap[2] - yaw, st[0], g.tolerance_m,
+                              g.omega_acc_radps2)
+            if heads.any():
                 swing = np.maximum(st[1] + g.a_mps2, 0.0) / g.jerk_mps3
                 stop = braking_speed(along - np.maximum(st[0], 0.0) * swing, g.a_mps2,
                                      g.jerk_mps3)
