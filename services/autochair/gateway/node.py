@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import random
+import select
 import sys
 import threading
 import time
+from collections.abc import Callable
 from typing import Annotated
 
 import msgspec
@@ -26,6 +29,32 @@ Positive = Annotated[float, msgspec.Meta(gt=0)]
 # tick (profiled: each 100 Hz wake-up of a Python thread costs ~0.5 % of a core here).
 TICK_S = 1.0 / keys.DRIVE_RATE_HZ
 BACKOFF_SLICE_S = 0.25  # the reconnect wait beats the watchdog at least this often
+WRITE_TIMEOUT_S = 0.05  # a frame the port has not taken by then: the link is lost
+
+
+def write_all(port: serial.SerialBase, data: bytes, timeout_s: float,
+              clock: Callable[[], float] = time.monotonic) -> None:
+    """Write all of `data`; raise SerialTimeoutException if the port has had no room for it
+    for `timeout_s`.
+
+    pyserial's own write timeout also fires after a write that went through, when the thread
+    was descheduled past it (pyserial issue #281, open since 2017): under load a frame already
+    sent read as a lost link, and the chair stopped (session 24's CI). Here only the time the
+    port has no room counts. Ports without a descriptor (loop://) keep pyserial's write."""
+    try:
+        fd = port.fileno()  # a device, a pty or socket://, all opened non-blocking
+    except (AttributeError, NotImplementedError, serial.SerialException):
+        port.write(data)
+        return
+    view, end = memoryview(data), clock() + timeout_s
+    while view:
+        try:
+            view = view[os.write(fd, view):]
+        except BlockingIOError:
+            # Past the deadline, one look (timeout 0) still lets a port with room through.
+            if not select.select([], [fd], [], max(end - clock(), 0.0))[1]:
+                raise serial.SerialTimeoutException(
+                    f"{len(view)} of {len(data)} bytes not taken in {timeout_s} s") from None
 
 
 class GatewayConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -106,7 +135,7 @@ class Gateway:
             return
         data, seq = self.core.frame(out)
         try:
-            self.port.write(data)
+            write_all(self.port, data, WRITE_TIMEOUT_S)
         except (serial.SerialException, OSError) as e:
             self._lost(f"write failed: {e}")
             return
@@ -149,14 +178,14 @@ class Gateway:
         try:
             # A read returns on the first byte, or after TICK_S: the tick's pace.
             port = serial.serial_for_url(self.cfg.port, baudrate=self.cfg.baudrate,
-                                         timeout=TICK_S, write_timeout=0.05)
+                                         timeout=TICK_S, write_timeout=WRITE_TIMEOUT_S)
         except (serial.SerialException, OSError, ValueError):
             return False
         with self.lock:
             self.port = port
             self.core.link_up(time.monotonic())
             with contextlib.suppress(serial.SerialException, OSError):
-                port.write(b"\x00")  # end any partial frame the firmware holds
+                write_all(port, b"\x00", WRITE_TIMEOUT_S)  # end a partial frame the firmware holds
             self._write(self.core.output(time.monotonic()))
         self.link_epoch += 1
         self.node.health.count("connects")
