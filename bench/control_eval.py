@@ -125,11 +125,12 @@ def trapezoid_time(dist: float, vmax: float, amax: float) -> float:
     return 2.0 * math.sqrt(dist / amax)
 
 
-def make_pid(which: str) -> VelocityPidCore:
-    """No e-stop or safety monitor in the lockstep loop."""
+def make_pid(which: str, monitor: bool = False) -> VelocityPidCore:
+    """No e-stop in the lockstep loop; a safety monitor's limit required only with `monitor`
+    (nav_eval --monitor feeds it)."""
     if which == "thesis":
         return VelocityPidCore(require_estop=False)
-    pcfg = msgspec.structs.replace(PidConfig(), require_safety_limit=False, require_estop=False)
+    pcfg = msgspec.structs.replace(PidConfig(), require_safety_limit=monitor, require_estop=False)
     return make_core(pcfg)
 
 

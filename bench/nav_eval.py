@@ -73,6 +73,7 @@ from bench.clearance_bound import Room, lattice_attainable
 from bench.control_eval import Planning, deriv, make_pid, smooth, trapezoid_time
 from bench.min_time import Limits, cached, lookup
 from bench.path_time import fit, path_time
+from bench.safety_rig import SafetyRig
 from bench.scan_map import ScanMap
 
 SETTLE_S = 1.5
@@ -247,16 +248,17 @@ def people_at(world: World, t: float) -> list[Person]:
 
 def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig,
              fp: Footprint, params: MpepcParams | None = None, plan_delay_s: float = 0.0,
-             scans: ScanMap | None = None, driven: list[Pose] | None = None
-             ) -> dict[str, Any]:
+             scans: ScanMap | None = None, driven: list[Pose] | None = None,
+             monitor: SafetyRig | None = None) -> dict[str, Any]:
     """One goal in lockstep. `plan_delay_s`: each plan takes effect this long after it was
     asked for (the node plans on its own thread meanwhile, the core driving the previous
     plan; 0: at once, as the figures are made). `scans`: the chair plans on the map grown
     from its laser's scans (bench/scan_map.py), not on `fld` (the exact world, which the
-    metrics' references keep); `driven`: that map grown along these poses first (DRIVEN)."""
+    metrics' references keep); `driven`: that map grown along these poses first (DRIVEN);
+    `monitor`: the safety monitor beside it, its limit required by the PID (bench/safety_rig)."""
     from autochair_msgs import GoalRequest, Pose2D
 
-    rig = Rig(make_pid("tuned"), start=start)  # the PID as the node configures it
+    rig = Rig(make_pid("tuned", monitor is not None), start=start)  # as the node configures it
     model = rig.chair
     core = ControlCore(cfg, footprint=fp)
     plan_ms: list[float] = []
@@ -291,6 +293,9 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         t = k * DT
         st = rig.sense()
         core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
+        if monitor is not None:
+            monitor.tick(t, world, (model.x, model.y, model.yaw), (model.v, model.omega),
+                         (st.v, st.omega), rig.core)
         if k == 0:
             t0 = time.perf_counter()
             reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t)
@@ -332,6 +337,10 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         k += 1
     result = metrics(rows, clear, plan_ms, core, start, goal, t_end, fld, states)
     result["accept_ms"] = round(accept_ms, 1)
+    if monitor is not None:
+        result["monitor"] = {"scans": monitor.scans, "binding": monitor.binding,
+                             "stops": len(monitor.stops), "first_stop": monitor.stops[:1],
+                             "estops": monitor.estops}
     if scans is not None:
         result["map_s"] = round(sum(map_ms) / 1e3, 2)
         result["scans_mapped"] = scans.mapper.scans
@@ -518,6 +527,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="what the chair plans on: the world rasterised (exact), or the "
                          "mapping service's grid grown from the simulated laser's scans as "
                          "it drives (bench/scan_map.py; results file not written)")
+    ap.add_argument("--monitor", action="store_true",
+                    help="the safety monitor in the loop, as the live stack runs it (its limit "
+                         "required by the PID; results file not written)")
     ap.add_argument("--scan-seed", type=int, default=0,
                     help="the simulated laser's noise seed (--map scans)")
     args = ap.parse_args(argv)
@@ -546,7 +558,7 @@ def main(argv: list[str] | None = None) -> int:
                      MpepcParams(seed=args.seed,
                                  heading_lattice=MpepcParams().heading_lattice
                                  and not args.no_lattice), args.plan_delay_s, scans,
-                     DRIVEN.get(name))
+                     DRIVEN.get(name), SafetyRig(args.scan_seed) if args.monitor else None)
         r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
         runs.append(r)
         if r["state"] == "refused":
@@ -568,6 +580,7 @@ def main(argv: list[str] | None = None) -> int:
               f"ω̇={r['peak_omega_dot_radps2']:.2f} plan={r['plan_ms_median']}ms "
               f"accept={r['accept_ms']}ms "
               + (f"map={r['map_s']}s/{r['scans_mapped']} " if scans else "")
+              + (f"monitor={r['monitor']} " if args.monitor else "")
               + f"{r['reason']}", flush=True)
     wall = time.perf_counter() - t0 - ref_wall
     refused = []
@@ -582,12 +595,16 @@ def main(argv: list[str] | None = None) -> int:
         if ok_runs else {}
     summary["refused_reachable"] = len(runs) - len(ok_runs)
     summary["seed"] = args.seed
+    if args.monitor:
+        summary["monitor_cases_stopped"] = sum(r["monitor"]["stops"] > 0 for r in ok_runs)
+        summary["monitor_estops"] = sum(r["monitor"]["estops"] for r in ok_runs)
     if args.map == "scans":
         summary["map"] = f"scans (seed {args.scan_seed})"
         summary["map_s"] = round(sum(r["map_s"] for r in ok_runs), 1)
     print(json.dumps(summary, indent=1))
     summary["heading_lattice"] = MpepcParams().heading_lattice and not args.no_lattice
     if not (args.only or args.quick or args.no_save or args.no_lattice or args.plan_delay_s
+            or args.monitor
             or args.seed != MpepcParams().seed or args.map != "exact"):
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         for r in runs:

@@ -172,9 +172,9 @@ def test_safety_limit_clamps_and_may_be_required() -> None:
     assert "no fresh safety limit" in core.inhibit(0.0)
     assert core.set_limit(0.3, 0.2, 0.5, 0.0, v_rev_autonomy=0.1)
     assert drive(core, 1.0, 1.0, 0.1, began=0.05) is Verdict.OK
-    assert core.desired(0.1, ns(0.1)) == (0.3, 0.5)
+    assert core.desired(0.1, ns(0.1)) == (0.3, 0.3)  # both slowed by one factor (H64)
     drive(core, -1.0, -1.0, 0.2, began=0.05)
-    assert core.desired(0.2, ns(0.2)) == (-0.1, -0.5)  # autonomy: the sensed reverse bound
+    assert core.desired(0.2, ns(0.2)) == (-0.1, -0.1)  # autonomy: the sensed reverse bound
     drive(core, -1.0, -1.0, 0.5, began=0.05)
     assert core.desired(0.51, ns(0.51)) is None  # limit stale
     assert not core.set_limit(float("nan"), 0, 0, 0)
@@ -207,11 +207,11 @@ def test_teleop_reverses_within_the_attended_bound_autonomy_not_at_all() -> None
 
 def test_absolute_caps_whatever_the_source() -> None:
     core = core_(caps=Caps(0.8, 0.3, 0.6))
-    drive(core, 2.0, -3.0, 0.0)
-    assert core.desired(0.0, 0) == (0.8, -0.6)
+    drive(core, 2.0, -3.0, 0.0)  # each axis within its cap, on the arc sent (H64)
+    assert core.desired(0.0, 0) == pytest.approx((0.4, -0.6))
     core.set_owner("teleop", ns(0.01))
     drive(core, -2.0, 3.0, 0.02, source="teleop", began=0.015)
-    assert core.desired(0.02, ns(0.02)) == (-0.3, 0.6)
+    assert core.desired(0.02, ns(0.02)) == pytest.approx((-0.3, 0.45))
 
 
 # --- no unexpected start-up: one test per kind of stop --------------------------------------
@@ -663,3 +663,24 @@ def test_a_commands_age_is_taken_at_its_first_use() -> None:
     assert drive(core, 0.5, 0.0, 0.12) is Verdict.OK
     core.update(0.0, 0.0, 0.01, 0.125, ns(0.125))
     assert core.command_age_s == pytest.approx(0.005, abs=1e-6)
+
+
+@pytest.mark.parametrize(("limit", "sent", "kept"), [
+    ((1.0, 0.35), (0.5, 0.9), (0.5 * 0.35 / 0.9, 0.35)),  # the turn-rate bound
+    ((0.2, 1.0), (0.5, 0.3), (0.2, 0.12)),  # the forward bound
+    ((1.0, 0.35), (0.0, 0.9), (0.0, 0.35)),  # a turn in place: only ω to bound
+    ((0.0, 1.0), (0.5, 0.3), (0.0, 0.3)),  # forward blocked: the turn the limit allows (H03)
+])
+def test_a_limited_arc_keeps_its_radius(limit: tuple[float, float],
+                                        sent: tuple[float, float],
+                                        kept: tuple[float, float]) -> None:
+    """H64: the monitor bounds |ω| (0.35 rad/s while it cannot see the chair's rear) and v.
+    Each clamped alone, an arc of radius 0.56 m sent at (0.5, 0.9) was driven at (0.5, 0.35),
+    radius 1.43 m: wide of the turn the planner checked, into the wall it avoided (nav_eval
+    --monitor: 7 contacts). Now both axes slow by one factor and the radius stays."""
+    core = driving_core(require_limit=True)
+    t = 1.0
+    core.set_limit(limit[0], 0.5, limit[1], t, 0.5)
+    drive(core, *sent, t)
+    got = core.desired(t, ns(t))
+    assert got == pytest.approx(kept)

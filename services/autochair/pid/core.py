@@ -244,6 +244,19 @@ class Verdict(enum.Enum):
     TOOK_OVER = "took_over"  # obeyed: a stream begun later than the one obeyed replaces it
 
 
+def same_arc(v: float, omega: float, lv: float, lw: float) -> tuple[float, float]:
+    """(v, ω) bounded to (lv, lw) axis by axis, as the velocity on v's own arc: a moving
+    command limited on either axis is slowed on both by the same factor, so the chair keeps
+    the arc it was sent on (the one the planner checked and the monitor sweeps), only slower.
+    Clamped alone, ω straightened a planned turn into the wall it was avoiding, and v alone
+    tightened it (H64). Not moving (lv 0: a turn in place, or forward blocked), ω keeps its
+    own bound."""
+    if lv == 0.0:
+        return lv, lw
+    s = min(lv / v, lw / omega if omega != 0.0 else 1.0)
+    return v * s, omega * s
+
+
 @dataclass(frozen=True)
 class Caps:
     """Absolute bounds on the desired velocity, whatever its source (CLI, teleop, autonomy)."""
@@ -437,14 +450,14 @@ class VelocityPidCore:
             # for ever and the goal aborted "does not follow" (bench control_stack, session 21).
             self.stop("command stream stale", self._desired_ns)
             return None
-        v, omega = self._desired
+        v0, omega0 = self._desired
         c = self.caps
-        v, omega = min(max(v, -c.v_rev_mps), c.v_fwd_mps), min(max(omega, -c.omega_radps),
-                                                               c.omega_radps)
+        v, omega = min(max(v0, -c.v_rev_mps), c.v_fwd_mps), min(max(omega0, -c.omega_radps),
+                                                                 c.omega_radps)
         limit = self._limit if now_s - self._limit_t <= self.limit_stale_s else None
         if limit is None:
             if not self.require_limit:
-                return v, omega
+                return same_arc(v0, omega0, v, omega)
             limit, why = (0.0, 0.0, 0.0, 0.0), "no fresh safety limit"
         else:
             why = "safety stop"
@@ -457,7 +470,7 @@ class VelocityPidCore:
         if lv == 0.0 and abs(lw) <= self.stop_eps and (abs(v) > 1e-3 or abs(omega - lw) > 1e-3):
             self.stop(why, now_ns)
             return None
-        return lv, lw
+        return same_arc(v0, omega0, lv, lw)
 
     def update(self, v_meas: float, omega_meas: float, dt: float, now_s: float,
                now_ns: int, link: tuple[int, int] = (0, 0)) -> PidOutput:
