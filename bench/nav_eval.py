@@ -295,7 +295,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
         if monitor is not None:
             monitor.tick(t, world, (model.x, model.y, model.yaw), (model.v, model.omega),
-                         (st.v, st.omega), rig.core)
+                         (st.v, st.omega), rig.core, core)
         if k == 0:
             t0 = time.perf_counter()
             reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), t)

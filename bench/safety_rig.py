@@ -2,7 +2,8 @@
 navigation. Every scan period the simulated laser sweeps the world from the chair's true pose
 and motion (the lidar simulator's `ray_scan`, its noise), the monitor's pure core judges the
 scan with the odometry's motion as the safety service does, and its limit goes to the velocity
-PID, which requires it; an imminent collision latches the e-stop, as `estop_on_imminent` does.
+PID, which requires it, and to the control core, as the control node passes it on; an imminent
+collision latches the e-stop (`estop_on_imminent`), which both hear.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import math
 
 import numpy as np
 
+from autochair.control.core import ControlCore
 from autochair.pid.core import VelocityPidCore
 from autochair.runtime.config import ChairGeometry, StaleConfig
 from autochair.safety.core import EStopAction, SafetyCore, SafetyParams, Scan
@@ -41,8 +43,9 @@ class SafetyRig:
 
     def tick(self, t: float, world: World, pose: tuple[float, float, float],
              twist: tuple[float, float], odom: tuple[float, float],
-             pid: VelocityPidCore) -> None:
-        """One 100 Hz tick: the odometry's motion to the monitor; a scan when one is due."""
+             pid: VelocityPidCore, control: ControlCore) -> None:
+        """One 100 Hz tick: the odometry's motion to the monitor; a scan when one is due, its
+        limit to the PID and to the control core (as the control node passes it on)."""
         self.monitor.on_odom(*odom, t)
         if t + 1e-9 < self.next_t:
             return
@@ -60,6 +63,8 @@ class SafetyRig:
         if (lim.v_fwd == 0.0 and odom[0] > 0.05) or (lim.omega == 0.0 and abs(odom[1]) > 0.05):
             self.stops.append((round(t, 2), lim.reason))
         pid.set_limit(lim.v_fwd, lim.v_rev, lim.omega, t, lim.v_rev_autonomy)
+        control.on_limit(lim.v_fwd, lim.omega, lim.reason, t)
         if v.estop is EStopAction.ASSERT:
             self.estops += 1
             pid.set_estop(True, t, round(t * 1e9))
+            control.on_estop(True, t)
