@@ -340,7 +340,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     if monitor is not None:
         result["monitor"] = {"scans": monitor.scans, "binding": monitor.binding,
                              "stops": len(monitor.stops), "first_stop": monitor.stops[:1],
-                             "estops": monitor.estops}
+                             "estops": monitor.estops, "pid_stop": rig.core.stop_reason}
     if scans is not None:
         result["map_s"] = round(sum(map_ms) / 1e3, 2)
         result["scans_mapped"] = scans.mapper.scans
@@ -598,6 +598,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.monitor:
         summary["monitor_cases_stopped"] = sum(r["monitor"]["stops"] > 0 for r in ok_runs)
         summary["monitor_estops"] = sum(r["monitor"]["estops"] for r in ok_runs)
+        summary["monitor_safety_stopped"] = sum("safety" in r["monitor"]["pid_stop"]
+                                                for r in ok_runs)
     if args.map == "scans":
         summary["map"] = f"scans (seed {args.scan_seed})"
         summary["map_s"] = round(sum(r["map_s"] for r in ok_runs), 1)
