@@ -9,7 +9,7 @@ import math
 from bench.control_eval import run_case
 from bench.control_stack import sim_rate
 
-from autochair.control.core import ControlConfig
+from autochair.control.core import ControlConfig, ControlCore
 
 
 def test_control_path_delay_reaches_the_chair() -> None:
@@ -36,3 +36,30 @@ def test_sim_rate_sees_skipped_ticks() -> None:
     assert sim_rate(real) == 1.0
     assert abs(sim_rate(slow) - 0.9) < 1e-9
     assert math.isnan(sim_rate(real[:1]))
+
+
+def test_the_benchmarks_safety_monitor_bounds_the_pid_before_a_wall() -> None:
+    """nav_eval --monitor (bench/safety_rig.py): the scan, the monitor's verdict and its limit
+    reach the PID and the control core. Facing the hallway's wall 0.45 m ahead at 0.5 m/s the
+    forward bound is under 0.5; down the hallway (positive control) it is the monitor's cap."""
+    from bench.control_eval import make_pid
+    from bench.safety_rig import SafetyRig
+
+    from autochair.nav.field import Footprint
+    from autochair.runtime.config import ChairGeometry
+    from autochair.safety.node import SafetyConfig
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world, chair = load_world(DEFAULT_WORLD), ChairGeometry()
+    fp = Footprint(chair.front_m, chair.rear_m, chair.half_width_m)
+
+    def forward_bound(yaw_deg: float) -> float:
+        pid, rig = make_pid("tuned", monitor=True), SafetyRig()
+        core = ControlCore(ControlConfig(), footprint=fp)
+        pose = (3.0, 0.0, math.radians(yaw_deg))
+        rig.tick(0.0, world, pose, (0.5, 0.0), (0.5, 0.0), pid, core)
+        assert rig.scans == 1 and core.gates.limit_t == 0.0 and pid._limit is not None
+        return pid._limit[0]
+
+    assert forward_bound(90.0) < 0.4
+    assert forward_bound(0.0) == SafetyConfig().v_max_fwd_mps
