@@ -81,6 +81,7 @@ TIMEOUT_S = 90.0
 TRUTH_EVERY = max(1, round(0.05 / DT))  # ground-truth clearance every 0.05 s
 WORLDS = DEFAULT_WORLD.parent
 RESULTS = Path(__file__).parent / "results" / "nav_eval.json"
+RESULTS_MONITOR = RESULTS.with_name("nav_eval_monitor.json")  # --monitor: the live stack's case
 D = math.radians
 
 Pose = tuple[float, float, float]
@@ -529,7 +530,7 @@ def main(argv: list[str] | None = None) -> int:
                          "it drives (bench/scan_map.py; results file not written)")
     ap.add_argument("--monitor", action="store_true",
                     help="the safety monitor in the loop, as the live stack runs it (its limit "
-                         "required by the PID; results file not written)")
+                         "required by the PID; results in nav_eval_monitor.json)")
     ap.add_argument("--scan-seed", type=int, default=0,
                     help="the simulated laser's noise seed (--map scans)")
     args = ap.parse_args(argv)
@@ -606,12 +607,12 @@ def main(argv: list[str] | None = None) -> int:
     print(json.dumps(summary, indent=1))
     summary["heading_lattice"] = MpepcParams().heading_lattice and not args.no_lattice
     if not (args.only or args.quick or args.no_save or args.no_lattice or args.plan_delay_s
-            or args.monitor
             or args.seed != MpepcParams().seed or args.map != "exact"):
-        RESULTS.parent.mkdir(parents=True, exist_ok=True)
+        out = RESULTS_MONITOR if args.monitor else RESULTS
+        out.parent.mkdir(parents=True, exist_ok=True)
         for r in runs:
             r.pop("plan_ms", None)
-        RESULTS.write_text(json.dumps({"config": {f: getattr(cfg, f)
+        out.write_text(json.dumps({"config": {f: getattr(cfg, f)
                                                   for f in cfg.__struct_fields__},
                                        "summary": summary, "runs": runs,
                                        "refusals": refused}, indent=1) + "\n")
