@@ -684,3 +684,26 @@ def test_a_limited_arc_keeps_its_radius(limit: tuple[float, float],
     drive(core, *sent, t)
     got = core.desired(t, ns(t))
     assert got == pytest.approx(kept)
+
+
+def test_an_arc_whose_turn_is_bounded_to_zero_is_a_safety_stop() -> None:
+    """H64 with H03: an arc (0.5, 0.3) under a turn bound of 0 (the monitor: turning blocked)
+    is slowed to 0 on both axes to keep its arc: the chair stands, so it is a stop, and the old
+    stream does not drive on when the bound re-opens. Positive control: a turn bound of 0.1
+    leaves a slower arc, motion the limit allows."""
+    def run(w_bound: float) -> tuple[tuple[float, float] | None, bool]:
+        core = driving_core(require_limit=True)
+        t = 1.0
+        core.set_limit(1.0, 0.5, w_bound, t, 0.5)
+        drive(core, 0.5, 0.3, t)
+        held = core.desired(t, ns(t))
+        core.update(0.5, 0.3, DT, t, ns(t))
+        t += DT
+        core.set_limit(1.0, 0.5, 1.0, t, 0.5)  # the bound re-opens; the same stream goes on
+        drive(core, 0.5, 0.3, t)
+        return held, core.update(0.5, 0.3, DT, t, ns(t)).active
+
+    held, after = run(0.0)
+    assert held is None and not after
+    held, after = run(0.1)
+    assert held == pytest.approx((0.5 / 3, 0.1)) and after

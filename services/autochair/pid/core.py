@@ -463,14 +463,15 @@ class VelocityPidCore:
             why = "safety stop"
         fwd, rev, w, rev_auto = limit
         rev = rev if self.owner == "teleop" else rev_auto  # unattended: only what is sensed
-        lv, lw = min(max(v, -rev), fwd), min(max(omega, -w), w)
+        lv, lw = same_arc(v0, omega0, min(max(v, -rev), fwd), min(max(omega, -w), w))
         # Stopped by the limit: brake by neutral, never reverse. Left only a creep of turn
         # (≤ stop_eps: the chair stands) is stopped too, else the old stream drove on by
-        # itself once the limit re-opened (H03).
+        # itself once the limit re-opened (H03). Judged on the arc kept: an arc whose turn is
+        # bounded to 0 is slowed to 0 on both axes, a stop like any other.
         if lv == 0.0 and abs(lw) <= self.stop_eps and (abs(v) > 1e-3 or abs(omega - lw) > 1e-3):
             self.stop(why, now_ns)
             return None
-        return same_arc(v0, omega0, lv, lw)
+        return lv, lw
 
     def update(self, v_meas: float, omega_meas: float, dt: float, now_s: float,
                now_ns: int, link: tuple[int, int] = (0, 0)) -> PidOutput:
