@@ -823,6 +823,42 @@ def test_the_straight_final_is_driven_off_the_wide_line_while_a_turn_only_creeps
     assert creeping.final and creeping.straight
     assert "approaches_refused" not in creeping.counters
 
+
+def test_a_straight_final_whose_turn_still_swings_on_has_the_swing_checked() -> None:
+    """H66: the straight final began with ω at 0.36 rad/s and rising (the law had been
+    steering): the limiter braking it jerk-limited turned the chair 14° on over its 12 cm
+    "straight" (the old estimate, ω·|ω|/2ω̇, read 1.3°), and the body touched the cabinet beside
+    the goal (nav_eval seed 7, "behind the cabinet", found with a change to the final moves).
+    Now the swing is the limiter's own braking, and a swing the body's turn cannot make
+    clear of the map is no straight final."""
+    from autochair.nav.field import Footprint
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    fp, goal = Footprint(), (2.12, 0.0, 0.0)
+    post = np.array([[2.0 + fp.front_m + 0.06, fp.half_width_m + 0.17, 0.04]])  # front left
+
+    def handed_over(posts: np.ndarray, turning: bool) -> ControlCore:
+        core = fresh_core(INSTANT)
+        core.inline_planning = False
+        core.on_field(_post_field(posts))  # type: ignore[arg-type]
+        core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+        if turning:
+            core.limiter.w.reset(0.36, 1.2)  # left, and still speeding up
+        plan = Plan((0.12, 0.0, 0.0, 0.15), goal, 0.15, 0.0, 0.0, 1.0, 1.0,
+                    np.zeros((1, 3)), True, 0.1, 0.0, 1)
+        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), 0.0)  # type: ignore[arg-type]
+        core.step(0.0)
+        assert core.final
+        return core
+
+    assert handed_over(post, False).straight  # positive control: at rest, straight on
+    assert handed_over(np.zeros((0, 3)), True).straight  # the swing alone is no bar
+    turning = handed_over(post, True)
+    assert not turning.straight  # the body's swing towards the post: no straight final
+    assert math.radians(8) < turning._turn_swing() < math.radians(15)  # ω·|ω|/2ω̇: 1.3°
+
 ROOM = [[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
         [-1.0, 3.0, -1.0, -3.0]]  # walls x0 y0 x1 y1: a 7 × 6 m room
 

@@ -56,6 +56,9 @@ PLANNING, DRIVING, BLOCKED = "planning", "driving", "blocked"
 NO_ROOM_TO_TURN = "no room to turn to the goal's heading here"
 TURN_CLEARANCE_M = 0.02  # an in-place turn keeps the body this clear of the map (NavField's margin)
 IN_PLACE_R_M = MpepcParams().in_place_r_m
+# A straight final whose heading still swings more than this (a turn braking to rest) has the
+# body's turn checked too, grown by the way driven meanwhile (H66)
+SWING_FREE_RAD = math.radians(0.5)
 FINAL_MOVE_M, FINAL_LINE = MpepcParams().final_move_m, MpepcParams().final_line
 # The most a sample is moved on by its age (_predicted): older is stale odometry anyway (the
 # node's [stale] odometry_s, 0.3 s), and a wrong stamp must not throw the pose far.
@@ -1180,9 +1183,8 @@ class ControlCore:
         along = r * math.cos(out.delta_rad)
         lateral = abs(r * math.sin(out.delta_rad))
         # (judged on the heading the chair stops turning at: braking a turn still under way
-        # swings it on by about ω·|ω|/2ω̇, 5° from 0.7 rad/s, which put it off the line)
-        lw = self.limiter.w
-        swing = lw.value * abs(lw.value) / (2.0 * lw.amax)
+        # swings it on, 5° from 0.7 rad/s, which put it off the line)
+        lw, swing = self.limiter.w, self._turn_swing()
         lateral_stop = abs(r * math.sin(out.delta_rad + swing))
         # (from rest near the goal, MPEPC's final manoeuvre lines the chair up within
         # FINAL_LINE of the tolerance: Mpepc.final_heading)
@@ -1194,7 +1196,8 @@ class ControlCore:
             and abs(lw.value) < 0.01 else capture
         lined_up = r <= cfg.straight_radius_m and along > 0.0 \
             and max(lateral, lateral_stop) <= line \
-            and (lateral <= capture or self._room_to_go(o, along))
+            and (lateral <= capture or self._room_to_go(o, along)) \
+            and (abs(swing) <= SWING_FREE_RAD or self._room_to_turn(o, swing, 0.0, along))
         if not self.straight and not lined_up and r <= IN_PLACE_R_M \
                 and not self.limiter.v.moving and not self._room_to_approach(o, goal, r):
             # Near the goal the law spins at the ω floor about a point within r of the axle, a
@@ -1226,6 +1229,20 @@ class ControlCore:
             return 0.0, 0.0
         v = min(v, out.v_mps, cfg.approach_rate_1ps * r)
         return v, out.kappa_1pm * v
+
+    def _turn_swing(self) -> float:
+        """The heading the chair still turns through while the command's ω brakes to rest, as
+        the limiter will send it (H66): a turn still speeding up goes on speeding up while
+        its rate swings round. ω·|ω|/2ω̇ ignored that: at the cabinet (nav_eval seed 7) the
+        straight final began with ω at 0.36 rad/s and rising, read as a 1.3° swing; the chair
+        turned 14° on over its 12 cm "straight", and its body touched the cabinet."""
+        ax, dt = copy.deepcopy(self.limiter.w), 1.0 / self.cfg.rate_hz
+        swing = 0.0
+        for _ in range(1000):  # (≤ 1 s of braking from the ω bound: a few dozen steps)
+            if ax.value == 0.0 and ax.rate == 0.0:
+                break
+            swing += ax.step(0.0, dt) * dt
+        return swing
 
     def _follow_plan(self, o: OdomSample, now: float) -> tuple[float, float]:
         """The law towards MPEPC's target at its speed; at rest while planning or blocked, and
