@@ -858,6 +858,12 @@ def test_a_straight_final_whose_turn_still_swings_on_has_the_swing_checked() -> 
     turning = handed_over(post, True)
     assert not turning.straight  # the body's swing towards the post: no straight final
     assert math.radians(8) < turning._turn_swing() < math.radians(15)  # ω·|ω|/2ω̇: 1.3°
+    assert (turning.limiter.w.value, turning.limiter.w.rate) == (0.36, 1.2)  # (left as it was)
+    # The monitor's |ω| bound at 0 (a turn blocked): the axis is capped, the swing is what it
+    # still sends (none), and nothing raises (a copy of an axis capped to 0 did: found in the
+    # monitored benchmark before merging).
+    turning.on_limit(1.0, 0.0, "turn blocked", 0.0)
+    assert turning._turn_swing() == 0.0
 
 ROOM = [[-1.0, -3.0, 6.0, -3.0], [6.0, -3.0, 6.0, 3.0], [6.0, 3.0, -1.0, 3.0],
         [-1.0, 3.0, -1.0, -3.0]]  # walls x0 y0 x1 y1: a 7 × 6 m room

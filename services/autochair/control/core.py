@@ -1236,12 +1236,15 @@ class ControlCore:
         its rate swings round. ω·|ω|/2ω̇ ignored that: at the cabinet (nav_eval seed 7) the
         straight final began with ω at 0.36 rad/s and rising, read as a 1.3° swing; the chair
         turned 14° on over its 12 cm "straight", and its body touched the cabinet."""
-        ax, dt = copy.deepcopy(self.limiter.w), 1.0 / self.cfg.rate_hz
-        swing = 0.0
-        for _ in range(1000):  # (≤ 1 s of braking from the ω bound: a few dozen steps)
-            if ax.value == 0.0 and ax.rate == 0.0:
-                break
-            swing += ax.step(0.0, dt) * dt
+        ax, dt = self.limiter.w, 1.0 / self.cfg.rate_hz
+        kept, swing = ax.save(), 0.0  # (stepped in place and put back: a copy of an axis
+        try:  # capped to 0 by the monitor cannot be made, and costs a ruckig set-up)
+            for _ in range(1000):  # (≤ 1 s of braking from the ω bound: a few dozen steps)
+                if ax.value == 0.0 and ax.rate == 0.0:
+                    break
+                swing += ax.step(0.0, dt) * dt
+        finally:
+            ax.load(kept)
         return swing
 
     def _follow_plan(self, o: OdomSample, now: float) -> tuple[float, float]:
