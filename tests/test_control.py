@@ -444,6 +444,27 @@ def test_a_chair_that_does_not_follow_names_what_the_pid_said() -> None:
         "stale)" in core.reason, core.reason
 
 
+def test_a_chair_that_does_not_follow_names_the_monitors_block() -> None:
+    """The monitor bars forward motion (the chair within its stop margin of something ahead),
+    the PID stops the stream: the abort says what the monitor saw, not only a guess. (Its
+    limit allowed turning, so it is no "stop" that would refuse goals: nav_eval --monitor.)"""
+    def run(block: bool) -> ControlCore:
+        core = fresh_core(ControlConfig(follow_timeout_s=2.0, lead=False))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+        t = 0.0
+        while core.active and t < 10:
+            core.on_limit(0.0 if block and t > 0.5 else 1.2, 0.35, "free fwd 0.10 m", t)
+            core.step(t)
+            core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))
+            t += 0.02
+        assert "does not follow" in core.reason
+        return core
+
+    assert "safety monitor" not in run(False).reason  # positive control: never bounded to 0
+    assert "the safety monitor bounded it to 0" in run(True).reason
+    assert "free fwd 0.10 m" in run(True).reason
+
+
 def test_a_goal_the_drive_chain_would_not_obey_is_refused_at_once_naming_why() -> None:
     """The PID refuses a stream begun while the e-stop is silent or the safety monitor's limit
     (required while it runs) is missing, stale or says stop, and never takes it back: such a

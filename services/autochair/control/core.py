@@ -264,6 +264,9 @@ class DriveGates:
     estop_t: float = -math.inf  # when the last e-stop state came (monotonic s)
     limit_t: float = -math.inf  # when the last safety limit came
     limit_stop: str | None = None  # the monitor's reason while its limit says stop
+    # The monitor's latest bound of forward motion or turning to 0 (its reason, when): the PID
+    # stops a stream that asks for what it bars, and a goal that then does not follow says so
+    limit_block: tuple[str, float] = ("", -math.inf)
     monitor_up: bool = False  # the monitor's token is alive: the PID requires its limit
     # The velocity PID's own word on why it obeys nothing ("" while it obeys): named when a
     # goal ends because the chair does not follow (e.g. a command stream it took for stale).
@@ -622,6 +625,8 @@ class ControlCore:
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
         self.gates.limit_t = now
         self.gates.limit_stop = reason if says_stop(v_fwd, omega_max) else None
+        if v_fwd == 0.0 or omega_max == 0.0:
+            self.gates.limit_block = (reason or "no reason given", now)
 
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
         """Check a goal and take it, in one step (the node runs the slow route check between
@@ -1041,6 +1046,9 @@ class ControlCore:
             why = g.why_not(now) or (f"the velocity PID: {g.pid_inhibit}" if g.pid_inhibit
                                      else "a safety stop, a stopped drive chain or a blocked "
                                           "wheel?")
+            block, t = g.limit_block
+            if now - t <= cfg.follow_timeout_s + 1.0 and block not in why:
+                why += f"; the safety monitor bounded it to 0 {now - t:.1f} s ago: {block}"
             self._stopped(ABORTED, f"the chair does not follow: commanded to move, at rest for "
                                    f"{cfg.follow_timeout_s:g} s ({why})", now)
             return
