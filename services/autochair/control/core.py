@@ -956,7 +956,7 @@ class ControlCore:
             return
         plan = self.plan = res.plan
         self._plan_got_t = now
-        if self._door and (plan.straight_m > 0.0 or self._door_rest and not plan.final_turn):
+        if self._door and (plan.straight_m > 0.0 or (self._door_rest and not plan.final_turn)):
             self._door = False  # (through on a straight stage; or from rest, none: MPEPC's)
         self._door_rest = False  # (a turn onto the straight: asked again from rest after it)
         if plan.is_goal and self.index == len(self.waypoints) - 1 and not self._door:
