@@ -912,3 +912,44 @@ def test_a_chair_in_a_room_facing_in_turns_onto_the_door_then_drives_through() -
     # a chair facing the door on its own (the bench's "office A to office B") is left to
     # MPEPC's plan, as before
     assert plan((4.5, 3.0, -math.pi / 2)).straight_m == 0.0  # type: ignore[attr-defined]
+
+
+def test_at_a_doors_line_up_the_chair_turns_onto_a_straight_through_it_and_drives_that() -> None:
+    # The safety monitor sweeps the padded footprint along the chair's present arc; the law's
+    # small heading corrections inside office B's door frame met the jamb in that sweep (an
+    # e-stop, nav_eval --monitor seed 7). Now a line-up reached is followed by the door's
+    # straight: at rest 11° off the door's axis, an in-place turn onto the clearest straight
+    # through it, then that straight as a stage (κ 0); passing the line-up on an arc, a brake
+    # first. Before, MPEPC's own plan followed at once (the law's arc through the door).
+    fld, contact = _hallway(), MpepcParams().contact_m
+    core = _accepted(fld, (12.4, 2.5, math.pi / 2))
+    assert core.lineups == 1
+    up = core.waypoints[0]
+    x, y, yaw = up.x_m - 0.1 * math.cos(up.yaw_rad), up.y_m - 0.1 * math.sin(up.yaw_rad), \
+        up.yaw_rad - 0.2
+
+    def plan_from(pose: tuple[float, float, float], t: float) -> Plan:
+        core.on_odom(OdomSample(*pose, 0.0, 0.0, t))
+        core.step(t)
+        req = core.plan_request(t)
+        assert req is not None
+        res = compute(req)
+        assert res.plan is not None and not res.blocked_by
+        core.on_plan(res, t)
+        return res.plan
+
+    p = plan_from((x, y, yaw), 0.1)  # (the line-up passed in this step)
+    assert core.index == core.lineups
+    assert p.final_turn and p.then is not None and abs(p.target[2] - up.yaw_rad) < 0.05
+    p = plan_from((x, y, p.target[2]), 1.0)  # turned, at rest: the straight through the door
+    d = p.straight_m
+    assert d > 1.5 and p.target[1] > 1.4 + FP.rear_m
+    assert fld.straight_clearance((x, y, p.target[2]), np.arange(0.0, d + 0.01, 0.01)) \
+        >= contact
+
+    # Passing the line-up on an arc (0.5 m/s, 0.2 rad/s): no straight from there, a brake.
+    core = _accepted(fld, (12.4, 2.5, math.pi / 2))
+    core.limiter.reset(0.5, 0.2)
+    plan_from((x, y, yaw), 0.1)
+    core.step(0.12)
+    assert core._move == (None, None) and core.limiter.v.value < 0.5

@@ -525,6 +525,11 @@ class ControlCore:
         self._warm: Warmed | None = None  # the newest field's ctg, made before its first cycle
         self.plan: Plan | None = None
         self.lineups = 0  # line-up poses before doors, inserted ahead of the goal's waypoints
+        # A line-up just reached: the door is driven straight (κ 0: the safety monitor sweeps
+        # the padded footprint along the present arc, and the law's small heading corrections
+        # in a door frame met the jamb in that sweep; planner's PlanRequest.door). Until a
+        # stage takes the chair through, it brakes; `_door_rest`: a plan was asked for at rest.
+        self._door = self._door_rest = False
         self.final = False  # MPEPC took the goal itself: the law's own final approach
         self.people: list[Person] = []
         # Goals in `map` (nav/frames.py): the requested waypoints, re-expressed in `odom` on
@@ -705,6 +710,7 @@ class ControlCore:
         self.tol_m, self.tol_rad = req.tolerance_m, req.tolerance_rad
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
         self.aligning = self.straight = self.final = False
+        self._door = self._door_rest = False
         self._land_left = None
         self.ctg, self._ctg_field, self._ctg_index, self.plan = ctg, check.fld, 0, None
         self.given_up = None
@@ -805,8 +811,8 @@ class ControlCore:
 
     def _lead_out(self, v: float, w: float, dt: float) -> tuple[float, float]:
         """What is sent for the planned (v, ω): led past the PID's prefilter (LeadAxis),
-        within the goal's speed and the turn-rate bound, and v never against its sign: the PID
-        would clamp a reverse command to the safety monitor's 0 and stop the chair. What a clamp
+        within the goal's speed and the turn-rate bound, and v never below 0 (forward only): the
+        PID would clamp a reverse command to the safety monitor's 0 and stop the chair. What a clamp
         changes is real motion, which the predictor sees (it is fed what is sent)."""
         lim = self.limiter.lim
         out = []
@@ -822,7 +828,11 @@ class ControlCore:
             out.append(c)
         cv, cw = out
         vm = min(lim.v_max_mps, self.vmax)
-        cv = min(max(cv, 0.0), vm) if v >= 0.0 else max(min(cv, 0.0), -vm)
+        # (forward only, whatever the planned v's sign: a move begun on an axis still braking,
+        # the straight final handed over as a door's straight stage stopped, undershot to
+        # −0.02 m/s, and the monitor's reverse bound of 0 made that a safety stop, nav_eval
+        # --monitor seed 7, into the store room)
+        cv = min(max(cv, 0.0), vm)
         return cv, min(max(cw, -lim.omega_max_radps), lim.omega_max_radps)
 
     def _reset_leads(self) -> None:
@@ -844,10 +854,10 @@ class ControlCore:
                 or not self._plannable(now):
             return None
         self._plan_t = self._asked_t = now
-        ahead = self._ahead(o, now)
-        if ahead is not None:
-            return ahead
-        return self._request(o, now)
+        req = self._ahead(o, now) or self._request(o, now)
+        if req.door and abs(req.v) < 0.01 and abs(req.omega) < 0.01:
+            self._door_rest = True  # (its plan is the door's from rest, or none: MPEPC's)
+        return req
 
     def _plannable(self, now: float) -> bool:
         """A goal to plan to: active, and (a goal in map) where it is in odom known."""
@@ -914,7 +924,7 @@ class ControlCore:
                            self.plan is not None and self.plan.straight_m > 0.0,
                            None if self.plan is None else self.plan.then, given_up,
                            self.final, self._chain_now(o, now), self.final and self.straight,
-                           self.plan is not None and self.plan.turn_first)
+                           self.plan is not None and self.plan.turn_first, self._door)
 
     def _chain_now(self, o: OdomSample, now: float) -> Chain | None:
         """The drive chain as it holds the plan's commands now, for MPEPC's committed sweeps
@@ -954,7 +964,10 @@ class ControlCore:
             return
         plan = self.plan = res.plan
         self._plan_got_t = now
-        if plan.is_goal and self.index == len(self.waypoints) - 1:
+        if self._door and (plan.straight_m > 0.0 or (self._door_rest and not plan.final_turn)):
+            self._door = False  # (through on a straight stage; or from rest, none: MPEPC's)
+        self._door_rest = False  # (a turn onto the straight: asked again from rest after it)
+        if plan.is_goal and self.index == len(self.waypoints) - 1 and not self._door:
             self.final = True
         elif self.final and (plan.goal_clearance_m < GOAL_DROP_M or not (
                 plan.goal_stop_clear or self.straight or self.aligning)):
@@ -1161,6 +1174,7 @@ class ControlCore:
                     return self._follow_plan(o, now)
             elif d > cfg.pass_radius_m:
                 return self._follow_plan(o, now)
+            self._door = self.index < self.lineups  # (a line-up: through its door straight)
             self.index += 1  # passed: plan to the next one at once
             self.plan, self.ctg, self._plan_t = None, None, -math.inf
             self.given_up = None
@@ -1262,6 +1276,9 @@ class ControlCore:
         if p is None or self.state == BLOCKED:
             return 0.0, 0.0
         if self._plan_stale(now):
+            return 0.0, 0.0
+        if self._door and p.straight_m == 0.0 and not p.final_turn:
+            self._move = (None, None)  # at a line-up, off a straight through: brake (see _door)
             return 0.0, 0.0
         tx, ty, tyaw = p.target
         if p.straight_m > 0.0:

@@ -1470,8 +1470,8 @@ class Mpepc:
     def through_door(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                      ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                      rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
-                     turned: bool = False, spare_deg: float = 2.0, spare_m: float = 0.01
-                     ) -> Plan | None:
+                     turned: bool = False, spare_deg: float = 2.0, spare_m: float = 0.01,
+                     lined: bool = False, v0: float = 0.0) -> Plan | None:
         """For a chair at rest within `door_ahead_m` of a door on its way (NavField
         .passage_ahead), the goal beyond it, that faces away from the way through the door by
         more than `door_away_rad` or has just turned a stage (`turned`; else None: MPEPC's own
@@ -1483,17 +1483,26 @@ class Mpepc:
         way round whose whole turn onto it (`spare_deg` past) sweeps clear by `contact_m`.
         Stages (as Mpepc.stage_plan's), evaluated as MPEPC's candidates are (`_costs`: people,
         the stop after the plan period); the next plan from rest looks again. None: no door
-        that near, no clear straight through it, or no clear turn onto one."""
+        that near, no clear straight through it, or no clear turn onto one.
+
+        `lined`: the chair has just reached a door's line-up pose (control/core.py), moving at
+        `v0` or at rest, and the door is driven straight (κ 0) whatever the goal beyond: the
+        safety monitor sweeps the padded footprint along the chair's present arc, and the
+        law's small steering corrections inside a door frame met the jamb in that sweep (an
+        e-stop entering office B's door, nav_eval --monitor seed 7; docs/experiments/
+        monitor-envelope-s25.md). Moving, only the straight along its heading is offered; at
+        rest, the straight with the most clearance (turned onto first where it is over a
+        heading step off)."""
         p, fld = self.p, self.field
         x, y, yaw = pose
         found = fld.passage_ahead(ctg, x, y, p.door_ahead_m)
         if found is None or math.hypot(goal[0] - x, goal[1] - y) <= p.door_ahead_m:
             return None
         path, k, j = found
-        if math.hypot(goal[0] - path[j, 0], goal[1] - path[j, 1]) < 1.0:
+        if not lined and math.hypot(goal[0] - path[j, 0], goal[1] - path[j, 1]) < 1.0:
             return None  # (the goal just past the door: its own approach, the lattice's)
         way = heading_through(path, k)  # (path ends at j)
-        if not turned and abs(float(wrap(np.array(way - yaw)))) <= p.door_away_rad:
+        if not (turned or lined) and abs(float(wrap(np.array(way - yaw)))) <= p.door_away_rad:
             return None
         psi = np.concatenate([[yaw], way + np.radians(np.arange(-30.0, 30.0 + 1e-9,
                                                                 p.door_turn_step_deg))])
@@ -1506,13 +1515,16 @@ class Mpepc:
         reach = ds[None, :] <= (along + spare_m + p.final_overshoot_m)[:, None]
         clear = np.where(reach, line, math.inf).min(1)
         ok = (clear >= p.contact_m) & (lateral <= 0.1) & (along > 0.0)
-        if ok[0]:  # on a clear straight through: drive it
-            d = float(along[0])
+        best_i = int(np.argmax(np.where(ok, clear, -math.inf)))
+        moving = abs(v0) >= 0.01
+        if ok[0] and (not lined or moving or turned or abs(float(wrap(np.array(
+                psi[best_i] - yaw)))) <= math.radians(p.door_turn_step_deg)):
+            d = float(along[0])  # on a clear straight through: drive it
             return self._one_stage(pose, (d, 0.0), (x + d * c[0], y + d * s[0], yaw), False,
-                                   ctg, people, goal, hf, rates, final=final)
-        if not ok.any():
+                                   ctg, people, goal, hf, rates, v0, final=final)
+        if moving or not ok.any():
             return None
-        best = float(psi[int(np.argmax(np.where(ok, clear, -math.inf)))])
+        best = float(psi[best_i])
         e = float(wrap(np.array(best - yaw)))
         spare = math.radians(spare_deg)
         for turn in (e, e - math.copysign(2 * math.pi, e)):  # the short way round first

@@ -44,6 +44,9 @@ class PlanRequest:
     chain: Chain | None = None
     straight_final: bool = False  # the core drives its straight final (ControlCore.straight)
     turn_first: bool = False  # the turn under way (`then`) is Mpepc.turn_first's (Plan's)
+    # The chair has just reached a door's line-up pose: the door is driven straight
+    # (Mpepc.through_door's `lined`); the core brakes until a stage takes it through
+    door: bool = False
 
 
 @dataclass(frozen=True)
@@ -327,7 +330,14 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         return lattice_for(fld, req.goal, ctg, req.pose)
 
     at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
-    if at_rest and mp.stages:
+    if req.door and mp.stages and abs(req.omega) < 0.01:
+        # Just at a door's line-up: straight through it (moving: along its heading, if that
+        # is clear; at rest: onto the clearest straight first)
+        door = mpc.through_door(req.pose, req.goal, ctg, hf, req.people, req.rates, req.final,
+                                turned=req.then is not None, lined=True, v0=req.v)
+        if door is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, door, given_up=given_up)
+    elif at_rest and mp.stages:
         # At rest near a door on the way: onto a straight through it, and through (a goal
         # begun in a room, facing in, at its door: Mpepc.through_door)
         door = mpc.through_door(req.pose, req.goal, ctg, hf, req.people, req.rates, req.final,
