@@ -20,6 +20,7 @@ from autochair.geometry import compose, inverse
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav import planner
 from autochair.nav.field import Footprint
+from autochair.nav.mpepc import MpepcParams
 from autochair.nav.planner import compute
 from autochair_msgs import GoalRequest, Pose2D
 
@@ -559,6 +560,31 @@ def test_turns_are_planned_within_the_monitors_turn_rate_bound() -> None:
 
     assert peak_omega(None) > 0.5  # positive control: the comfort limit (0.9 × 0.6)
     assert peak_omega(0.35) == pytest.approx(0.35, abs=1e-9)
+
+
+@pytest.mark.parametrize("goal", [(2.0, 1.5, math.pi / 2), (3.0, 1.0, 0.0),
+                                  (0.0, 0.0, math.pi / 2), (1.5, -1.5, -math.pi / 2)])
+def test_mpepc_predicts_turns_within_the_monitors_turn_rate_bound(
+        goal: tuple[float, float, float]) -> None:
+    """H65: the limiter turns within the monitor's |ω| bound (slowing v to keep the curve), so
+    MPEPC's rollouts must too, or the plan's timing is not the chair's: it planned an S-turn
+    past a crossing person at 1.2 m/s that the capped chair drove at 0.6, its rear left on the
+    person's line (nav_eval --monitor seed 2). Each goal's plan turns at over 0.5 rad/s
+    without the bound (positive control) and within 0.35 with it."""
+    def predicted_peak(cap: float | None) -> float:
+        core = fresh_core()
+        if cap is not None:
+            core.on_limit(1.0, cap, "", 0.0)
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+        req = core.plan_request(0.0)
+        assert req is not None
+        plan = compute(req).plan
+        assert plan is not None
+        yaw = np.unwrap(np.concatenate([[0.0], plan.path[:, 2]]))
+        return float(np.abs(np.diff(yaw)).max() / MpepcParams().dt_s)
+
+    assert predicted_peak(None) > 0.5
+    assert predicted_peak(0.35) <= 0.35 + 1e-6
 
 
 # --- goals in map (nav/frames.py), the stale-plan stop --------------------------------------

@@ -67,6 +67,10 @@ LATENCY_WEIGHT = 0.3
 # (50 Hz: it follows a change of load within ~0.2 s).
 COMMAND_AGE_WEIGHT = 0.1
 MAX_LATENCY_S = 0.3
+# MPEPC's rollouts take the safety monitor's |ω| bound as the limiter does (ControlConfig.law),
+# but no lower than this: an ω axis needs a bound > 0 (the limiter's own cap may be 0: then it
+# turns at 0 while the rollouts assume a crawl; braking decides there, not the plan)
+MIN_PLAN_OMEGA_RADPS = 0.01
 # The longest gap a late tick makes up (ControlCore.step): the velocity PID takes a stream
 # silent for longer for stale ([stale] desired_velocity_s, 0.3 s) and stops.
 MAX_CATCH_UP_S = 0.3
@@ -208,12 +212,16 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     def gains(self) -> Gains:
         return Gains(**{f: getattr(self, f) for f in Gains.__struct_fields__})
 
-    def law(self, capture_m: float) -> LawParams:
-        """What MPEPC predicts with: the law and the limiter's planning limits."""
+    def law(self, capture_m: float, omega_max_radps: float = math.inf) -> LawParams:
+        """What MPEPC predicts with: the law and the limiter's planning limits; |ω| within
+        `omega_max_radps` too (the safety monitor's bound, as the limiter caps it:
+        ComfortLimiter.cap_omega), so the rollouts turn, and slow with ω, as the chair will.
+        (Kept above 0: an ω axis needs a bound > 0; the limiter's own cap may be 0.)"""
         lim = self.limits
         return LawParams(**{f: getattr(self, f) for f in Gains.__struct_fields__},
                          omega_floor_radps=self.omega_floor_radps, a_mps2=lim.a_max_mps2,
-                         omega_max_radps=lim.omega_max_radps,
+                         omega_max_radps=min(lim.omega_max_radps,
+                                             max(omega_max_radps, MIN_PLAN_OMEGA_RADPS)),
                          omega_acc_radps2=lim.omega_acc_max_radps2,
                          align_brake_radps2=self.align_brake_fraction * lim.omega_acc_max_radps2,
                          align_gain_1ps=self.align_gain_1ps, capture_m=capture_m,
@@ -900,7 +908,8 @@ class ControlCore:
                          q.vy_mps, q.radius_m) for q in self.people]
         return PlanRequest(self.goal_id, self.index, (p.x, p.y, p.yaw), self.limiter.v.value,
                            self.limiter.w.value, (wp.x_m, wp.y_m, wp.yaw_rad), fld, ctg, prev,
-                           self.cfg.law(self.tol_m * self.cfg.capture_fraction), people,
+                           self.cfg.law(self.tol_m * self.cfg.capture_fraction,
+                                        self.limiter.lim.omega_max_radps), people,
                            (self.limiter.v.rate, self.limiter.w.rate),
                            self.index == len(self.waypoints) - 1,
                            self.plan is not None and self.plan.straight_m > 0.0,
