@@ -587,6 +587,31 @@ def test_mpepc_predicts_turns_within_the_monitors_turn_rate_bound(
     assert predicted_peak(0.35) <= 0.35 + 1e-6
 
 
+def test_mpepc_plans_with_the_monitors_standing_turn_rate_bound() -> None:
+    """The monitor's |ω| bound drops below its standing 0.35 rad/s near obstacles, for as long
+    as the chair is close; the limiter obeys every drop, but MPEPC plans with the largest
+    bound of the last PLAN_OMEGA_WINDOW_S (planned with, the drops made it predict crawling
+    turns and stand: clutter's far side lost). A bound held that long is planned with; no
+    monitor: the comfort limit."""
+    core = fresh_core()
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(2.0, 1.5, math.pi / 2)]), 0.0).ok
+
+    def planned_omega(t: float) -> float:
+        core.on_odom(OdomSample(0, 0, 0, 0, 0, t))
+        req = core.plan_request(t)
+        assert req is not None
+        return req.law.omega_max_radps
+
+    assert planned_omega(0.0) == NO_LEAD.omega_max_radps  # (positive control: no monitor)
+    core.on_limit(1.0, 0.35, "clear", 0.5)
+    core.on_limit(1.0, 0.04, "turn 0.04 rad", 0.6)
+    assert core.limiter.lim.omega_max_radps == 0.04  # (the limiter: every bound)
+    assert planned_omega(1.0) == 0.35
+    for k in range(7, 70):
+        core.on_limit(1.0, 0.04, "turn 0.04 rad", k * 0.1)
+    assert planned_omega(7.0) == 0.04
+
+
 # --- goals in map (nav/frames.py), the stale-plan stop --------------------------------------
 INSTANT = ControlConfig(predict_s=0.02, predict_omega_s=0.02, lead=False)  # follows at once
 
