@@ -20,7 +20,7 @@ from autochair.geometry import compose, inverse
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav import planner
 from autochair.nav.field import Footprint
-from autochair.nav.mpepc import MpepcParams
+from autochair.nav.mpepc import MpepcParams, Person
 from autochair.nav.planner import compute
 from autochair_msgs import GoalRequest, Pose2D
 
@@ -573,6 +573,7 @@ def test_mpepc_predicts_turns_within_the_monitors_turn_rate_bound(
     without the bound (positive control) and within 0.35 with it."""
     def predicted_peak(cap: float | None) -> float:
         core = fresh_core()
+        core.people = [Person(-3.0, 3.0)]  # (the bound is planned with where people are)
         if cap is not None:
             core.on_limit(1.0, cap, "", 0.0)
         assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
@@ -594,6 +595,7 @@ def test_mpepc_plans_with_the_monitors_standing_turn_rate_bound() -> None:
     turns and stand: clutter's far side lost). A bound held that long is planned with; no
     monitor: the comfort limit."""
     core = fresh_core()
+    core.people = [Person(-3.0, 3.0)]
     assert core.set_goal(GoalRequest(waypoints=[Pose2D(2.0, 1.5, math.pi / 2)]), 0.0).ok
 
     def planned_omega(t: float) -> float:
@@ -610,6 +612,8 @@ def test_mpepc_plans_with_the_monitors_standing_turn_rate_bound() -> None:
     for k in range(7, 70):
         core.on_limit(1.0, 0.04, "turn 0.04 rad", k * 0.1)
     assert planned_omega(7.0) == 0.04
+    core.people = []  # no one moving: the bound retimes the path only, not planned with
+    assert planned_omega(7.5) == NO_LEAD.omega_max_radps
 
 
 # --- goals in map (nav/frames.py), the stale-plan stop --------------------------------------
