@@ -20,6 +20,7 @@ from autochair.geometry import compose, inverse
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav import planner
 from autochair.nav.field import Footprint
+from autochair.nav.mpepc import MpepcParams, Person
 from autochair.nav.planner import compute
 from autochair_msgs import GoalRequest, Pose2D
 
@@ -580,6 +581,60 @@ def test_turns_are_planned_within_the_monitors_turn_rate_bound() -> None:
 
     assert peak_omega(None) > 0.5  # positive control: the comfort limit (0.9 × 0.6)
     assert peak_omega(0.35) == pytest.approx(0.35, abs=1e-9)
+
+
+@pytest.mark.parametrize("goal", [(2.0, 1.5, math.pi / 2), (3.0, 1.0, 0.0),
+                                  (0.0, 0.0, math.pi / 2), (1.5, -1.5, -math.pi / 2)])
+def test_mpepc_predicts_turns_within_the_monitors_turn_rate_bound(
+        goal: tuple[float, float, float]) -> None:
+    """H65: the limiter turns within the monitor's |ω| bound (slowing v to keep the curve), so
+    MPEPC's rollouts must too, or the plan's timing is not the chair's: it planned an S-turn
+    past a crossing person at 1.2 m/s that the capped chair drove at 0.6, its rear left on the
+    person's line (nav_eval --monitor seed 2). Each goal's plan turns at over 0.5 rad/s
+    without the bound (positive control) and within 0.35 with it."""
+    def predicted_peak(cap: float | None) -> float:
+        core = fresh_core()
+        core.people = [Person(-3.0, 3.0)]  # (the bound is planned with where people are)
+        if cap is not None:
+            core.on_limit(1.0, cap, "", 0.0)
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+        req = core.plan_request(0.0)
+        assert req is not None
+        plan = compute(req).plan
+        assert plan is not None
+        yaw = np.unwrap(np.concatenate([[0.0], plan.path[:, 2]]))
+        return float(np.abs(np.diff(yaw)).max() / MpepcParams().dt_s)
+
+    assert predicted_peak(None) > 0.5
+    assert predicted_peak(0.35) <= 0.35 + 1e-6
+
+
+def test_mpepc_plans_with_the_monitors_standing_turn_rate_bound() -> None:
+    """The monitor's |ω| bound drops below its standing 0.35 rad/s near obstacles, for as long
+    as the chair is close; the limiter obeys every drop, but MPEPC plans with the largest
+    bound of the last PLAN_OMEGA_WINDOW_S (planned with, the drops made it predict crawling
+    turns and stand: clutter's far side lost). A bound held that long is planned with; no
+    monitor: the comfort limit."""
+    core = fresh_core()
+    core.people = [Person(-3.0, 3.0)]
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(2.0, 1.5, math.pi / 2)]), 0.0).ok
+
+    def planned_omega(t: float) -> float:
+        core.on_odom(OdomSample(0, 0, 0, 0, 0, t))
+        req = core.plan_request(t)
+        assert req is not None
+        return req.law.omega_max_radps
+
+    assert planned_omega(0.0) == NO_LEAD.omega_max_radps  # (positive control: no monitor)
+    core.on_limit(1.0, 0.35, "clear", 0.5)
+    core.on_limit(1.0, 0.04, "turn 0.04 rad", 0.6)
+    assert core.limiter.lim.omega_max_radps == 0.04  # (the limiter: every bound)
+    assert planned_omega(1.0) == 0.35
+    for k in range(7, 70):
+        core.on_limit(1.0, 0.04, "turn 0.04 rad", k * 0.1)
+    assert planned_omega(7.0) == 0.04
+    core.people = []  # no one moving: the bound retimes the path only, not planned with
+    assert planned_omega(7.5) == NO_LEAD.omega_max_radps
 
 
 # --- goals in map (nav/frames.py), the stale-plan stop --------------------------------------

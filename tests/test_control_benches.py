@@ -112,3 +112,31 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     assert core.state == "arrived", core.reason
     assert len(kappa) > 20 and max(kappa) <= 0.02
     assert stops == 0 and monitor.estops == 0
+
+
+def test_a_person_crossing_does_not_walk_into_the_monitored_chair() -> None:
+    """H65 (nav_eval --monitor --seed 2, "person: to the side"): a person crosses the corridor
+    at 0.8 m/s, walking on regardless of the chair. With MPEPC's rollouts turning faster than
+    the monitor's |ω| bound lets the chair, the chair, slowed by that bound on the S-turn it
+    planned, stopped with its rear on the person's line and the person walked into it (1
+    contact, the case's old result); predicted within the bound it drives on straight ahead,
+    clear."""
+    from bench import nav_eval as ne
+    from bench.safety_rig import SafetyRig
+
+    from autochair.nav import planner
+    from autochair.nav.field import Footprint
+    from autochair.nav.mpepc import MpepcParams
+    from autochair.runtime.config import ChairGeometry, load_section
+
+    chair = ChairGeometry()
+    fp = Footprint(chair.front_m, chair.rear_m, chair.half_width_m)
+    _, wname, start, goal, _ = next(c for c in ne.CASES if c[0] == "person: to the side")
+    world, fld = ne.build(wname, fp)
+    planner._planners.clear()  # (a fresh planner and sampler, as nav_eval's)
+    planner._lattices.clear()
+    cfg = load_section(ControlConfig, "control", None, [])  # (as nav_eval's)
+    r = ne.run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=2), monitor=SafetyRig(0))
+    assert r["arrived"]
+    assert r["collisions"] == 0
+    assert r["min_clearance_m"] > 0.2

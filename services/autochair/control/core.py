@@ -70,6 +70,19 @@ LATENCY_WEIGHT = 0.3
 # (50 Hz: it follows a change of load within ~0.2 s).
 COMMAND_AGE_WEIGHT = 0.1
 MAX_LATENCY_S = 0.3
+# MPEPC's rollouts turn within the safety monitor's standing |ω| bound (ControlConfig.law): the
+# largest bound it published over this long (its planning horizon, MpepcParams.horizon_s). The
+# bound holds 0.35 rad/s whatever the scan shows while the chair's rear is unseen (its swing),
+# and drops below that near obstacles as long as the chair is close; those drops open as it
+# moves, and the planner's own clearance checks stand for the obstacles. Planned with, they made
+# it predict crawling turns and stand (nav_eval --monitor: 5 more goals lost of 99; measured).
+# Only while people are given to the planner: the limiter keeps the curve, so the bound retimes
+# the path, not its sweep past static obstacles (its stops are from lower speeds than planned);
+# timing decides only against someone moving (H65). Planned with always, MPEPC drove straighter
+# and faster into doors, where the monitor stopped it (its forward envelope, H64's residual):
+# nav_eval --monitor seeds 7/1/2/3/4, 146 -> 141 of 165 arrived, doorway 0.038 -> 0.028 m,
+# e-stops 3 -> 17 (measured, session 26).
+PLAN_OMEGA_WINDOW_S = 5.0
 # The longest gap a late tick makes up (ControlCore.step): the velocity PID takes a stream
 # silent for longer for stale ([stale] desired_velocity_s, 0.3 s) and stops.
 MAX_CATCH_UP_S = 0.3
@@ -211,12 +224,17 @@ class ControlConfig(Gains, kw_only=True, forbid_unknown_fields=True, frozen=True
     def gains(self) -> Gains:
         return Gains(**{f: getattr(self, f) for f in Gains.__struct_fields__})
 
-    def law(self, capture_m: float) -> LawParams:
-        """What MPEPC predicts with: the law and the limiter's planning limits."""
+    def law(self, capture_m: float, omega_max_radps: float = math.inf) -> LawParams:
+        """What MPEPC predicts with: the law and the limiter's planning limits; |ω| within
+        `omega_max_radps` too (the safety monitor's standing bound: the limiter caps ω to it,
+        ComfortLimiter.cap_omega, slowing v to keep the curve), so the rollouts turn, and slow,
+        as the chair will. (A bound of 0, a stop, is left to the core's gates: an ω axis needs
+        a bound > 0.)"""
         lim = self.limits
+        cap = omega_max_radps if omega_max_radps > 0.0 else math.inf
         return LawParams(**{f: getattr(self, f) for f in Gains.__struct_fields__},
                          omega_floor_radps=self.omega_floor_radps, a_mps2=lim.a_max_mps2,
-                         omega_max_radps=lim.omega_max_radps,
+                         omega_max_radps=min(lim.omega_max_radps, cap),
                          omega_acc_radps2=lim.omega_acc_max_radps2,
                          align_brake_radps2=self.align_brake_fraction * lim.omega_acc_max_radps2,
                          align_gain_1ps=self.align_gain_1ps, capture_m=capture_m,
@@ -509,6 +527,7 @@ class ControlCore:
         self.estop_latched = False
         self.owner = "autonomy"
         self.gates = gates or DriveGates()
+        self._omega_bounds: deque[tuple[float, float]] = deque()  # (t, the monitor's |ω| bound)
         # Navigation (nav/): the map's field (None: free space around the goal), the costs-to-go
         # to the waypoint planned to, MPEPC's last plan, moving people.
         self.footprint = footprint or Footprint()
@@ -628,6 +647,10 @@ class ControlCore:
         the footprint, obstacles): the limiter then keeps the path and slows v with ω. (MPEPC
         drives forward only, so the monitor's reverse bound needs no handling here.)"""
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
+        bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
+        bounds.append((now, omega_max))
+        while bounds[0][0] < now - PLAN_OMEGA_WINDOW_S:
+            bounds.popleft()
         self.gates.limit_t = now
         self.gates.limit_stop = reason if says_stop(v_fwd, omega_max) else None
         if v_fwd == 0.0 or omega_max == 0.0:
@@ -918,13 +941,21 @@ class ControlCore:
                          q.vy_mps, q.radius_m) for q in self.people]
         return PlanRequest(self.goal_id, self.index, (p.x, p.y, p.yaw), self.limiter.v.value,
                            self.limiter.w.value, (wp.x_m, wp.y_m, wp.yaw_rad), fld, ctg, prev,
-                           self.cfg.law(self.tol_m * self.cfg.capture_fraction), people,
+                           self.cfg.law(self.tol_m * self.cfg.capture_fraction,
+                                        self._standing_omega(now) if people else math.inf),
+                           people,
                            (self.limiter.v.rate, self.limiter.w.rate),
                            self.index == len(self.waypoints) - 1,
                            self.plan is not None and self.plan.straight_m > 0.0,
                            None if self.plan is None else self.plan.then, given_up,
                            self.final, self._chain_now(o, now), self.final and self.straight,
                            self.plan is not None and self.plan.turn_first, self._door)
+
+    def _standing_omega(self, now: float) -> float:
+        """The safety monitor's standing |ω| bound (PLAN_OMEGA_WINDOW_S): the largest it
+        published over that window; inf if none came in it (no monitor: the comfort limit)."""
+        return max((w for t, w in self._omega_bounds if t >= now - PLAN_OMEGA_WINDOW_S),
+                   default=math.inf)
 
     def _chain_now(self, o: OdomSample, now: float) -> Chain | None:
         """The drive chain as it holds the plan's commands now, for MPEPC's committed sweeps
