@@ -866,32 +866,42 @@ def test_a_chair_stopped_short_beside_the_goal_drives_its_straight_final() -> No
     assert turned < math.radians(1) and math.hypot(pose[0] - 2.07, pose[1] - 0.035) <= 0.05
 
 
+def _handed_the_goal(posts: np.ndarray, goal: tuple[float, float, float],
+                     rz: tuple[float, float], turn: Callable[[SCurveAxis], None]
+                     ) -> ControlCore:
+    """A core at rest at (2, 0, 0) by `posts`, its ω axis set by `turn`, then MPEPC hands the
+    goal over (a plan whose target (r, θ) takes it); stepped once."""
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    core = fresh_core(INSTANT)
+    core.inline_planning = False
+    core.on_field(_post_field(posts))  # type: ignore[arg-type]
+    core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+    turn(core.limiter.w)
+    plan = Plan((*rz, 0.0, 0.15), goal, 0.15, 0.0, 0.0, 1.0, 1.0, np.zeros((1, 3)), True, 0.1,
+                0.0, 1)
+    core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), 0.0)  # type: ignore[arg-type]
+    core.step(0.0)
+    return core
+
+
 def test_the_straight_final_is_driven_off_the_wide_line_while_a_turn_only_creeps_out() -> None:
     """As above, but the turn that lined the chair up is still creeping out (|ω| < 0.01
     rad/s, its move not ended) when MPEPC hands the goal over: MPEPC counts that as at rest
     (Mpepc.final_heading's straight), the core did not (capture radius, not final_line) and
     ran the law or refused it, and at office B's desk the two alternated till "no progress"
     (nav_eval seed 7). Now the core drives the straight final too (its swing: lateral_stop)."""
-    from autochair.nav.mpepc import Plan
-    from autochair.nav.planner import PlanResult
-
     goal = (2.07, 0.035, 0.0)
     post = np.array([[2.0 + 0.78 * math.cos(0.87), 0.78 * math.sin(0.87), 0.04]])
 
     def handed_over(creep: float) -> ControlCore:
-        core = fresh_core(INSTANT)
-        core.inline_planning = False
-        core.on_field(_post_field(post))  # type: ignore[arg-type]
-        core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
-        assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
-        if creep:
-            core.limiter.w.move(creep, 0.02)  # the turn's last creep
-            assert core.limiter.w.moving and 0.0 < abs(core.limiter.w.value) < 0.01
-        plan = Plan((0.078, 0.46, 0.0, 0.15), goal, 0.15, 0.0, 0.0, 1.0, 1.0,
-                    np.zeros((1, 3)), True, 0.1, 0.0, 1)
-        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), 0.0)  # type: ignore[arg-type]
-        core.step(0.0)
-        return core
+        def creeping(w: SCurveAxis) -> None:
+            if creep:
+                w.move(creep, 0.02)  # the turn's last creep
+                assert w.moving and 0.0 < abs(w.value) < 0.01
+        return _handed_the_goal(post, goal, (0.078, 0.46), creeping)
 
     at_rest = handed_over(0.0)
     assert at_rest.final and at_rest.straight  # positive control: from rest
@@ -907,25 +917,14 @@ def test_a_straight_final_whose_turn_still_swings_on_has_the_swing_checked() -> 
     the goal (nav_eval seed 7, "behind the cabinet", found with a change to the final moves).
     Now the swing is the limiter's own braking, and a swing the body's turn cannot make
     clear of the map is no straight final."""
-    from autochair.nav.field import Footprint
-    from autochair.nav.mpepc import Plan
-    from autochair.nav.planner import PlanResult
-
     fp, goal = Footprint(), (2.12, 0.0, 0.0)
     post = np.array([[2.0 + fp.front_m + 0.06, fp.half_width_m + 0.17, 0.04]])  # front left
 
     def handed_over(posts: np.ndarray, turning: bool) -> ControlCore:
-        core = fresh_core(INSTANT)
-        core.inline_planning = False
-        core.on_field(_post_field(posts))  # type: ignore[arg-type]
-        core.on_odom(OdomSample(2.0, 0.0, 0.0, 0.0, 0.0, 0.0))
-        assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
-        if turning:
-            core.limiter.w.reset(0.36, 1.2)  # left, and still speeding up
-        plan = Plan((0.12, 0.0, 0.0, 0.15), goal, 0.15, 0.0, 0.0, 1.0, 1.0,
-                    np.zeros((1, 3)), True, 0.1, 0.0, 1)
-        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), 0.0)  # type: ignore[arg-type]
-        core.step(0.0)
+        def speeding_up(w: SCurveAxis) -> None:
+            if turning:
+                w.reset(0.36, 1.2)  # left, and still speeding up
+        core = _handed_the_goal(posts, goal, (0.12, 0.0), speeding_up)
         assert core.final
         return core
 
