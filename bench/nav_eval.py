@@ -613,9 +613,9 @@ def main(argv: list[str] | None = None) -> int:
         for r in runs:
             r.pop("plan_ms", None)
         out.write_text(json.dumps({"config": {f: getattr(cfg, f)
-                                                  for f in cfg.__struct_fields__},
-                                       "summary": summary, "runs": runs,
-                                       "refusals": refused}, indent=1) + "\n")
+                                              for f in cfg.__struct_fields__},
+                                   "summary": summary, "runs": runs,
+                                   "refusals": refused}, indent=1) + "\n")
     return 0
 
 
