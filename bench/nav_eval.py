@@ -56,6 +56,7 @@ import json
 import math
 import statistics
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +68,7 @@ from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import MpepcParams, Person
 from autochair.nav.planner import PlanRequest, PlanResult, compute, warm
+from autochair.sim.chair.model import ChairModel
 from autochair.sim.world import DEFAULT_WORLD, World, load_world
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate
 from bench.clearance_bound import Room, lattice_attainable
@@ -250,13 +252,16 @@ def people_at(world: World, t: float) -> list[Person]:
 def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig,
              fp: Footprint, params: MpepcParams | None = None, plan_delay_s: float = 0.0,
              scans: ScanMap | None = None, driven: list[Pose] | None = None,
-             monitor: SafetyRig | None = None) -> dict[str, Any]:
+             monitor: SafetyRig | None = None,
+             on_tick: Callable[[float, ControlCore, ChairModel], None] | None = None
+             ) -> dict[str, Any]:
     """One goal in lockstep. `plan_delay_s`: each plan takes effect this long after it was
     asked for (the node plans on its own thread meanwhile, the core driving the previous
     plan; 0: at once, as the figures are made). `scans`: the chair plans on the map grown
     from its laser's scans (bench/scan_map.py), not on `fld` (the exact world, which the
     metrics' references keep); `driven`: that map grown along these poses first (DRIVEN);
-    `monitor`: the safety monitor beside it, its limit required by the PID (bench/safety_rig)."""
+    `monitor`: the safety monitor beside it, its limit required by the PID (bench/safety_rig);
+    `on_tick(t, core, chair)`: called each tick once the chair has moved (the true chair)."""
     from autochair_msgs import GoalRequest, Pose2D
 
     rig = Rig(make_pid("tuned", monitor is not None), start=start)  # as the node configures it
@@ -322,6 +327,8 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
             states.add(core.state)
             out = core.step(t)
         rig.act(t, st.v, st.omega, out)
+        if on_tick is not None:
+            on_tick(t, core, model)
         rows.append((t, st.x, st.y, st.yaw, st.v, st.omega, st.distance,
                      model.x, model.y, model.yaw))
         if k % TRUTH_EVERY == 0:

@@ -73,43 +73,31 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     door). Now the chair drives the door straight from its line-up: measured κ ≤ 0.02 /m
     while the padded footprint is in the frame, and no monitor stop there. On the previous
     code κ reached 0.33 /m there (positive control)."""
-    from bench.control_eval import make_pid
+    from bench import nav_eval as ne
     from bench.safety_rig import SafetyRig
 
-    from autochair.control.core import OdomSample
-    from autochair.nav.field import Footprint, GridMap, NavField
-    from autochair.sim.world import DEFAULT_WORLD, load_world
-    from autochair.tune.lockstep import DT, Rig
-    from autochair_msgs import GoalRequest, Pose2D
+    from autochair.nav.field import Footprint
+    from autochair.sim.chair.model import ChairModel
 
-    world, fp = load_world(DEFAULT_WORLD), Footprint()
-    rig, monitor = Rig(make_pid("tuned", True), start=(12.3, -0.9, math.radians(80.0))), \
-        SafetyRig()
-    core = ControlCore(ControlConfig(), footprint=fp)
-    core.on_field(NavField(GridMap.from_shapes(world.segments, world.circles, frame_id="map"),
-                           fp))
-    every = round(1.0 / (core.cfg.rate_hz * DT))
+    fp, monitor = Footprint(), SafetyRig()
+    world, fld = ne.build("hallway", fp)
+    lineups = []  # the core's line-ups once it has the goal
     kappa = []  # |ω/v| measured while the padded body spans the door's line (y 1.4)
     stops = 0  # the monitor's stops (v bound 0 while moving) meanwhile
-    for k in range(round(30.0 / DT)):
-        t, m = k * DT, rig.chair
-        st = rig.sense()
-        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
-        monitor.tick(t, world, (m.x, m.y, m.yaw), (m.v, m.omega), (st.v, st.omega), rig.core,
-                     core)
-        if k == 0:
-            assert core.set_goal(GoalRequest(waypoints=[Pose2D(12.4, 2.5, math.pi / 2)]),
-                                 t).ok
-            assert core.lineups == 1
-        rig.act(t, st.v, st.omega, core.step(t) if k % every == 0 else None)
+
+    def tick(t: float, core: ControlCore, m: ChairModel) -> None:
+        nonlocal stops
+        lineups.append(core.lineups)
         ys = [m.y + math.sin(m.yaw) * a for a in (fp.front_m + 0.05, -fp.rear_m - 0.05)]
         if min(ys) < 1.4 < max(ys):
             stops += bool(monitor.stops) and monitor.stops[-1][0] == round(t, 2)
             if abs(m.v) > 0.05:
                 kappa.append(abs(m.omega / m.v))
-        if not core.active:
-            break
-    assert core.state == "arrived", core.reason
+
+    r = ne.run_case(world, fld, (12.3, -0.9, math.radians(80.0)), (12.4, 2.5, math.pi / 2),
+                    ControlConfig(), fp, monitor=monitor, on_tick=tick)
+    assert lineups[0] == 1
+    assert r["arrived"], r["state"]
     assert len(kappa) > 20 and max(kappa) <= 0.02
     assert stops == 0 and monitor.estops == 0
 
