@@ -953,3 +953,57 @@ def test_at_a_doors_line_up_the_chair_turns_onto_a_straight_through_it_and_drive
     plan_from((x, y, yaw), 0.1)
     core.step(0.12)
     assert core._move == (None, None) and core.limiter.v.value < 0.5
+
+
+def test_a_door_first_seen_on_a_later_map_is_lined_up_at_as_one_seen_at_the_goal() -> None:
+    # Live, the map grows as the chair drives: office A's door was first seen 2 m on, and the
+    # goal's line-ups are placed at its route check only, so none was: the chair came at the
+    # door along the hallway, turned in under it, and the monitor stopped it in the frame
+    # ("the chair does not follow"; nav_eval --monitor --map scans, into office A). Now each
+    # new map is looked at for a door on the first leg, and its line-up is put first.
+    fld, goal = _hallway(), (4.5, 3.0, math.pi / 2)
+    core = ControlCore(ControlConfig(), footprint=FP)
+    core.inline_planning = False
+    core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok  # (no map yet)
+    assert core.lineups == 0
+    req = core.plan_request(0.0)
+    assert req is not None and not req.seek_lineup  # (nothing new to look at)
+    core.on_plan(compute(req), 0.0)
+    core.on_field(fld)  # the map comes
+    core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, 0.5))
+    req = core.plan_request(0.5)
+    assert req is not None and req.seek_lineup
+    core.on_plan(compute(req), 0.5)
+    assert core.lineups == 1 and core.waypoints[1] == Pose2D(*goal)
+    seen = _accepted(fld, goal)  # the same map at the goal: the same line-up (control)
+    assert seen.lineups == 1 and core.waypoints[0] == seen.waypoints[0]
+    req = core.plan_request(1.0)  # to the line-up now, not looked for again
+    assert req is not None and not req.seek_lineup and req.index == 0
+    assert req.goal == (core.waypoints[0].x_m, core.waypoints[0].y_m, core.waypoints[0].yaw_rad)
+
+
+def test_a_line_up_is_placed_only_where_the_chair_can_stand_and_drive_the_door_straight() -> None:
+    # On the laser's map the cluttered room's gaps read as passages, and the chair was sent to
+    # line up 3 cm from a table, where it was blocked (nav_eval --monitor --map scans). Office
+    # A's door has its line-up (control); with a post 5 cm beside that pose, or one in the
+    # straight through the door (the way bends round it), it has none (the old placement kept
+    # both: a line-up needed 2 cm, and no straight).
+    from autochair.sim.world import DEFAULT_WORLD, load_world
+
+    world, goal = load_world(DEFAULT_WORLD), (4.5, 3.0, math.pi / 2)
+
+    def lineups(*posts: tuple[float, float, float]) -> list[tuple[float, float, float]]:
+        circles = np.concatenate([world.circles.reshape(-1, 3), np.array(posts).reshape(-1, 3)])
+        fld = NavField(GridMap.from_shapes(world.segments, circles, frame_id="map"), FP)
+        ctg = fld.cost_to_go(goal[0], goal[1])
+        assert ctg is not None
+        return fld.door_approaches(ctg, 0.0, 0.0)
+
+    (x, y, yaw), = lineups()
+    c, s = math.cos(yaw), math.sin(yaw)
+    # beside the pose: the footprint's right side 5 cm from a 5 cm post
+    side = -(FP.half_width_m + 0.05 + 0.05)
+    assert lineups((x - s * side, y + c * side, 0.05)) == []
+    # in the straight through the door, 0.3 m into the room, 0.3 m off its middle
+    assert lineups((x + 2.2 * c - 0.3 * s, y + 2.2 * s + 0.3 * c, 0.05)) == []

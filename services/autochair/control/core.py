@@ -540,6 +540,9 @@ class ControlCore:
         # Behind line-ups: the route check's ctg to the waypoint after them (field, waypoint,
         # ctg), taken when the chair gets there rather than made again in that cycle
         self._behind: tuple[NavField, Pose2D, CostToGo] | None = None
+        # The field line-ups were last looked for on (the goal's route check's, then each new
+        # map's on the first leg: PlanRequest.seek_lineup)
+        self._lineup_field: NavField | None = None
         self.given_up: GridMap | None = None  # cells kept out of ctg (nav/planner.give_up)
         self._warm: Warmed | None = None  # the newest field's ctg, made before its first cycle
         self.plan: Plan | None = None
@@ -736,6 +739,7 @@ class ControlCore:
         self._door = self._door_rest = False
         self._land_left = None
         self.ctg, self._ctg_field, self._ctg_index, self.plan = ctg, check.fld, 0, None
+        self._lineup_field = check.fld
         self.given_up = None
         self._plan_t, self._blocked_since = -math.inf, None
         self._last_blocked = ("", -math.inf)
@@ -949,7 +953,9 @@ class ControlCore:
                            self.plan is not None and self.plan.straight_m > 0.0,
                            None if self.plan is None else self.plan.then, given_up,
                            self.final, self._chain_now(o, now), self.final and self.straight,
-                           self.plan is not None and self.plan.turn_first, self._door)
+                           self.plan is not None and self.plan.turn_first, self._door,
+                           self.index == self.lineups and self.field is not None
+                           and fld is not self._lineup_field)
 
     def _standing_omega(self, now: float) -> float:
         """The safety monitor's standing |ω| bound (PLAN_OMEGA_WINDOW_S): the largest it
@@ -984,6 +990,17 @@ class ControlCore:
             return
         # (with the field they were made on: a request made ahead (_ahead) made its own free
         # field, and a map may have come since)
+        if self.index == self.lineups and res.field is not self._lineup_field:
+            self._lineup_field = res.field
+            if res.lineup is not None and res.ctg is not None and not self.final:
+                # A door the goal's route check did not see (the live map grows as the chair
+                # drives; office A's was first seen 2 m on): lined up at first, as those are
+                self._behind = (res.field, self.waypoints[self.index], res.ctg)
+                self.waypoints.insert(self.index, Pose2D(*res.lineup))
+                self.lineups += 1
+                self.plan, self.ctg, self._plan_t, self.given_up = None, None, -math.inf, None
+                self._count("late_lineups")
+                return
         self.ctg, self._ctg_field, self._ctg_index = res.ctg, res.field, res.index
         self.given_up = res.given_up
         self._lattice_left = res.lattice_left

@@ -47,6 +47,9 @@ class PlanRequest:
     # The chair has just reached a door's line-up pose: the door is driven straight
     # (Mpepc.through_door's `lined`); the core brakes until a stage takes it through
     door: bool = False
+    # Look for a door to line up at on the way to `goal` (PlanResult.lineup): the map has
+    # changed since the goal's route was checked (ControlCore: on the first leg only)
+    seek_lineup: bool = False
 
 
 @dataclass(frozen=True)
@@ -64,6 +67,9 @@ class PlanResult:
     # The goal's lattice's cost-to-go at the request's pose (None: no lattice there): progress
     # as the chair manoeuvres (ControlCore._watch_progress)
     lattice_left: float | None = None
+    # A pose to line up at before a door on the way (NavField.door_approaches), if asked
+    # (PlanRequest.seek_lineup) and one is found
+    lineup: tuple[float, float, float] | None = None
 
 
 _planners: dict[int, tuple[NavField, Mpepc]] = {}
@@ -275,6 +281,12 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
     if the lattice is made: a stage that turns the chair away from the goal to get round a
     jamb adds to the 2-D distance left, not to this."""
     res = _compute(req, params, blocked_progress_m, blocked_gain)
+    if req.seek_lineup and res.ctg is not None and not res.error:
+        # A door first seen on the live map (none was at the goal's route check: line-ups
+        # are placed where its passage is narrow, and unseen cells count as free)
+        doors = req.field.door_approaches(res.ctg, req.pose[0], req.pose[1])
+        if doors:
+            res = replace(res, lineup=(float(doors[0][0]), float(doors[0][1]), float(doors[0][2])))
     hit = _lattices.get((id(req.field), req.goal))
     if hit is None or hit[0] is not req.field or hit[1] is None:
         return res
