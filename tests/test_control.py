@@ -1153,3 +1153,27 @@ def test_a_stage_turns_straight_is_asked_for_by_the_core() -> None:
     # positive control: a turn that is not a stage's (the final manoeuvre's): nothing after it
     req = request(None, 2.0)
     assert req is not None and req.then is None  # type: ignore[attr-defined]
+
+
+def test_arrival_is_judged_on_the_measured_heading_not_the_predicted_one(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The core steers on the pose predicted from the commands it sent (`_predicted`); with
+    the safety monitor's |ω| bound holding the turn back, that ran ahead of the chair, and a
+    goal beside office B's desk ended "arrived" 34° off its heading (nav_eval --monitor seed
+    7, with the final turn refused by the monitor). At rest, at the goal's position, the
+    prediction on the goal's heading and the chair 20° off: not arrived (the old core
+    arrived); with the chair on it too, arrived (positive control)."""
+    def at_rest_at_goal(measured_yaw: float) -> ControlCore:
+        core = fresh_core(INSTANT)
+        core.on_odom(OdomSample(0.0, 0.0, measured_yaw, 0.0, 0.0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(0.0, 0.0, 0.0)]), 0.0).ok
+        monkeypatch.setattr(core, "_predicted", lambda o, now: OdomSample(
+            o.x, o.y, 0.0, o.v, o.omega, o.t))  # (the prediction: on the goal's heading)
+        for k in range(10):
+            core.on_odom(OdomSample(0.0, 0.0, measured_yaw, 0.0, 0.0, 0.02 * k))
+            core.step(0.02 * k)
+        return core
+
+    assert at_rest_at_goal(0.0).state == core_mod.ARRIVED
+    off = at_rest_at_goal(math.radians(20.0))
+    assert off.state != core_mod.ARRIVED and off.active

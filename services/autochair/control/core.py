@@ -1407,10 +1407,15 @@ class ControlCore:
                 abs(e) <= self.tol_rad and lw.value == 0.0 and lw.rate == 0.0):
             # Arrived once the chair itself is at rest, not just the command: the drive chain
             # still coasts for ~0.5 s after the last non-zero command.
+            # (its heading too, as measured: `o` is predicted from the commands sent, which
+            # the safety monitor's |ω| bound may have held back; judged on it alone, a goal
+            # beside office B's desk "arrived" 34° off its heading: nav_eval --monitor seed 7
+            # with a planner change that handed the core a turn the monitor stopped, H68)
             a = self.odom
             if self.limiter.at_rest and a is not None and abs(a.v) < cfg.rest_mps \
                     and abs(a.omega) < cfg.rest_mps \
-                    and math.hypot(goal.x_m - a.x, goal.y_m - a.y) <= self.tol_m:
+                    and math.hypot(goal.x_m - a.x, goal.y_m - a.y) <= self.tol_m \
+                    and abs(wrap(goal.yaw_rad - a.yaw)) <= self.tol_rad:
                 self._end(ARRIVED, "", now)
             self._move = (v_to, None)
             return 0.0, 0.0
