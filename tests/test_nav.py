@@ -792,18 +792,20 @@ def test_a_person_walking_into_a_wall_is_predicted_to_turn_back_at_it() -> None:
     hit, clear = stand_hit(room(12.0))
     assert hit == 0.0 and clear > 0.15
     # where: their disc at the wall (its cells' face: x 6.0..6.05), then straight back
-    turn = wall_turn(person, fld, 5.0)
+    turn = wall_turn(person, fld, 5.0, 1.0)
     assert turn is not None
     assert 6.0 - 0.25 - 0.03 <= turn.x_m <= 6.0 - 0.25 + 0.03 and turn.y_m == 2.0
     assert turn.t_s == pytest.approx((turn.x_m - 5.0) / 0.8)
     assert (turn.vx_mps, turn.vy_mps) == pytest.approx((-0.8, 0.0))
+    assert turn.from_s == pytest.approx(turn.t_s - 1.0)  # (or up to 1 s short of it)
     # moved on past the wall from where they were seen (the core's `ahead`): turned already
     seen = Person(5.0 + 0.8 * 1.5, 2.0, 0.8, 0.0, ahead_s=1.5)
-    moved = wall_turn(seen, fld, 5.0)
+    moved = wall_turn(seen, fld, 5.0, 1.0)
     assert moved is not None
     assert moved.t_s == pytest.approx(turn.t_s - 1.5) and moved.x_m == pytest.approx(turn.x_m)
+    assert moved.from_s == pytest.approx(-1.5)  # (not before they were seen)
     # someone walking along a wall they are seen beside (within their radius) walks on
-    assert wall_turn(Person(0.5, 0.2, 0.8, 0.0), fld, 5.0) is None
+    assert wall_turn(Person(0.5, 0.2, 0.8, 0.0), fld, 5.0, 1.0) is None
 
 
 def test_a_map_that_closes_the_way_blocks_then_aborts_with_no_path() -> None:

@@ -77,22 +77,37 @@ class Person:
 @dataclass(frozen=True)
 class WallTurn:
     """Where a person's walk meets what the map shows occupied: at `t_s` from now (< 0: while
-    they were moved on `ahead_s`), at (x, y), after which they walk off at (vx, vy)."""
+    they were moved on `ahead_s`), at (x, y), where they turn to walk off at (vx, vy); or
+    earlier, from `from_s` on (they turn before they touch the wall, when is not known)."""
 
     t_s: float
     x_m: float
     y_m: float
     vx_mps: float
     vy_mps: float
+    from_s: float
+
+    def span(self, person: Person, t: F64) -> tuple[F64, F64, F64, F64]:
+        """At times `t` (≥ from_s) the segment (ax, ay) → (bx, by) they are on if they turned:
+        from turning at `from_s` to turning at `t_s` (or walking on still, before it)."""
+        ta = self.from_s
+        tb = np.minimum(t, self.t_s)
+        ax = person.x_m + person.vx_mps * ta + self.vx_mps * (t - ta)
+        ay = person.y_m + person.vy_mps * ta + self.vy_mps * (t - ta)
+        bx = person.x_m + person.vx_mps * tb + self.vx_mps * (t - tb)
+        by = person.y_m + person.vy_mps * tb + self.vy_mps * (t - tb)
+        return ax, ay, bx, by
 
 
-def wall_turn(person: Person, fld: NavField, upto_s: float) -> WallTurn | None:
+def wall_turn(person: Person, fld: NavField, upto_s: float, early_s: float) -> WallTurn | None:
     """Where `person`, walking on at their velocity from where they were seen, first comes
     within their radius of an occupied cell (within half their clearance when seen, if that
     is less: someone seen beside a wall may walk along it), within `upto_s` s of now; their
     velocity is then mirrored off it (the normal: from the nearest occupied cell's square),
     so someone walking into a wall head-on turns back and someone grazing it walks on along
-    it (one turn: what they meet after it is not looked for).
+    it (one turn: what they meet after it is not looked for). They may turn up to `early_s`
+    before (MpepcParams.react_s: as far as they are predicted to reach anyway), not before
+    they were seen: people turn short of a wall (nav_eval's 0.25 m short).
 
     Why: constant velocity walked people on through walls, so someone turning back at the end
     of a dead end was predicted walking away, and the chair set off across the line they came
@@ -129,8 +144,8 @@ def wall_turn(person: Person, fld: NavField, upto_s: float) -> WallTurn | None:
     dot = person.vx_mps * nx + person.vy_mps * ny
     if dot >= 0.0:  # (walking away from the nearest occupied cell: not into it)
         return None
-    return WallTurn(tw - person.ahead_s, wx, wy, person.vx_mps - 2 * dot * nx,
-                    person.vy_mps - 2 * dot * ny)
+    return WallTurn(tw - back, wx, wy, person.vx_mps - 2 * dot * nx,
+                    person.vy_mps - 2 * dot * ny, max(tw - early_s, 0.0) - back)
 
 
 class ChainAxisLike(Protocol):
@@ -1185,8 +1200,8 @@ class Mpepc:
         (NavField.footprint_clearance: the prediction's cost, replanned every cycle; what the
         chair is committed to, `stop_clearance`, is read on the fine one too) and per person
         the least distance of its outline to their centre predicted at constant velocity, or
-        turned back where that meets a wall (`wall_turn`), at times `t`, and to where they
-        stand now. In batches of candidates (field.BATCH_POINTS:
+        turned back short of where that meets a wall (`wall_turn`), at times `t`, and to
+        where they stand now. In batches of candidates (field.BATCH_POINTS:
         the temporaries stay in cache), the same numbers. The clearance is read exactly under
         `predict_below` but not at poses read under `hit_under` (hits, and under every margin
         it is compared with, whatever it reads)."""
@@ -1196,7 +1211,7 @@ class Mpepc:
                                            decided=hit_under), []
         d = np.empty(xs.shape)
         near = [(np.empty(xs.shape), np.empty(xs.shape)) for _ in people]
-        turns = [wall_turn(person, fld, float(t[-1])) for person in people]
+        turns = [wall_turn(person, fld, float(t[-1]), self.p.react_s) for person in people]
         rows = max(1, BATCH_POINTS // (xs.shape[1] * len(fld.outline)))
         for i in range(0, xs.shape[0], rows):
             b = slice(i, i + rows)
@@ -1206,15 +1221,18 @@ class Mpepc:
                 to_path[b] = np.hypot(px - cx[:, None], py - cy[:, None]).min(-1)
                 to_here[b] = np.hypot(px - person.x_m, py - person.y_m).min(-1)
                 if turn is not None:
-                    # and turned back at the wall: the nearer of the two (the map may show a
+                    # or turned back short of the wall: the nearer (the map may show a
                     # person's own trail or a door since opened as occupied: walking on is
-                    # kept, nothing is checked less than before)
-                    j = int(np.searchsorted(t, turn.t_s))
-                    bx = turn.x_m + turn.vx_mps * (t[j:] - turn.t_s)
-                    by = turn.y_m + turn.vy_mps * (t[j:] - turn.t_s)
-                    np.minimum(to_path[b][:, j:], np.hypot(
-                        px[:, j:] - bx[:, None], py[:, j:] - by[:, None]).min(-1),
-                        out=to_path[b][:, j:])
+                    # kept, nothing is checked less than before). To the segment of where
+                    # they are, whenever they turned (WallTurn.span).
+                    j = int(np.searchsorted(t, turn.from_s))
+                    ax, ay, bx, by = (e[:, None] for e in turn.span(person, t[j:]))
+                    dx, dy = bx - ax, by - ay
+                    qx, qy = px[:, j:] - ax, py[:, j:] - ay
+                    u = np.clip((qx * dx + qy * dy) / np.maximum(dx * dx + dy * dy, 1e-12),
+                                0.0, 1.0)
+                    np.minimum(to_path[b][:, j:], np.hypot(qx - u * dx, qy - u * dy).min(-1),
+                               out=to_path[b][:, j:])
             d[b] = fld.outline_clearance(px, py, self.predict_below,
                                          hit_under)  # (last: px, py are its scratch)
         return d, near
