@@ -771,7 +771,9 @@ def test_a_person_walking_into_a_wall_is_predicted_to_turn_back_at_it() -> None:
     the chair set off across the line they came back along. In a 6 × 4 m room a person walks
     at 0.8 m/s towards the far wall (x = 6), away from a chair standing 2.2 m behind them on
     their line. Standing still must now be a hit (they come back within the horizon); the old
-    code found it clear. The person is predicted to meet the wall where their disc does."""
+    code found it clear. They are predicted to turn where their disc meets the wall, or up to
+    a radius short of it."""
+
     def room(length: float) -> NavField:
         segs = [[0, 0, length, 0], [length, 0, length, 4], [length, 4, 0, 4], [0, 4, 0, 0]]
         return NavField(GridMap.from_shapes(np.array(segs, dtype=float), np.zeros((0, 3))), FP)
@@ -792,20 +794,22 @@ def test_a_person_walking_into_a_wall_is_predicted_to_turn_back_at_it() -> None:
     hit, clear = stand_hit(room(12.0))
     assert hit == 0.0 and clear > 0.15
     # where: their disc at the wall (its cells' face: x 6.0..6.05), then straight back
-    turn = wall_turn(person, fld, 5.0, 1.0)
+    turn = wall_turn(person, fld, 5.0)
     assert turn is not None
     assert 6.0 - 0.25 - 0.03 <= turn.x_m <= 6.0 - 0.25 + 0.03 and turn.y_m == 2.0
     assert turn.t_s == pytest.approx((turn.x_m - 5.0) / 0.8)
     assert (turn.vx_mps, turn.vy_mps) == pytest.approx((-0.8, 0.0))
-    assert turn.from_s == pytest.approx(turn.t_s - 1.0)  # (or up to 1 s short of it)
+    assert turn.from_s == pytest.approx(turn.t_s - 0.25 / 0.8)  # (or a radius short of it)
     # moved on past the wall from where they were seen (the core's `ahead`): turned already
     seen = Person(5.0 + 0.8 * 1.5, 2.0, 0.8, 0.0, ahead_s=1.5)
-    moved = wall_turn(seen, fld, 5.0, 1.0)
+    moved = wall_turn(seen, fld, 5.0)
     assert moved is not None
     assert moved.t_s == pytest.approx(turn.t_s - 1.5) and moved.x_m == pytest.approx(turn.x_m)
-    assert moved.from_s == pytest.approx(-1.5)  # (not before they were seen)
+    assert moved.from_s == pytest.approx(turn.from_s - 1.5)
+    near = wall_turn(Person(5.6, 2.0, 0.8, 0.0), fld, 5.0)  # (not before they were seen)
+    assert near is not None and near.from_s == 0.0 and near.t_s > 0.1
     # someone walking along a wall they are seen beside (within their radius) walks on
-    assert wall_turn(Person(0.5, 0.2, 0.8, 0.0), fld, 5.0, 1.0) is None
+    assert wall_turn(Person(0.5, 0.2, 0.8, 0.0), fld, 5.0) is None
 
 
 def test_a_map_that_closes_the_way_blocks_then_aborts_with_no_path() -> None:

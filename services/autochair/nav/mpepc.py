@@ -99,15 +99,19 @@ class WallTurn:
         return ax, ay, bx, by
 
 
-def wall_turn(person: Person, fld: NavField, upto_s: float, early_s: float) -> WallTurn | None:
+def wall_turn(person: Person, fld: NavField, upto_s: float) -> WallTurn | None:
     """Where `person`, walking on at their velocity from where they were seen, first comes
     within their radius of an occupied cell (within half their clearance when seen, if that
     is less: someone seen beside a wall may walk along it), within `upto_s` s of now; their
     velocity is then mirrored off it (the normal: from the nearest occupied cell's square),
     so someone walking into a wall head-on turns back and someone grazing it walks on along
-    it (one turn: what they meet after it is not looked for). They may turn up to `early_s`
-    before (MpepcParams.react_s: as far as they are predicted to reach anyway), not before
-    they were seen: people turn short of a wall (nav_eval's 0.25 m short).
+    it (one turn: what they meet after it is not looked for). People turn short of a wall:
+    anywhere from touching it to a radius short of it (not before they were seen). Measured
+    (nav_eval --monitor "person: to the side", whose person turns a radius short): predicted
+    turning only on touching it, the return was 0.7 s late and the chair still crossed into
+    it; allowed up to MpepcParams.react_s (1 s) short, the windows to cross in narrowed so
+    much that the chair, hesitating, lost one case (no progress) and parked in the lane in
+    another (walked into). A person turning farther out is seen turning at the next plan.
 
     Why: constant velocity walked people on through walls, so someone turning back at the end
     of a dead end was predicted walking away, and the chair set off across the line they came
@@ -145,7 +149,7 @@ def wall_turn(person: Person, fld: NavField, upto_s: float, early_s: float) -> W
     if dot >= 0.0:  # (walking away from the nearest occupied cell: not into it)
         return None
     return WallTurn(tw - back, wx, wy, person.vx_mps - 2 * dot * nx,
-                    person.vy_mps - 2 * dot * ny, max(tw - early_s, 0.0) - back)
+                    person.vy_mps - 2 * dot * ny, max(tw - person.radius_m / speed, 0.0) - back)
 
 
 class ChainAxisLike(Protocol):
@@ -1211,7 +1215,7 @@ class Mpepc:
                                            decided=hit_under), []
         d = np.empty(xs.shape)
         near = [(np.empty(xs.shape), np.empty(xs.shape)) for _ in people]
-        turns = [wall_turn(person, fld, float(t[-1]), self.p.react_s) for person in people]
+        turns = [wall_turn(person, fld, float(t[-1])) for person in people]
         rows = max(1, BATCH_POINTS // (xs.shape[1] * len(fld.outline)))
         for i in range(0, xs.shape[0], rows):
             b = slice(i, i + rows)
