@@ -5,7 +5,9 @@ command) and the stack run's check that the simulator kept real time (bench/cont
 from __future__ import annotations
 
 import math
+from typing import Any
 
+import pytest
 from bench.control_eval import run_case
 from bench.control_stack import sim_rate
 
@@ -102,13 +104,8 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     assert stops == 0 and monitor.estops == 0
 
 
-def test_a_person_crossing_does_not_walk_into_the_monitored_chair() -> None:
-    """H65 (nav_eval --monitor --seed 2, "person: to the side"): a person crosses the corridor
-    at 0.8 m/s, walking on regardless of the chair. With MPEPC's rollouts turning faster than
-    the monitor's |ω| bound lets the chair, the chair, slowed by that bound on the S-turn it
-    planned, stopped with its rear on the person's line and the person walked into it (1
-    contact, the case's old result); predicted within the bound it drives on straight ahead,
-    clear."""
+def _to_the_side(seed: int) -> dict[str, Any]:
+    """nav_eval's "person: to the side" with the safety monitor, MPEPC's sampler at `seed`."""
     from bench import nav_eval as ne
     from bench.safety_rig import SafetyRig
 
@@ -124,7 +121,35 @@ def test_a_person_crossing_does_not_walk_into_the_monitored_chair() -> None:
     planner._planners.clear()  # (a fresh planner and sampler, as nav_eval's)
     planner._lattices.clear()
     cfg = load_section(ControlConfig, "control", None, [])  # (as nav_eval's)
-    r = ne.run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=2), monitor=SafetyRig(0))
+    return ne.run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=seed),
+                       monitor=SafetyRig(0))
+
+
+def test_a_person_crossing_does_not_walk_into_the_monitored_chair() -> None:
+    """H65 (nav_eval --monitor --seed 2, "person: to the side"): a person crosses the corridor
+    at 0.8 m/s, walking on regardless of the chair. With MPEPC's rollouts turning faster than
+    the monitor's |ω| bound lets the chair, the chair, slowed by that bound on the S-turn it
+    planned, stopped with its rear on the person's line and the person walked into it (1
+    contact, the case's old result); predicted within the bound it drives on straight ahead,
+    clear."""
+    r = _to_the_side(2)
+    assert r["arrived"]
+    assert r["collisions"] == 0
+    assert r["min_clearance_m"] > 0.2
+
+
+@pytest.mark.parametrize("seed", [3, 6])
+def test_a_person_turning_back_at_a_wall_does_not_walk_into_the_monitored_chair(
+        seed: int) -> None:
+    """H65's residual (the same case, seeds 3 and 6): the person turns back at the far end of
+    their walk, in the room across the corridor, just as the chair sets off across their line.
+    Predicted at constant velocity they walked on through the room's wall and away; the chair
+    could then neither clear the line nor stop short of it (seed 3: it stood on the line and
+    was walked into, 1 contact; seed 6: it passed 0.051 m from them at 1.18 m/s, the old
+    results). Predicted turning back at the wall (mpepc.wall_turn), crossing later is no
+    longer as good as crossing now: it sets off 1.5 s earlier, in the window there is, and
+    crosses clear (0.29 / 0.32 m; 13.3 s, was 16.7 / 21.4)."""
+    r = _to_the_side(seed)
     assert r["arrived"]
     assert r["collisions"] == 0
     assert r["min_clearance_m"] > 0.2

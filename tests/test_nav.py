@@ -10,7 +10,15 @@ import pytest
 from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
 from autochair.nav import field as nav_field
 from autochair.nav.field import Footprint, GridMap, NavField, bilinear, place
-from autochair.nav.mpepc import TOUCH_M, LawParams, Mpepc, MpepcParams, Person, Plan
+from autochair.nav.mpepc import (
+    TOUCH_M,
+    LawParams,
+    Mpepc,
+    MpepcParams,
+    Person,
+    Plan,
+    wall_turn,
+)
 from autochair.nav.planner import PlanRequest, blocker, compute, free_field
 from autochair.sim.world import World, WorldError, parse_world
 from autochair_msgs import GoalRequest, OccupancyGrid, Pose2D
@@ -753,6 +761,55 @@ def test_people_are_planned_at_the_time_of_the_predicted_pose() -> None:
     assert lead > 0.5 and req.pose[0] > x + 0.3  # positive control: planned from ahead
     assert req.people[0].y_m == pytest.approx(3.5 - 0.8 * lead)
     assert req.people[0].x_m == 3.0 and core.people[0].y_m == 3.5  # the input is kept
+    # (and how far: MPEPC checks their walk against the map from where they were seen)
+    assert req.people[0].ahead_s == pytest.approx(lead)
+
+
+def test_a_person_walking_into_a_wall_is_predicted_to_turn_back_at_it() -> None:
+    """H65's residual (nav_eval --monitor --seed 3, "person: to the side"): at constant
+    velocity a person walking into a wall was predicted to walk on through it and away, so
+    the chair set off across the line they came back along. In a 6 × 4 m room a person walks
+    at 0.8 m/s towards the far wall (x = 6), away from a chair standing 2.2 m behind them on
+    their line. Standing still must now be a hit (they come back within the horizon); the old
+    code found it clear. They are predicted to turn where their disc meets the wall, or up to
+    a radius short of it."""
+
+    def room(length: float) -> NavField:
+        segs = [[0, 0, length, 0], [length, 0, length, 4], [length, 4, 0, 4], [0, 4, 0, 0]]
+        return NavField(GridMap.from_shapes(np.array(segs, dtype=float), np.zeros((0, 3))), FP)
+
+    def stand_hit(fld: NavField) -> tuple[float, float]:
+        ctg = fld.cost_to_go(1.0, 2.0)
+        assert ctg is not None
+        _, info = planner(fld).evaluate(pose, 0.0, 0.0, np.array([[0.0, 0.0, 0.0, 0.15]]),
+                                        ctg, [person])
+        return float(info["hit"][0]), float(info["clearance"][0])
+
+    pose = (2.8, 2.0, 0.0)  # (its front 1.25 m from them: out of their 1 s reach, 1.05 m)
+    person = Person(5.0, 2.0, 0.8, 0.0)
+    fld = room(6.0)
+    hit, clear = stand_hit(fld)
+    assert hit == 1.0 and clear < 0.0
+    # positive control: in a 12 m room (the wall met after the horizon) the same stand is clear
+    hit, clear = stand_hit(room(12.0))
+    assert hit == 0.0 and clear > 0.15
+    # where: their disc at the wall (its cells' face: x 6.0..6.05), then straight back
+    turn = wall_turn(person, fld, 5.0)
+    assert turn is not None
+    assert 6.0 - 0.25 - 0.03 <= turn.x_m <= 6.0 - 0.25 + 0.03 and turn.y_m == 2.0
+    assert turn.t_s == pytest.approx((turn.x_m - 5.0) / 0.8)
+    assert (turn.vx_mps, turn.vy_mps) == pytest.approx((-0.8, 0.0))
+    assert turn.from_s == pytest.approx(turn.t_s - 0.25 / 0.8)  # (or a radius short of it)
+    # moved on past the wall from where they were seen (the core's `ahead`): turned already
+    seen = Person(5.0 + 0.8 * 1.5, 2.0, 0.8, 0.0, ahead_s=1.5)
+    moved = wall_turn(seen, fld, 5.0)
+    assert moved is not None
+    assert moved.t_s == pytest.approx(turn.t_s - 1.5) and moved.x_m == pytest.approx(turn.x_m)
+    assert moved.from_s == pytest.approx(turn.from_s - 1.5)
+    near = wall_turn(Person(5.6, 2.0, 0.8, 0.0), fld, 5.0)  # (not before they were seen)
+    assert near is not None and near.from_s == 0.0 and near.t_s > 0.1
+    # someone walking along a wall they are seen beside (within their radius) walks on
+    assert wall_turn(Person(0.5, 0.2, 0.8, 0.0), fld, 5.0) is None
 
 
 def test_a_map_that_closes_the_way_blocks_then_aborts_with_no_path() -> None:

@@ -12,7 +12,7 @@ import numpy as np
 from autochair.control.core import ControlConfig
 from autochair.nav import field as nav_field
 from autochair.nav.field import Footprint, GridMap, NavField, bilinear_xy, place_xy
-from autochair.nav.mpepc import Mpepc, MpepcParams, Person, move, scurve
+from autochair.nav.mpepc import Mpepc, MpepcParams, Person, move, scurve, wall_turn
 
 FP = Footprint()
 
@@ -167,10 +167,23 @@ def test_people_distances_in_batches_are_the_plain_ones() -> None:
     assert np.array_equal(d, fld.footprint_clearance(x, y, yaw, fine=False,
                                                      below=mp.predict_below))
     assert ((d > 0.0) & (d < mp.predict_below)).any()
+    turned = 0
     for p, (to_path, to_here) in zip(people, near, strict=True):
         cx, cy = p.x_m + p.vx_mps * t, p.y_m + p.vy_mps * t
-        assert np.array_equal(to_path, np.hypot(px - cx[:, None], py - cy[:, None]).min(-1))
+        on = np.hypot(px - cx[:, None], py - cy[:, None]).min(-1)
+        turn = wall_turn(p, fld, float(t[-1]))
+        if turn is not None:  # (or turned back short of a wall: to the segment, each step)
+            turned += 1
+            for k in np.nonzero(t >= turn.from_s)[0]:
+                ax, ay, bx, by = (float(e[0]) for e in turn.span(p, t[k:k + 1]))
+                a, b = np.array([ax, ay]), np.array([bx, by])
+                q = np.stack([px[:, k], py[:, k]], -1) - a  # (N, P, 2)
+                u = np.clip(q @ (b - a) / max(float((b - a) @ (b - a)), 1e-12), 0.0, 1.0)
+                seg = np.linalg.norm(q - u[..., None] * (b - a), axis=-1).min(-1)
+                on[:, k] = np.minimum(on[:, k], seg)
+        assert np.allclose(to_path, on, rtol=0.0, atol=1e-12)
         assert np.array_equal(to_here, np.hypot(px - p.x_m, py - p.y_m).min(-1))
+    assert turned == 1  # (the first walks into the room's wall within the horizon)
     d0, none = mp.outline_distances(x, y, yaw, [], t)
     assert none == [] and np.array_equal(d0, d)
 

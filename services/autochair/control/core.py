@@ -919,8 +919,8 @@ class ControlCore:
             x, y, yaw = advance(x, y, yaw, 0.5 * (v0 + v), 0.5 * (w0 + w), h)
         t = now + n * h
         sim.odom = OdomSample(x, y, wrap(yaw), v, w, t)
-        sim.people = [replace(q, x_m=q.x_m + q.vx_mps * n * h, y_m=q.y_m + q.vy_mps * n * h)
-                      for q in self.people]
+        sim.people = [replace(q, x_m=q.x_m + q.vx_mps * n * h, y_m=q.y_m + q.vy_mps * n * h,
+                              ahead_s=q.ahead_s + n * h) for q in self.people]
         return sim._request(sim.odom, t)
 
     def _request(self, o: OdomSample, now: float) -> PlanRequest:
@@ -941,8 +941,9 @@ class ControlCore:
         ahead = sum(h[0] for h in self._history)
         if self._plan_chain is not None:
             ahead = min(ahead, self._plan_chain[0].delay + 2 * self._plan_chain[0].lag)
+        # (`ahead_s`: MPEPC checks their walk against the map from where they were seen)
         people = [Person(q.x_m + q.vx_mps * ahead, q.y_m + q.vy_mps * ahead, q.vx_mps,
-                         q.vy_mps, q.radius_m) for q in self.people]
+                         q.vy_mps, q.radius_m, q.ahead_s + ahead) for q in self.people]
         return PlanRequest(self.goal_id, self.index, (p.x, p.y, p.yaw), self.limiter.v.value,
                            self.limiter.w.value, (wp.x_m, wp.y_m, wp.yaw_rad), fld, ctg, prev,
                            self.cfg.law(self.tol_m * self.cfg.capture_fraction,

@@ -10,7 +10,8 @@ and a comfort-limited model of the drive chain, and scored by
         + hit_cost if any predicted pose touches an obstacle
 
 φ the navigation function (nav/field.py), p_c = exp(−d²/σ²) with d the least clearance of the
-footprint outline (σ 0.1 m static, 0.2 m for people, who are predicted at constant velocity),
+footprint outline (σ 0.1 m static, 0.2 m for people, who are predicted at constant velocity
+and turned back where that walks them into a wall, `wall_turn`),
 p_s(k) the survival probability up to step k. Unlike the paper's Π(1 − p_c) we take
 p_s(k) = 1 − max_{j≤k} p_c(j): what p_c models (the tracking and map error of one trajectory)
 is the same from step to step, not independent per 0.2 s step; the product made any 0.9 m
@@ -60,13 +61,95 @@ LIMITER_LOOKAHEAD_S = ComfortLimiter().lookahead_s  # ControlConfig.law does not
 
 @dataclass(frozen=True)
 class Person:
-    """A moving obstacle: a disc, predicted at constant velocity."""
+    """A moving obstacle: a disc, predicted at constant velocity and, where that walks them
+    into what the map shows occupied, also turned back off it there (`wall_turn`)."""
 
     x_m: float
     y_m: float
     vx_mps: float = 0.0
     vy_mps: float = 0.0
     radius_m: float = 0.25
+    # How far (s) they were moved on at their velocity from where they were seen (the core's
+    # `ahead`): their walk is checked against the map from there (they may have turned in it).
+    ahead_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class WallTurn:
+    """Where a person's walk meets what the map shows occupied: at `t_s` from now (< 0: while
+    they were moved on `ahead_s`), at (x, y), where they turn to walk off at (vx, vy); or
+    earlier, from `from_s` on (they turn before they touch the wall, when is not known)."""
+
+    t_s: float
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    from_s: float
+
+    def span(self, person: Person, t: F64) -> tuple[F64, F64, F64, F64]:
+        """At times `t` (≥ from_s) the segment (ax, ay) → (bx, by) they are on if they turned:
+        from turning at `from_s` to turning at `t_s` (or walking on still, before it)."""
+        ta = self.from_s
+        tb = np.minimum(t, self.t_s)
+        ax = person.x_m + person.vx_mps * ta + self.vx_mps * (t - ta)
+        ay = person.y_m + person.vy_mps * ta + self.vy_mps * (t - ta)
+        bx = person.x_m + person.vx_mps * tb + self.vx_mps * (t - tb)
+        by = person.y_m + person.vy_mps * tb + self.vy_mps * (t - tb)
+        return ax, ay, bx, by
+
+
+def wall_turn(person: Person, fld: NavField, upto_s: float) -> WallTurn | None:
+    """Where `person`, walking on at their velocity from where they were seen, first comes
+    within their radius of an occupied cell (within half their clearance when seen, if that
+    is less: someone seen beside a wall may walk along it), within `upto_s` s of now; their
+    velocity is then mirrored off it (the normal: from the nearest occupied cell's square),
+    so someone walking into a wall head-on turns back and someone grazing it walks on along
+    it (one turn: what they meet after it is not looked for). People turn short of a wall:
+    anywhere from touching it to a radius short of it (not before they were seen). Measured
+    (nav_eval --monitor "person: to the side", whose person turns a radius short): predicted
+    turning only on touching it, the return was 0.7 s late and the chair still crossed into
+    it; allowed up to MpepcParams.react_s (1 s) short, the windows to cross in narrowed so
+    much that the chair, hesitating, lost one case (no progress) and parked in the lane in
+    another (walked into). A person turning farther out is seen turning at the next plan.
+
+    Why: constant velocity walked people on through walls, so someone turning back at the end
+    of a dead end was predicted walking away, and the chair set off across the line they came
+    back along (H65). People stop or turn there; turning back is the one of the two that
+    reaches the chair. This is the planner's, not the tracker's (people/core.py reports where
+    people are and how they move, not where they will be): it needs the map the chair plans
+    on and the horizon it predicts over, and the simulator's people (nav_eval) reach the
+    planner without the tracker. Reads ~200 clearances per person (half-cell steps)."""
+    speed = math.hypot(person.vx_mps, person.vy_mps)
+    span = person.ahead_s + upto_s
+    if speed < 1e-3 or span <= 0.0:
+        return None
+    back = person.ahead_s
+    sx, sy = person.x_m - person.vx_mps * back, person.y_m - person.vy_mps * back
+    tau = np.linspace(0.0, span, math.ceil(span * speed / (fld.map.resolution_m / 2)) + 1)
+    c = fld.clearance_xy(sx + person.vx_mps * tau, sy + person.vy_mps * tau)
+    limit = min(person.radius_m, float(c[0]) / 2)  # (seen in an occupied cell: 0, never)
+    k = int(np.argmax(c < limit))
+    if not c[k] < limit:
+        return None
+    f = (c[k - 1] - limit) / (c[k - 1] - c[k])  # (k ≥ 1: c[0] ≥ limit)
+    tw = float(tau[k - 1] + f * (tau[k] - tau[k - 1]))
+    wx, wy = sx + person.vx_mps * tw, sy + person.vy_mps * tw
+    ob = fld.nearest_obstacle(wx, wy)
+    if ob is None:
+        return None
+    h = fld.map.resolution_m / 2  # (from the nearest point of that cell's square, not its centre)
+    nx = wx - min(max(wx, ob[0] - h), ob[0] + h)
+    ny = wy - min(max(wy, ob[1] - h), ob[1] + h)
+    norm = math.hypot(nx, ny)
+    if norm < 1e-9:
+        return None
+    nx, ny = nx / norm, ny / norm
+    dot = person.vx_mps * nx + person.vy_mps * ny
+    if dot >= 0.0:  # (walking away from the nearest occupied cell: not into it)
+        return None
+    return WallTurn(tw - back, wx, wy, person.vx_mps - 2 * dot * nx,
+                    person.vy_mps - 2 * dot * ny, max(tw - person.radius_m / speed, 0.0) - back)
 
 
 class ChainAxisLike(Protocol):
@@ -1120,8 +1203,9 @@ class Mpepc:
         """At the predicted poses (N, T): the footprint's clearance on the coarse outline
         (NavField.footprint_clearance: the prediction's cost, replanned every cycle; what the
         chair is committed to, `stop_clearance`, is read on the fine one too) and per person
-        the least distance of its outline to their centre predicted at constant velocity (at
-        times `t`) and to where they stand now. In batches of candidates (field.BATCH_POINTS:
+        the least distance of its outline to their centre predicted at constant velocity, or
+        turned back short of where that meets a wall (`wall_turn`), at times `t`, and to
+        where they stand now. In batches of candidates (field.BATCH_POINTS:
         the temporaries stay in cache), the same numbers. The clearance is read exactly under
         `predict_below` but not at poses read under `hit_under` (hits, and under every margin
         it is compared with, whatever it reads)."""
@@ -1131,14 +1215,28 @@ class Mpepc:
                                            decided=hit_under), []
         d = np.empty(xs.shape)
         near = [(np.empty(xs.shape), np.empty(xs.shape)) for _ in people]
+        turns = [wall_turn(person, fld, float(t[-1])) for person in people]
         rows = max(1, BATCH_POINTS // (xs.shape[1] * len(fld.outline)))
         for i in range(0, xs.shape[0], rows):
             b = slice(i, i + rows)
             px, py = place_xy(fld.outline, xs[b], ys[b], yaws[b])  # (n, T, P)
-            for person, (to_path, to_here) in zip(people, near, strict=True):
+            for person, turn, (to_path, to_here) in zip(people, turns, near, strict=True):
                 cx, cy = person.x_m + person.vx_mps * t, person.y_m + person.vy_mps * t
                 to_path[b] = np.hypot(px - cx[:, None], py - cy[:, None]).min(-1)
                 to_here[b] = np.hypot(px - person.x_m, py - person.y_m).min(-1)
+                if turn is not None:
+                    # or turned back short of the wall: the nearer (the map may show a
+                    # person's own trail or a door since opened as occupied: walking on is
+                    # kept, nothing is checked less than before). To the segment of where
+                    # they are, whenever they turned (WallTurn.span).
+                    j = int(np.searchsorted(t, turn.from_s))
+                    ax, ay, bx, by = (e[:, None] for e in turn.span(person, t[j:]))
+                    dx, dy = bx - ax, by - ay
+                    qx, qy = px[:, j:] - ax, py[:, j:] - ay
+                    u = np.clip((qx * dx + qy * dy) / np.maximum(dx * dx + dy * dy, 1e-12),
+                                0.0, 1.0)
+                    np.minimum(to_path[b][:, j:], np.hypot(qx - u * dx, qy - u * dy).min(-1),
+                               out=to_path[b][:, j:])
             d[b] = fld.outline_clearance(px, py, self.predict_below,
                                          hit_under)  # (last: px, py are its scratch)
         return d, near
