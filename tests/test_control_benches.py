@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from bench.control_eval import run_case
 from bench.control_stack import sim_rate
 
@@ -72,12 +73,18 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     corrections inside the frame met the jamb in its sweep (seed 7: an e-stop entering this
     door). Now the chair drives the door straight from its line-up: measured κ ≤ 0.02 /m
     while the padded footprint is in the frame, and no monitor stop there. On the previous
-    code κ reached 0.33 /m there (positive control)."""
+    code κ reached 0.33 /m there (positive control).
+    H67: that straight is driven at its sight-limited speed (Mpepc.through_door: from the
+    line-up the chair could stop short of the door's line, 1.5 m ahead of the axle, after the
+    plan period and the drive chain's lag; ~0.32 m/s), the speed its plan was evaluated at:
+    the chair's true speed while its body spans the door's line stays within it (+ 2 cm/s:
+    the chain). Before, it was driven at the goal's top speed, 1.15 m/s measured here."""
     from bench.control_eval import make_pid
     from bench.safety_rig import SafetyRig
 
     from autochair.control.core import OdomSample
     from autochair.nav.field import Footprint, GridMap, NavField
+    from autochair.nav.mpepc import MpepcParams, Plan, sight_speed
     from autochair.sim.world import DEFAULT_WORLD, load_world
     from autochair.tune.lockstep import DT, Rig
     from autochair_msgs import GoalRequest, Pose2D
@@ -90,6 +97,8 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
                            fp))
     every = round(1.0 / (core.cfg.rate_hz * DT))
     kappa = []  # |ω/v| measured while the padded body spans the door's line (y 1.4)
+    speed = [0.0]  # |v| measured meanwhile
+    given: dict[int, Plan] = {}  # the door straight's plans
     stops = 0  # the monitor's stops (v bound 0 while moving) meanwhile
     for k in range(round(30.0 / DT)):
         t, m = k * DT, rig.chair
@@ -102,8 +111,12 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
                                  t).ok
             assert core.lineups == 1
         rig.act(t, st.v, st.omega, core.step(t) if k % every == 0 else None)
+        if core.index == 1 and m.y < 1.4 and core.plan is not None \
+                and core.plan.straight_m > 0.0:  # (the line-up passed, the axle before the door)
+            given[id(core.plan)] = core.plan
         ys = [m.y + math.sin(m.yaw) * a for a in (fp.front_m + 0.05, -fp.rear_m - 0.05)]
         if min(ys) < 1.4 < max(ys):
+            speed.append(abs(m.v))
             stops += bool(monitor.stops) and monitor.stops[-1][0] == round(t, 2)
             if abs(m.v) > 0.05:
                 kappa.append(abs(m.omega / m.v))
@@ -112,6 +125,17 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     assert core.state == "arrived", core.reason
     assert len(kappa) > 20 and max(kappa) <= 0.02
     assert stops == 0 and monitor.estops == 0
+    # the door's straight (the longest: the rest of it, replanned, is shorter) from where it
+    # was planned: its front that far from the door's line, the speed it stops within
+    first = max(given.values(), key=lambda p: p.straight_m)
+    y0 = first.target[1] - first.straight_m * math.sin(first.target[2])
+    law, chain = core.cfg.law(0.025), core._chain[0]
+    door = sight_speed((1.4 - y0) / math.sin(first.target[2]) - fp.front_m
+                       - MpepcParams().brake_clear_m, law.a_mps2, law.jerk_mps3,
+                       law.commit_s + chain.delay + 2 * chain.lag, law.vmax_mps)
+    assert 0.25 < door < 0.45 and first.vmax_mps == pytest.approx(door, abs=0.03)
+    assert max(p.vmax_mps for p in given.values()) <= first.vmax_mps  # (never sped up)
+    assert max(speed) <= first.vmax_mps + 0.02
 
 
 def test_a_person_crossing_does_not_walk_into_the_monitored_chair() -> None:
