@@ -1626,8 +1626,14 @@ class Mpepc:
             psi, dist = yaw + e, math.hypot(straight_to[0] - x, straight_to[1] - y)
         elif straight_to is not None:
             along, left = along_lateral(pose, *straight_to)
-            if along <= 0.005 or abs(left) > 0.02:
+            # (still moving at its end, or predicted just past it: the straight braked to rest
+            # there, so that the next plan looks again from rest, as after every stage; handed
+            # over at 0.05 m/s, MPEPC's plan from there differed by chance from the one from
+            # rest and left the chair blocked beside office B's goal, nav_eval seed 7)
+            moving = abs(v0) >= 0.01 and along > -0.02
+            if (along <= 0.005 and not moving) or abs(left) > 0.02:
                 return None
+            along = max(along, 0.001)  # (a straight still: the core brakes it onto its point)
             if self.field.straight_clearance(pose, np.arange(
                     0.0, along + self.p.final_overshoot_m + 0.005, 0.01)) < self.p.contact_m:
                 return None
@@ -1677,7 +1683,11 @@ class Mpepc:
         vmin = self.p.v_min_mps
         hi = self.law.vmax_mps if top is None else min(top, self.law.vmax_mps)
         lo = min(vmin, hi)
-        speeds = np.array([vmin]) if turn or hi <= lo else np.linspace(lo, hi, STAGE_SPEEDS)
+        # (a straight shorter than in_place_r_m is predicted standing, its sweep checked by the
+        # caller: at the least speed, as before; a row over it would be "turn, then go on")
+        short = not turn and rz[0] < self.p.in_place_r_m
+        speeds = np.array([vmin]) if turn or short or hi <= lo \
+            else np.linspace(lo, hi, STAGE_SPEEDS)
         k = speeds.size
         zz = np.zeros((k + 1, 4))  # (the last row: braking to rest, the stop cost)
         zz[:k, 0], zz[:k, 1], zz[:k, 3] = rz[0], rz[1], speeds
@@ -1688,9 +1698,12 @@ class Mpepc:
         if not clear[0]:
             return None
         i = k - 1 if clear.all() else int(np.argmin(clear)) - 1  # (the last of the clear run)
-        return self._plan_of(pose, zz[i], float(cost[i]), {n: v[i] for n, v in info.items()},
+        plan = self._plan_of(pose, zz[i], float(cost[i]), {n: v[i] for n, v in info.items()},
                              float(cost[k]), len(zz), tgt, final_turn=turn,
                              straight_m=0.0 if turn else rz[0], then=then)
+        if short:  # (a straight's last cm, braking: at most the speed it has, never sped up)
+            plan = replace(plan, vmax_mps=max(vmin, min(abs(v0), hi)))
+        return plan
 
     def _plan_of(self, pose: tuple[float, float, float], z: F64, cost: float,
                  row: dict[str, F64], stop_cost: float, evaluations: int,
