@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 
-import pytest
 from bench.control_eval import run_case
 from bench.control_stack import sim_rate
 
@@ -75,8 +74,8 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     while the padded footprint is in the frame, and no monitor stop there. On the previous
     code κ reached 0.33 /m there (positive control).
     H67: that straight is driven at its sight-limited speed (Mpepc.through_door: from the
-    line-up the chair could stop short of the door's line, 1.5 m ahead of the axle, after the
-    plan period and the drive chain's lag; ~0.32 m/s), the speed its plan was evaluated at:
+    line-up the chair could stop short of the door's far side, 1.5 m ahead of the axle, after
+    the plan period and the drive chain's lag; ~0.4 m/s), the speed its plan was evaluated at:
     the chair's true speed while its body spans the door's line stays within it (+ 2 cm/s:
     the chain). Before, it was driven at the goal's top speed, 1.15 m/s measured here."""
     from bench.control_eval import make_pid
@@ -126,14 +125,19 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     assert len(kappa) > 20 and max(kappa) <= 0.02
     assert stops == 0 and monitor.estops == 0
     # the door's straight (the longest: the rest of it, replanned, is shorter) from where it
-    # was planned: its front that far from the door's line, the speed it stops within
+    # was planned: its front that far from the door's far side (the wall's line, y 1.4; on
+    # the rasterised map the way's narrowest stretch ends up to 0.15 m past it), the speed it
+    # stops within
     first = max(given.values(), key=lambda p: p.straight_m)
     y0 = first.target[1] - first.straight_m * math.sin(first.target[2])
     law, chain = core.cfg.law(0.025), core._chain[0]
-    door = sight_speed((1.4 - y0) / math.sin(first.target[2]) - fp.front_m
-                       - MpepcParams().brake_clear_m, law.a_mps2, law.jerk_mps3,
-                       law.commit_s + chain.delay + 2 * chain.lag, law.vmax_mps)
-    assert 0.25 < door < 0.45 and first.vmax_mps == pytest.approx(door, abs=0.03)
+
+    def door(far_y: float) -> float:
+        return sight_speed((far_y - y0) / math.sin(first.target[2]) - fp.front_m
+                           - MpepcParams().brake_clear_m, law.a_mps2, law.jerk_mps3,
+                           law.commit_s + chain.delay + 2 * chain.lag, law.vmax_mps)
+
+    assert 0.3 < door(1.4) <= first.vmax_mps <= door(1.55) < 0.5
     assert max(p.vmax_mps for p in given.values()) <= first.vmax_mps  # (never sped up)
     assert max(speed) <= first.vmax_mps + 0.02
 

@@ -1540,7 +1540,8 @@ class Mpepc:
         The straight's top speed is sight-limited (H67): a person beside the door beyond it,
         behind its jambs, is hidden from the chair's laser until about the moment they step
         into its way, so the chair sets off through the door no faster than it could stop
-        short of the door's narrowest point (`brake_clear_m` short, its front) after reacting
+        short of the door's far side (the end of its narrowest stretch on the way; its front,
+        `brake_clear_m` short) after reacting
         (the plan period, `commit_s`, and the drive chain's mean lag: `chain`) at the
         comfort deceleration and jerk, from where it stands (sight_speed); never under
         `v_min_mps` (a chair already at the door's line creeps through at the least speed).
@@ -1576,7 +1577,11 @@ class Mpepc:
             d = float(along[0])  # on a clear straight through: drive it
             g = self.law
             react = g.commit_s + (0.0 if chain is None else chain.v.delay + 2 * chain.v.lag)
-            jamb = (path[k, 0] - x) * c[0] + (path[k, 1] - y) * s[0]  # (the narrowest point)
+            # (the door's far side: the last point of the way within 1 cm of its narrowest
+            # clearance; a door leaf along a jamb narrows the way before the wall's line)
+            clr = fld.clearance_at(path[k:])
+            far = k + int(np.nonzero(clr <= clr[0] + 0.01)[0].max())
+            jamb = (path[far, 0] - x) * c[0] + (path[far, 1] - y) * s[0]
             top = max(sight_speed(float(jamb) - fld.footprint.front_m - p.brake_clear_m,
                                   g.a_mps2, g.jerk_mps3, react, g.vmax_mps), p.v_min_mps)
             return self._one_stage(pose, (d, 0.0), (x + d * c[0], y + d * s[0], yaw), False,
