@@ -1007,6 +1007,27 @@ def test_a_straight_stage_is_driven_onto_its_point_without_steering() -> None:
     assert core.limiter.at_rest
 
 
+def test_a_straight_stage_is_driven_no_faster_than_its_plan_was_evaluated_at() -> None:
+    """H67: a straight stage's plan carries the speed MPEPC evaluated it at (people, its stop;
+    Plan.vmax_mps); the core's move drives it at most that fast, and still lands on its point.
+    Before, the move ran at the goal's top speed: a 1.5 m stage evaluated at 0.4 m/s peaked at
+    over 0.9 (positive control: the same stage given 1.2 m/s)."""
+    def peak(vmax: float) -> tuple[float, list[float]]:
+        sent: list[float] = []
+        _, pose, spin = _drive_plan((1.5, 0.0, 0.0, vmax), (1.5, 0.0, 0.0),
+                                    Pose2D(4.0, 1.5, 0.0), 6.0, start=(0.0, 0.0, 0.0),
+                                    walls=ROOM, straight_m=1.5,
+                                    watch=lambda core, out: sent.append(out[0]))
+        assert spin == 0.0
+        return max(sent), pose
+
+    fast, _ = peak(1.2)
+    assert fast > 0.9
+    slow, pose = peak(0.4)
+    assert 0.38 < slow <= 0.4 + 1e-9
+    assert pose[0] == pytest.approx(1.5, abs=0.005)
+
+
 def test_a_straight_stage_into_an_obstacle_is_refused_by_the_core() -> None:
     """The core rechecks a straight stage's translation (as its straight final's from beside
     the goal's line): a wall 8 cm ahead of the front (the stage would end 4 cm inside it)

@@ -74,24 +74,38 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     corrections inside the frame met the jamb in its sweep (seed 7: an e-stop entering this
     door). Now the chair drives the door straight from its line-up: measured κ ≤ 0.02 /m
     while the padded footprint is in the frame, and no monitor stop there. On the previous
-    code κ reached 0.33 /m there (positive control)."""
+    code κ reached 0.33 /m there (positive control).
+    H67: that straight is driven at its sight-limited speed (Mpepc.through_door: from the
+    line-up the chair could stop short of the door's far side, 1.5 m ahead of the axle, after
+    the plan period and the drive chain's lag; ~0.4 m/s), the speed its plan was evaluated at:
+    the chair's true speed while its body spans the door's line stays within it (+ 2 cm/s:
+    the chain). Before, it was driven at the goal's top speed, 1.15 m/s measured here."""
     from bench import nav_eval as ne
     from bench.safety_rig import SafetyRig
 
     from autochair.nav.field import Footprint
+    from autochair.nav.mpepc import MpepcParams, Plan, sight_speed
     from autochair.sim.chair.model import ChairModel
 
     fp, monitor = Footprint(), SafetyRig()
     world, fld = ne.build("hallway", fp)
     lineups = []  # the core's line-ups once it has the goal
     kappa = []  # |ω/v| measured while the padded body spans the door's line (y 1.4)
+    speed = [0.0]  # |v| measured meanwhile
+    given: dict[int, Plan] = {}  # the door straight's plans
     stops = 0  # the monitor's stops (v bound 0 while moving) meanwhile
+    cores: list[ControlCore] = []  # (the run's, for its drive-chain model)
 
     def tick(t: float, core: ControlCore, m: ChairModel) -> None:
         nonlocal stops
         lineups.append(core.lineups)
+        cores[:] = [core]
+        if core.index == 1 and m.y < 1.4 and core.plan is not None \
+                and core.plan.straight_m > 0.0:  # (the line-up passed, the axle before the door)
+            given[id(core.plan)] = core.plan
         ys = [m.y + math.sin(m.yaw) * a for a in (fp.front_m + 0.05, -fp.rear_m - 0.05)]
         if min(ys) < 1.4 < max(ys):
+            speed.append(abs(m.v))
             stops += bool(monitor.stops) and monitor.stops[-1][0] == round(t, 2)
             if abs(m.v) > 0.05:
                 kappa.append(abs(m.omega / m.v))
@@ -102,6 +116,22 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     assert r["arrived"], r["state"]
     assert len(kappa) > 20 and max(kappa) <= 0.02
     assert stops == 0 and monitor.estops == 0
+    # the door's straight (the longest: the rest of it, replanned, is shorter) from where it
+    # was planned: its front that far from the door's far side (the wall's line, y 1.4; on
+    # the rasterised map the way's narrowest stretch ends up to 0.15 m past it), the speed it
+    # stops within
+    first = max(given.values(), key=lambda p: p.straight_m)
+    y0 = first.target[1] - first.straight_m * math.sin(first.target[2])
+    law, chain = cores[0].cfg.law(0.025), cores[0]._chain[0]
+
+    def door(far_y: float) -> float:
+        return sight_speed((far_y - y0) / math.sin(first.target[2]) - fp.front_m
+                           - MpepcParams().brake_clear_m, law.a_mps2, law.jerk_mps3,
+                           law.commit_s + chain.delay + 2 * chain.lag, law.vmax_mps)
+
+    assert 0.3 < door(1.4) <= first.vmax_mps <= door(1.55) < 0.5
+    assert max(p.vmax_mps for p in given.values()) <= first.vmax_mps  # (never sped up)
+    assert max(speed) <= first.vmax_mps + 0.02
 
 
 def _to_the_side(seed: int) -> dict[str, Any]:

@@ -256,6 +256,57 @@ def test_mpepc_cost_prefers_progress_and_punishes_contact() -> None:
     assert cost_p[1] > cost_p[0] and info_p["clearance"][1] < 0.0
 
 
+def test_the_sight_limited_speed_stops_within_the_distance_after_the_reaction() -> None:
+    """Mpepc.through_door's door speed (H67): the largest v with v·t + its jerk-limited stop
+    (stop_m, the inverse of braking_speed) within d. 1.5 m before a door's line the chair's
+    front is 0.55 m from it: after 1.17 s (the plan period and the drive chain's mean lag) at
+    1 m/s² and 2 m/s³, ~0.32 m/s."""
+    from autochair.nav.mpepc import braking_speed, sight_speed, stop_m
+
+    for d in (0.01, 0.2, 0.5, 1.0, 3.0):
+        assert stop_m(float(braking_speed(np.array(d), 1.0, 2.0)), 1.0, 2.0) \
+            == pytest.approx(d, rel=1e-9)
+        v = sight_speed(d, 1.0, 2.0, 1.17, 5.0)
+        assert v * 1.17 + stop_m(v, 1.0, 2.0) == pytest.approx(d, rel=1e-6)
+    assert sight_speed(0.5, 1.0, 2.0, 1.17, 1.2) == pytest.approx(0.32, abs=0.01)
+    assert sight_speed(100.0, 1.0, 2.0, 1.17, 1.2) == 1.2
+    assert sight_speed(-0.1, 1.0, 2.0, 1.17, 1.2) == 0.0
+
+
+def test_a_straight_stage_is_given_the_fastest_speed_it_is_evaluated_clear_at() -> None:
+    """H67: a straight stage (Mpepc.stage_plan, the rest of one under way) was evaluated at the
+    least speed (0.15 m/s) and driven by the core at the goal's top speed. Now it is evaluated
+    as the core's move at speeds up to the top, and its plan carries the fastest up to which
+    every one is clear: 1.2 m/s on a clear 3 m straight (before: 0.15, positive control); with
+    a person crossing 2.5 m ahead, who meets the chair there at speed, a slower speed, clear
+    as evaluated, where the next faster one evaluated is a hit."""
+    segs = [[0, 0, 12, 0], [12, 0, 12, 6], [12, 6, 0, 6], [0, 6, 0, 0]]
+    fld = NavField(GridMap.from_shapes(np.array(segs, dtype=float), np.zeros((0, 3))), FP)
+    ctg = fld.cost_to_go(10.0, 3.0)
+    assert ctg is not None
+    m, pose, goal = planner(fld), (1.5, 3.0, 0.0), (10.0, 3.0, 0.0)
+
+    def stage(people: list[Person]) -> Plan:
+        p = m.stage_plan(pose, goal, ctg, None, people, straight_to=(4.5, 3.0))
+        assert p is not None and p.straight_m == pytest.approx(3.0)
+        assert p.z[3] == p.vmax_mps
+        return p
+
+    clear = stage([])
+    assert clear.vmax_mps == LAW.vmax_mps
+    # (predicted as the move: it reaches that speed within the 3 m)
+    steps = np.hypot(*np.diff(clear.path[:, :2], axis=0).T) / MpepcParams().dt_s
+    assert steps.max() > 0.95 * LAW.vmax_mps
+    crossing = [Person(4.0, 5.1, 0.0, -1.0)]
+    slowed = stage(crossing)
+    assert MpepcParams().v_min_mps <= slowed.vmax_mps < 0.8 * LAW.vmax_mps
+    # the speed given is clear of the person, the next faster one evaluated is not
+    faster = slowed.vmax_mps + (LAW.vmax_mps - MpepcParams().v_min_mps) / 5
+    z = np.array([[3.0, 0.0, 0.0, slowed.vmax_mps], [3.0, 0.0, 0.0, faster]])
+    _, info = m.evaluate(pose, 0.0, 0.0, z, ctg, crossing, line=np.array([True, True]))
+    assert list(info["hit"]) == [0.0, 1.0]
+
+
 def test_survival_is_limited_by_the_tightest_point() -> None:
     fld = corridor_with_wall()
     ctg = fld.cost_to_go(6.0, 2.0)

@@ -596,6 +596,9 @@ class ControlCore:
         # Set by this step's decision for a point-to-point move (limits.py `move`): the
         # distance (m) and yaw (rad) left, each None to brake that axis; None: track (v, ω).
         self._move: tuple[float | None, float | None] | None = None
+        # ... and the move's top speed where a plan gave one (a straight stage's, the speed
+        # MPEPC evaluated it at: Plan.vmax_mps; H67), else the goal's
+        self._move_vmax = math.inf
         # In the in-place turn: what is left of the straight final's landing (m), open loop, so
         # that the turn's changing heading cannot keep moving its along-track target.
         self._land_left: float | None = None
@@ -783,7 +786,7 @@ class ControlCore:
     def _tick(self, now: float, dt: float) -> tuple[float, float] | None:
         """One tick of the loop (`step`), the plan advanced by dt."""
         v_des = w_des = 0.0
-        self._move = None
+        self._move, self._move_vmax = None, math.inf
         if self.active:
             if self.odom is None or now - self.odom.t > self.odom_timeout_s:
                 age = math.inf if self.odom is None else now - self.odom.t
@@ -814,7 +817,8 @@ class ControlCore:
                 else:
                     self._lead[i].reset(0.0)
         if self._move is not None and self.active:
-            v, w = self.limiter.move(*self._move, dt, vmax=self.vmax, v_lim=self._v_lim())
+            v, w = self.limiter.move(*self._move, dt, vmax=min(self.vmax, self._move_vmax),
+                                     v_lim=self._v_lim())
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
@@ -1333,11 +1337,13 @@ class ControlCore:
         if p.straight_m > 0.0:
             # A straight stage of a manoeuvre (Mpepc.stage_plan): onto the target's along-track
             # point without steering, as the straight final; its translation rechecked here.
+            # No faster than MPEPC evaluated it (people, its stop): at the goal's top speed a
+            # stage judged at 0.15 m/s was driven through office B's door at 1.16 (H67).
             along = along_lateral((o.x, o.y, o.yaw), tx, ty)[0]
             if not self._room_to_go(o, along):
                 self._count("straights_refused")
                 return 0.0, 0.0
-            self._move = (max(along, 0.0), None)
+            self._move, self._move_vmax = (max(along, 0.0), None), p.vmax_mps
             return 0.0, 0.0
         turn = p.z[0] < IN_PLACE_R_M and abs(wrap(tyaw - o.yaw)) >= 2 * ALIGNED_RAD
         r = math.hypot(tx - o.x, ty - o.y)

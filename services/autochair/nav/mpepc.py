@@ -412,6 +412,9 @@ class Plan:
     escape: bool = False
 
 
+# A stage's straight is evaluated at this many speeds, the least to the top (Mpepc._one_stage):
+# one batch of rows, ~1 ms more than the least speed alone
+STAGE_SPEEDS = 6
 # The core drops the goal on its own final approach where Plan.goal_clearance_m is under this
 # (control/core.py): the lowest margin the prediction's clearance is compared with.
 GOAL_DROP_M = 0.02
@@ -444,6 +447,27 @@ def braking_speed(d: F64, a: float, j: float) -> F64:
     v = np.power(d * math.sqrt(j), 2.0 / 3.0)
     c = a * a / j
     return np.where(v <= c, v, 0.5 * (-c + np.sqrt(c * c + 8.0 * a * d)))
+
+
+def stop_m(v: float, a: float, j: float) -> float:
+    """How far a chair at v (not accelerating) travels braking to rest at deceleration a and
+    jerk j: the inverse of braking_speed."""
+    c = a * a / j
+    return v * math.sqrt(v / j) if v <= c else v * (v + c) / (2.0 * a)
+
+
+def sight_speed(d: float, a: float, j: float, react_s: float, vmax: float) -> float:
+    """The largest speed (≤ vmax) from which the chair, after `react_s`, brakes to rest at a
+    and j within d (0: none)."""
+    if d <= 0.0:
+        return 0.0
+    lo, hi = 0.0, vmax
+    if hi * react_s + stop_m(hi, a, j) <= d:
+        return hi
+    for _ in range(40):  # (monotone in v: bisection, to ~1e-12 m/s)
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mid * react_s + stop_m(mid, a, j) <= d else (lo, mid)
+    return lo
 
 
 def scurve(value: F64, rate: F64, target: F64, vmax: float | F64, amax: float | F64,
@@ -559,7 +583,7 @@ class Mpepc:
     def simulate(self, pose: tuple[float, float, float], v0: float, w0: float,
                  z: F64, a0: float = 0.0, q0: float = 0.0,
                  goal: tuple[float, float, float] | None = None, last: bool = True,
-                 chain: Chain | None = None
+                 chain: Chain | None = None, line: npt.NDArray[np.bool_] | None = None
                  ) -> tuple[F64, F64, F64, F64, F64, F64, tuple[float, float, float] | None]:
         """Predicted (x, y, yaw, v, ω), each (N, T), of candidates z (N, 4), from the limiter's
         state (v0, a0; ω0, ω̇0); and (3, N, B) poses of the motion committed to until
@@ -568,7 +592,8 @@ class Mpepc:
         (the sweeps' start, common to all; else None). Candidates targeting `goal`
         itself, if it is the `last` waypoint, are driven on the core's final approach.
         With the core's `chain`, the committed sweeps are the body's poses as that chain
-        passes the committed motion's and the stop's commands on (chain_sweep)."""
+        passes the committed motion's and the stop's commands on (chain_sweep). `line`: the
+        candidates that are a stage's straight (law_step's)."""
         g, dt = self.law, self.p.dt_s
         n = z.shape[0]
         in_place = z[:, 0] < self.p.in_place_r_m
@@ -604,6 +629,7 @@ class Mpepc:
         tgt2, vmax2 = np.asfortranarray(np.concatenate([tgt, tgt])), np.concatenate([vmax, vmax])
         turning2, arrived2 = np.concatenate([turning, turning]), np.concatenate([arrived, arrived])
         final2 = None if on_final is None else np.concatenate([on_final, on_final])
+        line2 = None if line is None else np.concatenate([line, line])
         dts = np.full(2 * n, span / n_c)  # (the prediction's half set per step)
         kept: list[F64] = []  # the committed motion's poses, then the stop's
         stop: list[F64] = []
@@ -622,7 +648,7 @@ class Mpepc:
             yaw_was = ww[n:].copy() if j_b < 0 and spin is not None else None
             xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
                                        dts, jerk_from=0 if self.p.v_jerk else n,
-                                       law_upto=None if j_b < 0 else n, cap=cap)
+                                       law_upto=None if j_b < 0 else n, cap=cap, line=line2)
             if yaw_was is not None and spin is not None:
                 ww[n:] = self.spin_step(spin, yaw_was, ww[n:], both[:, n:], tgt, turning2[n:],
                                         span / n_c)
@@ -648,7 +674,7 @@ class Mpepc:
         sure = np.empty((3, n, 0))
         if j_b < 0:  # (the committed motion outlasts the prediction)
             sure = self.committed(*side, tgt, vmax, turning2[n:].copy(), arrived2[n:].copy(),
-                                  on_final, span, m, kept, cmds, spin, cap)
+                                  on_final, span, m, kept, cmds, spin, cap, line)
         elif own:  # (the stop goes on alone where it outlasts the prediction)
             sure = np.concatenate([np.stack(kept, -1), np.stack(stop, -1) if stopped
                                    else self.braking(*side, j_b, stop, cmds)], -1)
@@ -664,7 +690,7 @@ class Mpepc:
         turning, arrived = turning2[:n].copy(), arrived2[:n].copy()
         for step_dt, k in sched[m:]:
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, on_final,
-                                      step_dt, self.p.v_jerk, cap=cap)
+                                      step_dt, self.p.v_jerk, cap=cap, line=line)
             if k >= 0:
                 out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
                 out[3, :, k], out[4, :, k] = st[0], st[2]
@@ -674,7 +700,8 @@ class Mpepc:
                   turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
                   final: npt.NDArray[np.bool_] | None, span_s: float, start: int = 0,
                   kept: list[F64] | None = None, cmds: list[F64] | None = None,
-                  spin: Spin | None = None, cap: tuple[float, float, float] | None = None) -> F64:
+                  spin: Spin | None = None, cap: tuple[float, float, float] | None = None,
+                  line: npt.NDArray[np.bool_] | None = None) -> F64:
         """(3, N, B) poses of what a plan commits the chair to: its first `span_s` as the
         core's limiter drives it (v's jerk on, steps of `exact_dt_s`), then braking to rest from
         there (from its step `start` on, the poses kept before it in `kept`: simulate runs the
@@ -693,7 +720,7 @@ class Mpepc:
         for k in range(start, n):
             yaw_was = yaw.copy()
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
-                                      span_s / n, True, cap=cap)
+                                      span_s / n, True, cap=cap, line=line)
             if spin is not None:
                 yaw = self.spin_step(spin, yaw_was, yaw, st, tgt, turning, span_s / n)
             if cmds is not None:
@@ -825,17 +852,21 @@ class Mpepc:
                  turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
                  final: npt.NDArray[np.bool_] | None, dt: float | F64, v_jerk: bool = False,
                  jerk_from: int | None = None, law_upto: int | None = None,
-                 cap: tuple[float, float, float] | None = None) -> tuple[F64, F64, F64]:
+                 cap: tuple[float, float, float] | None = None,
+                 line: npt.NDArray[np.bool_] | None = None) -> tuple[F64, F64, F64]:
         """The 50 Hz loop over dt (per candidate if an array): the law (or the in-place turn)
         towards the targets, then the limiter; `turning` and `arrived` are updated in place.
         `final`: the candidates on the core's final approach (None: none). `jerk_from`: v's
         jerk limit for the candidates from this index on only (else `v_jerk` for all).
         `law_upto`: the candidates from this index on brake (vmax 0; their law is not worked
         out, nor their `turning` and `arrived`: simulate's stops, side by side). `cap`: the
-        last waypoint, towards which the core caps v (_law; None: not the last)."""
+        last waypoint, towards which the core caps v (_law; None: not the last). `line`: the
+        candidates that are a stage's straight, which the core drives by its time-optimal move
+        onto the target's point without steering (_law; None: none)."""
         k = x.size if law_upto is None else law_upto
         vd, wd = self._law(x[:k], y[:k], yaw[:k], st[:, :k], tgt[:k], vmax[:k], turning[:k],
-                           arrived[:k], None if final is None else final[:k], cap)
+                           arrived[:k], None if final is None else final[:k], cap,
+                           None if line is None else line[:k])
         if k < x.size:  # (the law's v and ω with vmax 0, as below: 0)
             rest = np.zeros(x.size - k)
             vd, wd = np.concatenate([vd, rest]), np.concatenate([wd, rest])
@@ -843,8 +874,8 @@ class Mpepc:
 
     def _law(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
              turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
-             final: npt.NDArray[np.bool_] | None, cap: tuple[float, float, float] | None = None
-             ) -> tuple[F64, F64]:
+             final: npt.NDArray[np.bool_] | None, cap: tuple[float, float, float] | None = None,
+             line: npt.NDArray[np.bool_] | None = None) -> tuple[F64, F64]:
         """law_step's desired (v, ω), before the limiter."""
         g = self.law
         tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
@@ -874,7 +905,16 @@ class Mpepc:
         akappa = np.abs(kappa)
         vd = vmax / (1 + g.beta * akappa ** g.lam)
         vd = np.maximum(vd, np.minimum(vmax, g.omega_floor_radps / np.maximum(akappa, 1e-9)))
-        vd = np.minimum(vd, vmax * r / g.r_thresh_m)
+        slow = vmax * r / g.r_thresh_m
+        if line is not None:  # (a stage's straight: control/core.py _follow_plan drives it by
+            # the limiter's time-optimal move onto the target's point, at its full braking, not
+            # the law's slowdown over r_thresh, which at the least speed predicted a 0.5 m
+            # straight at under 0.06 m/s and so the chair far behind where it is driven)
+            ahead = dx * np.cos(yaw) + dy * np.sin(yaw)
+            swing = np.maximum(st[1] + g.a_mps2, 0.0) / g.jerk_mps3
+            slow = np.where(line, braking_speed(ahead - np.maximum(st[0], 0.0) * swing,
+                                                g.a_mps2, g.jerk_mps3), slow)
+        vd = np.minimum(vd, slow)
         if cap is not None:  # (control/core.py _follow_plan: heading for the last waypoint, v
             # within a stop on it at the limiter's full braking; unpredicted, office B's door
             # was rolled into 6-9 cm further in 1 s than the core drove: tests/test_control.py)
@@ -883,6 +923,8 @@ class Mpepc:
             along = gx * c + gy * s
             heads = heads_for(along, gy * c - gx * s, cap[2] - yaw, st[0], g.tolerance_m,
                               g.omega_acc_radps2)
+            if line is not None:
+                heads = heads & ~line  # (the core's cap is the law's, not its straight moves')
             if heads.any():
                 swing = np.maximum(st[1] + g.a_mps2, 0.0) / g.jerk_mps3
                 stop = braking_speed(along - np.maximum(st[0], 0.0) * swing, g.a_mps2,
@@ -895,7 +937,7 @@ class Mpepc:
             stop = braking_speed(r - np.maximum(st[0], 0.0) * swing, f * g.a_mps2,
                                  f * g.jerk_mps3)
             vd = np.where(final, np.minimum.reduce([vd, stop, g.approach_rate_1ps * r]), vd)
-        wd = kappa * vd
+        wd = kappa * vd if line is None else np.where(line, 0.0, kappa * vd)
         if captured.any():
             wa = np.sign(e) * np.minimum(np.minimum(g.omega_max_radps, np.sqrt(
                 2 * g.align_brake_radps2 * ae)), g.align_gain_1ps * ae)
@@ -959,11 +1001,11 @@ class Mpepc:
     def evaluate(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                  ctg: CostToGo, people: list[Person], a0: float = 0.0, q0: float = 0.0,
                  goal: tuple[float, float, float] | None = None, last: bool = True,
-                 hf: HeadingField | None = None, chain: Chain | None = None
-                 ) -> tuple[F64, dict[str, F64]]:
+                 hf: HeadingField | None = None, chain: Chain | None = None,
+                 line: npt.NDArray[np.bool_] | None = None) -> tuple[F64, dict[str, F64]]:
         p, dt, fld = self.p, self.p.dt_s, self.field
         xs, ys, yaws, vs, ws, brake, origin = self.simulate(pose, v0, w0, z, a0, q0, goal, last,
-                                                            chain)
+                                                            chain, line)
         t = np.asarray((np.arange(self.steps) + 1) * dt, dtype=np.float64)
         d0 = self.pose_clearance(pose)
         # A chair already within a margin (a noisy live map, a chair nudged to a wall, a cell
@@ -1569,7 +1611,8 @@ class Mpepc:
                      ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                      rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
                      turned: bool = False, spare_deg: float = 2.0, spare_m: float = 0.01,
-                     lined: bool = False, v0: float = 0.0) -> Plan | None:
+                     lined: bool = False, v0: float = 0.0, chain: Chain | None = None
+                     ) -> Plan | None:
         """For a chair at rest within `door_ahead_m` of a door on its way (NavField
         .passage_ahead), the goal beyond it, that faces away from the way through the door by
         more than `door_away_rad` or has just turned a stage (`turned`; else None: MPEPC's own
@@ -1590,7 +1633,19 @@ class Mpepc:
         e-stop entering office B's door, nav_eval --monitor seed 7; docs/experiments/
         monitor-envelope-s25.md). Moving, only the straight along its heading is offered; at
         rest, the straight with the most clearance (turned onto first where it is over a
-        heading step off)."""
+        heading step off).
+
+        The straight's top speed is sight-limited (H67): a person beside the door beyond it,
+        behind its jambs, is hidden from the chair's laser until about the moment they step
+        into its way, so the chair sets off through the door no faster than it could stop
+        short of the door's far side (the end of its narrowest stretch on the way; its front,
+        `brake_clear_m` short) after reacting
+        (the plan period, `commit_s`, and the drive chain's mean lag: `chain`) at the
+        comfort deceleration and jerk, from where it stands (sight_speed); never under
+        `v_min_mps` (a chair already at the door's line creeps through at the least speed).
+        That bounds how fast it meets someone stepping out; it does not stop it before them
+        once it is in the door (no speed short of a crawl does: they are unseen till there).
+        The rest of the straight keeps that speed as its top (stage_plan's `top`)."""
         p, fld = self.p, self.field
         x, y, yaw = pose
         found = fld.passage_ahead(ctg, x, y, p.door_ahead_m)
@@ -1618,8 +1673,17 @@ class Mpepc:
         if ok[0] and (not lined or moving or turned or abs(float(wrap(np.array(
                 psi[best_i] - yaw)))) <= math.radians(p.door_turn_step_deg)):
             d = float(along[0])  # on a clear straight through: drive it
+            g = self.law
+            react = g.commit_s + (0.0 if chain is None else chain.v.delay + 2 * chain.v.lag)
+            # (the door's far side: the last point of the way within 1 cm of its narrowest
+            # clearance; a door leaf along a jamb narrows the way before the wall's line)
+            clr = fld.clearance_at(path[k:])
+            far = k + int(np.nonzero(clr <= clr[0] + 0.01)[0].max())
+            jamb = (path[far, 0] - x) * c[0] + (path[far, 1] - y) * s[0]
+            top = max(sight_speed(float(jamb) - fld.footprint.front_m - p.brake_clear_m,
+                                  g.a_mps2, g.jerk_mps3, react, g.vmax_mps), p.v_min_mps)
             return self._one_stage(pose, (d, 0.0), (x + d * c[0], y + d * s[0], yaw), False,
-                                   ctg, people, goal, hf, rates, v0, final=final)
+                                   ctg, people, goal, hf, rates, v0, final=final, top=top)
         if moving or not ok.any():
             return None
         best = float(psi[best_i])
@@ -1640,7 +1704,7 @@ class Mpepc:
                    rates: tuple[float, float] = (0.0, 0.0),
                    straight_to: tuple[float, float] | None = None,
                    v0: float = 0.0, turn_to: float | None = None, land: bool = False,
-                   anywhere: bool = False) -> Plan | None:
+                   anywhere: bool = False, top: float | None = None) -> Plan | None:
         """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
         with `straight_to` (the landing of a straight stage under way, or of a stage's turn
         done), the rest of that straight if it still lies ahead on the chair's line and
@@ -1650,7 +1714,10 @@ class Mpepc:
         active (`lattice_active`), or with `anywhere` wherever the chair's state has a way on
         it (planner.compute's last resort). Each is also evaluated as MPEPC's
         candidates are (`_costs`: people, the stop after the plan period) and dropped if
-        that predicts a hit. None: no stage."""
+        that predicts a hit; a straight's speed is the fastest clear up to `top` (_one_stage:
+        the rest of a straight under way at most the speed it was given, so a door's
+        sight-limited speed holds through it and the move is never sped up mid-way).
+        None: no stage."""
         x, y, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
         if straight_to is not None and turn_to is not None:
@@ -1662,8 +1729,14 @@ class Mpepc:
             psi, dist = yaw + e, math.hypot(straight_to[0] - x, straight_to[1] - y)
         elif straight_to is not None:
             along, left = along_lateral(pose, *straight_to)
-            if along <= 0.005 or abs(left) > 0.02:
+            # (still moving at its end, or predicted just past it: the straight braked to rest
+            # there, so that the next plan looks again from rest, as after every stage; handed
+            # over at 0.05 m/s, MPEPC's plan from there differed by chance from the one from
+            # rest and left the chair blocked beside office B's goal, nav_eval seed 7)
+            moving = abs(v0) >= 0.01 and along > -0.02
+            if (along <= 0.005 and not moving) or abs(left) > 0.02:
                 return None
+            along = max(along, 0.001)  # (a straight still: the core brakes it onto its point)
             if self.field.straight_clearance(pose, np.arange(
                     0.0, along + self.p.final_overshoot_m + 0.005, 0.01)) < self.p.contact_m:
                 return None
@@ -1690,26 +1763,50 @@ class Mpepc:
             goal, hf, rates, v0, True,
             straight_to if straight_to is not None else
             (x + dist * math.cos(psi), y + dist * math.sin(psi)) if turn and dist > 0.0
-            else None)
+            else None, top)
 
     def _one_stage(self, pose: tuple[float, float, float], rz: tuple[float, float],
                    tgt: tuple[float, float, float], turn: bool, ctg: CostToGo,
                    people: list[Person], goal: tuple[float, float, float],
                    hf: HeadingField | None, rates: tuple[float, float] = (0.0, 0.0),
                    v0: float = 0.0, final: bool = True,
-                   then: tuple[float, float] | None = None) -> Plan | None:
-        """One stage as a plan: the law's target `rz` (r, θ; a turn in place: r 0) at the
-        least speed, `tgt` its pose, `turn` whether it turns (else a straight of r), `then`
-        where a turn's straight lands. Evaluated as MPEPC's candidates are (`_costs`: people,
-        the stop after the plan period); None if that predicts a hit."""
+                   then: tuple[float, float] | None = None, top: float | None = None
+                   ) -> Plan | None:
+        """One stage as a plan: the law's target `rz` (r, θ; a turn in place: r 0), `tgt` its
+        pose, `turn` whether it turns (else a straight of r), `then` where a turn's straight
+        lands. Evaluated as MPEPC's candidates are (`_costs`: people, the stop after the plan
+        period); None if that predicts a hit. A turn at the least speed (the core turns it in
+        place, v 0). A straight is driven by the core's time-optimal move at the plan's
+        `vmax_mps` (control/core.py _follow_plan): it is evaluated as that move (law_step's
+        `line`) at STAGE_SPEEDS speeds from the least (v_min_mps, or `top` if less) to `top`
+        (default the law's vmax), and given the fastest up to which every one is clear (the
+        core may drive it slower than given: a short straight's peak, the goal's own top speed,
+        the monitor's bound; H67: evaluated at the least speed only, stages were driven at up
+        to 1.16 m/s)."""
         vmin = self.p.v_min_mps
-        zz = np.array([[rz[0], rz[1], 0.0, vmin], [0.0, 0.0, 0.0, 0.0]])
-        cost, info = self._costs(pose, v0, 0.0, zz, ctg, people, goal, rates, final, hf)
-        if float(info["hit"][0]) != 0.0:
+        hi = self.law.vmax_mps if top is None else min(top, self.law.vmax_mps)
+        lo = min(vmin, hi)
+        # (a straight shorter than in_place_r_m is predicted standing, its sweep checked by the
+        # caller: at the least speed, as before; a row over it would be "turn, then go on")
+        short = not turn and rz[0] < self.p.in_place_r_m
+        speeds = np.array([vmin]) if turn or short or hi <= lo \
+            else np.linspace(lo, hi, STAGE_SPEEDS)
+        k = speeds.size
+        zz = np.zeros((k + 1, 4))  # (the last row: braking to rest, the stop cost)
+        zz[:k, 0], zz[:k, 1], zz[:k, 3] = rz[0], rz[1], speeds
+        line = None if turn else np.arange(k + 1) < k
+        cost, info = self._costs(pose, v0, 0.0, zz, ctg, people, goal, rates, final, hf,
+                                 line=line)
+        clear = info["hit"][:k] == 0.0
+        if not clear[0]:
             return None
-        return self._plan_of(pose, zz[0], float(cost[0]), {k: v[0] for k, v in info.items()},
-                             float(cost[1]), len(zz), tgt, final_turn=turn,
+        i = k - 1 if clear.all() else int(np.argmin(clear)) - 1  # (the last of the clear run)
+        plan = self._plan_of(pose, zz[i], float(cost[i]), {n: v[i] for n, v in info.items()},
+                             float(cost[k]), len(zz), tgt, final_turn=turn,
                              straight_m=0.0 if turn else rz[0], then=then)
+        if short:  # (a straight's last cm, braking: at most the speed it has, never sped up)
+            plan = replace(plan, vmax_mps=max(vmin, min(abs(v0), hi)))
+        return plan
 
     def _plan_of(self, pose: tuple[float, float, float], z: F64, cost: float,
                  row: dict[str, F64], stop_cost: float, evaluations: int,
@@ -2094,10 +2191,10 @@ class Mpepc:
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],
                rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
-               heading: HeadingField | None = None, chain: Chain | None = None
-               ) -> tuple[F64, dict[str, F64]]:
+               heading: HeadingField | None = None, chain: Chain | None = None,
+               line: npt.NDArray[np.bool_] | None = None) -> tuple[F64, dict[str, F64]]:
         cost, info = self.evaluate(pose, v0, w0, z, ctg, people, *rates, goal, final, heading,
-                                   chain)
+                                   chain, line)
         # Final-heading term: the turn still to make where the prediction ends. Away from the
         # goal, to face down −∇φ; within goal_blend_m, to the goal's yaw (the law curves onto
         # it). Within half that (no room to curve: the chair is 1.2 m long) a forward-only

@@ -304,7 +304,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
     if req.straight and req.previous is not None and abs(req.omega) < 0.01:
         # A straight stage under way (Mpepc.stage_plan): its rest, rechecked.
         on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
-                            straight_to=req.previous[:2], v0=req.v)
+                            straight_to=req.previous[:2], v0=req.v, top=req.previous[3])
         if on is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
     carried: Plan | None = None
@@ -346,14 +346,16 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         # Just at a door's line-up: straight through it (moving: along its heading, if that
         # is clear; at rest: onto the clearest straight first)
         door = mpc.through_door(req.pose, req.goal, ctg, hf, req.people, req.rates, req.final,
-                                turned=req.then is not None, lined=True, v0=req.v)
+                                turned=req.then is not None, lined=True, v0=req.v,
+                                chain=req.chain)
         if door is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, door, given_up=given_up)
     elif at_rest and mp.stages:
         # At rest near a door on the way: onto a straight through it, and through (a goal
         # begun in a room, facing in, at its door: Mpepc.through_door)
         door = mpc.through_door(req.pose, req.goal, ctg, hf, req.people, req.rates, req.final,
-                                turned=req.then is not None and not req.turn_first)
+                                turned=req.then is not None and not req.turn_first,
+                                chain=req.chain)
         if door is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, door, given_up=given_up)
     plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
