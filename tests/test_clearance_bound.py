@@ -95,7 +95,7 @@ def run(clear: float, bound: float, lattice: float | None, doorway: bool = False
             "collisions_moving": 0, "time_ratio": 1.0, "time_ratio_trapezoid": 1.0,
             "min_time_ok": None, "ref_s": 1.0, "min_time_s": None, "path_ratio": 1.0,
             "peak_a_mps2": 0.0, "peak_jerk_mps3": 0.0, "peak_omega_dot_radps2": 0.0,
-            "plan_ms": [1.0], "accept_ms": 1.0}
+            "plan_ms": [1.0], "accept_ms": 1.0, "v_tight_mps": 0.0}
 
 
 def test_the_summary_counts_cases_under_what_they_allow() -> None:
