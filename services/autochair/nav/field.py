@@ -888,9 +888,11 @@ class NavField:
         out: list[tuple[float, float, float]] = []
         for j, k in passages(self.clearance_at(path), narrow_m):
             yaw = heading_through(path, k)
-            px, py = path[k, 0] - back_m * math.cos(yaw), path[k, 1] - back_m * math.sin(yaw)
-            through = back_m + walked_to(path, min(j, len(path) - 1)) - walked_to(path, k) + 0.2
-            if walked_to(path, k) > back_m + 0.3 \
+            px = float(path[k, 0]) - back_m * math.cos(yaw)
+            py = float(path[k, 1]) - back_m * math.sin(yaw)
+            at = walked_to(path, k)
+            through = back_m + walked_to(path, min(j, len(path) - 1)) - at + 0.2
+            if at > back_m + 0.3 \
                     and self.check_goal(px, py, yaw, min_clearance_m=stand_m) == "" \
                     and math.hypot(ctg.goal_xy[0] - path[k, 0],
                                    ctg.goal_xy[1] - path[k, 1]) > 0.3 \

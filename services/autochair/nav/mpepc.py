@@ -905,15 +905,20 @@ class Mpepc:
         akappa = np.abs(kappa)
         vd = vmax / (1 + g.beta * akappa ** g.lam)
         vd = np.maximum(vd, np.minimum(vmax, g.omega_floor_radps / np.maximum(akappa, 1e-9)))
+
+        def stop_within(d: F64, f: float = 1.0) -> F64:
+            # v from which the limiter stops within d braking at f of its limits, from where it
+            # will have swung its acceleration round to braking
+            swing = np.maximum(st[1] + f * g.a_mps2, 0.0) / g.jerk_mps3
+            return braking_speed(d - np.maximum(st[0], 0.0) * swing, f * g.a_mps2,
+                                 f * g.jerk_mps3)
+
         slow = vmax * r / g.r_thresh_m
         if line is not None:  # (a stage's straight: control/core.py _follow_plan drives it by
             # the limiter's time-optimal move onto the target's point, at its full braking, not
             # the law's slowdown over r_thresh, which at the least speed predicted a 0.5 m
             # straight at under 0.06 m/s and so the chair far behind where it is driven)
-            ahead = dx * np.cos(yaw) + dy * np.sin(yaw)
-            swing = np.maximum(st[1] + g.a_mps2, 0.0) / g.jerk_mps3
-            slow = np.where(line, braking_speed(ahead - np.maximum(st[0], 0.0) * swing,
-                                                g.a_mps2, g.jerk_mps3), slow)
+            slow = np.where(line, stop_within(dx * np.cos(yaw) + dy * np.sin(yaw)), slow)
         vd = np.minimum(vd, slow)
         if cap is not None:  # (control/core.py _follow_plan: heading for the last waypoint, v
             # within a stop on it at the limiter's full braking; unpredicted, office B's door
@@ -926,17 +931,10 @@ class Mpepc:
             if line is not None:
                 heads = heads & ~line  # (the core's cap is the law's, not its straight moves')
             if heads.any():
-                swing = np.maximum(st[1] + g.a_mps2, 0.0) / g.jerk_mps3
-                stop = braking_speed(along - np.maximum(st[0], 0.0) * swing, g.a_mps2,
-                                     g.jerk_mps3)
-                vd = np.where(heads, np.minimum(vd, stop), vd)
-        if final is not None:  # (control/core.py _desired: braking curve from where the limiter
-            # will have swung its acceleration round to braking)
-            f = g.brake_fraction
-            swing = np.maximum(st[1] + f * g.a_mps2, 0.0) / g.jerk_mps3
-            stop = braking_speed(r - np.maximum(st[0], 0.0) * swing, f * g.a_mps2,
-                                 f * g.jerk_mps3)
-            vd = np.where(final, np.minimum.reduce([vd, stop, g.approach_rate_1ps * r]), vd)
+                vd = np.where(heads, np.minimum(vd, stop_within(along)), vd)
+        if final is not None:  # (control/core.py _desired: its braking curve)
+            vd = np.where(final, np.minimum.reduce(
+                [vd, stop_within(r, g.brake_fraction), g.approach_rate_1ps * r]), vd)
         wd = kappa * vd if line is None else np.where(line, 0.0, kappa * vd)
         if captured.any():
             wa = np.sign(e) * np.minimum(np.minimum(g.omega_max_radps, np.sqrt(

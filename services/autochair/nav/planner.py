@@ -286,7 +286,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         # are placed where its passage is narrow, and unseen cells count as free)
         doors = req.field.door_approaches(res.ctg, req.pose[0], req.pose[1])
         if doors:
-            res = replace(res, lineup=(float(doors[0][0]), float(doors[0][1]), float(doors[0][2])))
+            res = replace(res, lineup=doors[0])
     hit = _lattices.get((id(req.field), req.goal))
     if hit is None or hit[0] is not req.field or hit[1] is None:
         return res
