@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+from collections.abc import Callable
 
 import msgspec
 import pytest
@@ -251,6 +252,96 @@ def test_a_lead_started_on_a_moving_axis_ends_where_the_predictor_said() -> None
     off, ahead = lead_started_moving(start=True)
     assert abs(off) < 1e-4 and abs(ahead) < 1e-4
     assert abs(lead_started_moving(start=False)[0]) > 0.1
+
+
+def test_a_plan_stopped_at_once_leaves_nothing_ahead_at_rest() -> None:
+    """The safety monitor's |ω| bound of 0 stops the planned turn at once (cap_omega), a step
+    the lead passes on only within the plan's limits. `ahead` counts what the lead's commands
+    give back later; the step's part is never given back, so at rest `ahead` is 0 and the
+    predictor's word (the motion so far and to come, less `ahead`) is where the chain ends.
+    The old lead kept 2τ·0.9 rad/s = 14.5° ahead at rest (H68: the predictor put a held
+    final turn 14° behind the chair, which ran on past the goal). Positive control: the same
+    turn not stopped ends on the predictor's word too."""
+    cfg = ControlConfig()
+    tau, h = cfg.predict_lag_s, 1.0 / cfg.rate_hz
+    w = ComfortLimiter(cfg.limits).w
+
+    def off_at_rest(at_once: bool) -> tuple[float, float]:
+        lead, pre, moved, said = LeadAxis(tau), ChainAxis(2 * tau, tau), 0.0, 0.0
+        for k in range(300):  # up to 0.9 rad/s, held; from step 30 stopped
+            r = min(0.9, 0.05 * k) if k < 30 else 0.0 if at_once else max(
+                0.0, 0.9 - 0.05 * (k - 30))  # (braked within the plan's limits)
+            c = lead.step(r, h, w.amax, w.jmax)
+            c = 0.0 if at_once and k >= 30 else c  # (sent within the bound: _lead_out)
+            x0 = pre.x2
+            pre.push(h, c)
+            moved += 0.5 * (x0 + pre.x2) * h
+            said = moved + sum(pre.future(h, 200)) * h - lead.ahead
+        return said - moved, lead.ahead
+
+    for at_once in (True, False):
+        off, ahead = off_at_rest(at_once)
+        assert abs(off) < 1e-3 and abs(ahead) < 1e-3, (at_once, math.degrees(off), ahead)
+
+
+def turn_under_bound(bound: Callable[[float], float]) -> tuple[str, str, float, float]:
+    """A 90° in-place goal in lockstep on the simulated chair (the tuned PID requiring the
+    monitor's limit), the safety monitor's |ω| bound `bound(t)` at 20 Hz: (the goal's state,
+    its reason, how far past the goal's heading the chair ever was, how far it turned once at
+    a stand after the goal's end, till 3 s after it), in degrees."""
+    cfg = ControlConfig()
+    rig = Rig(make_pid("tuned", True), start=(0.0, 0.0, 0.0))
+    core = ControlCore(cfg)
+    ctrl_every = max(1, round(1.0 / (cfg.rate_hz * LOCKSTEP_DT)))
+    peak, t_end, yaw_end = -math.inf, math.inf, math.nan
+    k = 0
+    while k * LOCKSTEP_DT < t_end + 3.0:
+        t = k * LOCKSTEP_DT
+        st = rig.sense()
+        core.on_odom(OdomSample(st.x, st.y, st.yaw, st.v, st.omega, t))
+        if k % 5 == 0:
+            w = bound(t)
+            rig.core.set_limit(1.2, 0.3, w, t, 0.0)
+            core.on_limit(1.2, w, "held" if w < 0.9 else "", t)
+        if k == 0:
+            assert core.set_goal(GoalRequest(waypoints=[Pose2D(0.0, 0.0, math.pi / 2)]), t).ok
+        out = core.step(t) if k % ctrl_every == 0 else None
+        rig.act(t, st.v, st.omega, out)
+        peak = max(peak, rig.chair.yaw)
+        if t_end == math.inf and not core.active:
+            t_end = t
+        if math.isnan(yaw_end) and t >= t_end and abs(rig.chair.omega) < 0.01:
+            yaw_end = rig.chair.yaw  # (at a stand after the goal's end)
+        k += 1
+        assert t < 30.0
+    return (core.state, core.reason, math.degrees(peak) - 90.0,
+            math.degrees(abs(rig.chair.yaw - yaw_end)))
+
+
+@pytest.mark.parametrize("window", [(0.5, 3.0), (1.5, 2.0)], ids=["mid-turn", "braking"])
+def test_a_turn_the_monitor_slows_does_not_run_on_past_the_goal(
+        window: tuple[float, float]) -> None:
+    """The monitor's |ω| bound at 0.1 rad/s for a while (the limiter's cap steps the planned
+    turn down at once): the turn goes on at the bound and the goal arrives, the chair never
+    more than the tolerance past the goal's heading. The old core's prediction stayed behind
+    by the step (2τ·Δω, 12–14°), the chair ran on to 101–104° and the goal ended "no
+    progress" (H68)."""
+    state, _, past, _ = turn_under_bound(lambda t: 0.1 if window[0] <= t < window[1] else 3.0)
+    assert state == "arrived" and past <= 3.0, (state, past)
+
+
+def test_a_turn_the_monitor_stops_ends_the_goal_and_does_not_go_on_by_itself() -> None:
+    """The monitor's |ω| bound of 0 from 0.8 to 3 s, mid-turn: a safety stop (H03, H73).
+    The goal ends once the chair stands, naming the monitor, and the chair does not turn
+    again when the bound lifts. The old core capped its own command to 0, the PID saw no
+    stop, and the turn went on by itself at 3 s. Positive control: the bound lifted while
+    the chair still turns (at 1.2 s: the drive chain's lag) is a slow-down, and the goal
+    arrives."""
+    state, reason, _, after = turn_under_bound(lambda t: 0.0 if 0.8 <= t < 3.0 else 3.0)
+    assert state == "aborted" and "safety monitor stopped" in reason, (state, reason)
+    assert after < 1.0
+    state, _, past, _ = turn_under_bound(lambda t: 0.0 if 0.8 <= t < 1.2 else 3.0)
+    assert state == "arrived" and past <= 3.0
 
 
 @pytest.mark.parametrize("goal_m", [1.0, 3.0], ids=["from-rest", "moving"])

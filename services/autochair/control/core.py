@@ -83,6 +83,9 @@ MAX_LATENCY_S = 0.3
 # nav_eval --monitor seeds 7/1/2/3/4, 146 -> 141 of 165 arrived, doorway 0.038 -> 0.028 m,
 # e-stops 3 -> 17 (measured, session 26).
 PLAN_OMEGA_WINDOW_S = 5.0
+# The safety monitor's |ω| bound at or under which a motion it holds stands: the velocity
+# PID's stop_eps, below which a turn left by its limit is a stop (H03)
+HELD_RADPS = 0.02
 # The longest gap a late tick makes up (ControlCore.step): the velocity PID takes a stream
 # silent for longer for stale ([stale] desired_velocity_s, 0.3 s) and stops.
 MAX_CATCH_UP_S = 0.3
@@ -490,6 +493,11 @@ class LeadAxis:
         # lead would amplify that step by 2τ/dt and τ²/dt² into a jolt of the command)
         d1 = min(max((r - self._r) / dt, -amax), amax)
         d2 = min(max((d1 - self._d1) / dt, -jmax), jmax)
+        # A step the lead does not pass on (the monitor's bound stops a turn at once) is never
+        # given back: 2τ·(its excess) of `ahead` stays at rest, and the predictor, counting it
+        # as motion to come, saw a held turn 14° behind the chair, which ran on past the goal
+        # (H68). Taken out of `ahead`, the prediction is the motion the commands make.
+        self.ahead += 2.0 * self.tau * (r - self._r - d1 * dt)
         self._r, self._d1 = r, d1
         y = [r, d1, d2]
         for i, s in enumerate(self._s):
@@ -528,6 +536,7 @@ class ControlCore:
         self.owner = "autonomy"
         self.gates = gates or DriveGates()
         self._omega_bounds: deque[tuple[float, float]] = deque()  # (t, the monitor's |ω| bound)
+        self._held: str | None = None  # why the monitor's bound holds a motion under way
         # Navigation (nav/): the map's field (None: free space around the goal), the costs-to-go
         # to the waypoint planned to, MPEPC's last plan, moving people.
         self.footprint = footprint or Footprint()
@@ -653,6 +662,16 @@ class ControlCore:
         the footprint, obstacles): the limiter then keeps the path and slows v with ω. (MPEPC
         drives forward only, so the monitor's reverse bound needs no handling here.)"""
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
+        # A motion under way that the bound brings to a stand (a turn in place, or a curve
+        # the limiter slows with it) is a safety stop, as the PID's is (H03): the goal ends
+        # once the chair stands, commanded and measured (step). Capped here, the PID saw no
+        # stop, and the held turn went on by itself once the bound lifted (H73). Lifted before
+        # the chair stands, it was a slow-down; at a stand already, a turn waits for it.
+        if omega_max > HELD_RADPS:
+            self._held = None
+        elif self.active and self._held is None and (
+                abs(self.limiter.v.value) > 1e-3 or abs(self.limiter.w.value) > HELD_RADPS):
+            self._held = reason or "no reason given"
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
         while bounds[0][0] < now - PLAN_OMEGA_WINDOW_S:
@@ -744,7 +763,7 @@ class ControlCore:
         self.ctg, self._ctg_field, self._ctg_index, self.plan = ctg, check.fld, 0, None
         self._lineup_field = check.fld
         self.given_up = None
-        self._plan_t, self._blocked_since = -math.inf, None
+        self._plan_t, self._blocked_since, self._held = -math.inf, None, None
         self._last_blocked = ("", -math.inf)
         self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
@@ -829,6 +848,12 @@ class ControlCore:
             self._plan_chain[0].push(dt, v)
             self._plan_chain[1].push(dt, w)
         v, w = self._lead_out(v, w, dt)
+        o = self.odom
+        if self._held is not None and self.active and v < 1e-3 and abs(w) <= HELD_RADPS \
+                and o is not None and abs(o.v) < self.cfg.rest_mps \
+                and abs(o.omega) < self.cfg.rest_mps:
+            self._stopped(ABORTED, f"the safety monitor stopped the chair ({self._held}); "
+                                   "give the goal again to go on", now)
         self._history.append((dt, v, w))
         if dt > 0.0:
             self._chain[0].push(dt, v)
