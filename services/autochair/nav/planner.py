@@ -50,6 +50,9 @@ class PlanRequest:
     # Look for a door to line up at on the way to `goal` (PlanResult.lineup): the map has
     # changed since the goal's route was checked (ControlCore: on the first leg only)
     seek_lineup: bool = False
+    # The safety monitor's limit is in force: the goal's lattice ends forward moves only where
+    # the monitor lets the chair move on (lattice.monitor_ahead)
+    monitor: bool = False
 
 
 @dataclass(frozen=True)
@@ -89,21 +92,24 @@ def planner_for(fld: NavField, law: LawParams, params: MpepcParams | None = None
     return hit[1]
 
 
-_lattices: dict[tuple[int, tuple[float, float, float]],
+_lattices: dict[tuple[int, tuple[float, float, float], bool],
                 tuple[NavField, HeadingField | None]] = {}
 
 
 def lattice_for(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
-                start: tuple[float, float, float] | None = None) -> HeadingField | None:
+                start: tuple[float, float, float] | None = None, monitor: bool = False
+                ) -> HeadingField | None:
     """The heading-aware costs-to-go to `goal` (nav/lattice.py), built once per field and
     goal (~0.05–0.2 s; its window reaches towards where the chair is then); None where the
-    goal region has no free state."""
-    key = (id(fld), goal)
+    goal region has no free state. `monitor`: within the safety monitor's forward stop
+    (PlanRequest.monitor)."""
+    key = (id(fld), goal, monitor)
     hit = _lattices.get(key)
     if hit is None or hit[0] is not fld:
         if len(_lattices) >= 4:
             _lattices.clear()
-        hit = (fld, lattice.build(fld, goal, ctg.phi, start=start))
+        p = lattice.LatticeParams(ahead=lattice.monitor_ahead(fld) if monitor else None)
+        hit = (fld, lattice.build(fld, goal, ctg.phi, p, start=start))
         _lattices[key] = hit
     return hit[1]
 
@@ -121,12 +127,13 @@ def uses_lattice(fld: NavField, goal: tuple[float, float, float],
 
 
 def prepare(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
-            start: tuple[float, float, float], params: MpepcParams | None = None) -> None:
+            start: tuple[float, float, float], params: MpepcParams | None = None,
+            monitor: bool = False) -> None:
     """Build the goal's lattice (`lattice_for`) when the goal is accepted, from `start` (where
     its first planning cycle on it begins), rather than in that cycle: 50-140 ms of a cycle
     budgeted at 100 ms, where acceptance has a second (nav_eval reports both)."""
     if uses_lattice(fld, goal, start, True, params or MpepcParams()):
-        lattice_for(fld, goal, ctg, start)
+        lattice_for(fld, goal, ctg, start, monitor)
 
 
 def free_field(points: list[tuple[float, float]], footprint: Footprint,
@@ -149,12 +156,17 @@ REACH_CLEAR_M = 0.02
 
 
 def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, float],
-               goal: tuple[float, float, float], way_in: bool = True) -> str:
+               goal: tuple[float, float, float], way_in: bool = True,
+               monitor: bool = False) -> str:
     """'' if the chair can get to `goal` from `pose`, else why not: no path for the axle
     (the 2-D field), or (`way_in`, the goal's own heading) no forward-only way into the goal
     pose. Autonomy may not reverse blind, so a pose the chair could only back into (behind a
     pillar, beside a plant: turning there sweeps the body into it) is refused at once rather
-    than driven at and aborted."""
+    than driven at and aborted. With the safety `monitor`, a way in counts only if each of
+    its forward moves ends where the monitor still lets the chair move forward
+    (lattice.monitor_ahead): a goal every way into which ends in its forward stop margin
+    was driven at and lost to a latched safety stop ~40 s later (behind the cluttered room's
+    cabinet: its only ways in turn onto the goal's heading facing a wall within the margin)."""
     if ctg is None:
         return (f"no path: the goal ({goal[0]:.2f}, {goal[1]:.2f}) is closer than "
                 f"{fld.pass_m:.2f} m to an obstacle or outside the map")
@@ -169,6 +181,14 @@ def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, fl
             return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
                     f"{math.degrees(goal[2]):.0f}°): the chair cannot turn onto that heading "
                     f"there with {REACH_CLEAR_M:.2f} m to spare, and it may not reverse blind")
+        if monitor:
+            hf = lattice.build(fld, goal, None, lattice.LatticeParams(
+                min_clear_m=REACH_CLEAR_M, tight_factor=0.0, goal_turn_clear_m=-math.inf,
+                ahead=lattice.monitor_ahead(fld)), start=pose, costs=False)
+            if hf is None or not hf.way_in(*pose):
+                return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
+                        f"{math.degrees(goal[2]):.0f}°) that the safety monitor lets through: "
+                        "each ends facing an obstacle within its forward stop margin")
     return ""
 
 
@@ -270,7 +290,7 @@ def _setup(req: PlanRequest, mp: MpepcParams
     error = path_error(fld, ctg, req.pose, req.goal, way_in=False)  # (checked at set_goal)
     if error or ctg is None:
         return ctg, given_up, error, None
-    hf = lattice_for(fld, req.goal, ctg, req.pose) \
+    hf = lattice_for(fld, req.goal, ctg, req.pose, req.monitor) \
         if uses_lattice(fld, req.goal, req.pose, req.final, mp) else None
     return ctg, given_up, "", hf
 
@@ -287,7 +307,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         doors = req.field.door_approaches(res.ctg, req.pose[0], req.pose[1])
         if doors:
             res = replace(res, lineup=doors[0])
-    hit = _lattices.get((id(req.field), req.goal))
+    hit = _lattices.get((id(req.field), req.goal, req.monitor))
     if hit is None or hit[0] is not req.field or hit[1] is None:
         return res
     cost, ok = hit[1].at(np.array(req.pose[0]), np.array(req.pose[1]), np.array(req.pose[2]))
@@ -339,7 +359,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
                                   and bool(fld.map.occupied.any())) \
                 or r_goal <= mp.final_from * req.law.tolerance_m:
             return hf
-        return lattice_for(fld, req.goal, ctg, req.pose)
+        return lattice_for(fld, req.goal, ctg, req.pose, req.monitor)
 
     at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
     if req.door and mp.stages and abs(req.omega) < 0.01:
