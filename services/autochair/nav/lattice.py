@@ -33,6 +33,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
 from autochair.safety.core import SafetyTuning
+
 from . import gil
 from .field import Footprint, NavField, place_xy
 

@@ -50,9 +50,6 @@ class PlanRequest:
     # Look for a door to line up at on the way to `goal` (PlanResult.lineup): the map has
     # changed since the goal's route was checked (ControlCore: on the first leg only)
     seek_lineup: bool = False
-    # The safety monitor's limit is in force: the goal's lattice ends forward moves only where
-    # the monitor lets the chair move on (lattice.monitor_ahead)
-    monitor: bool = False
 
 
 @dataclass(frozen=True)
@@ -92,24 +89,21 @@ def planner_for(fld: NavField, law: LawParams, params: MpepcParams | None = None
     return hit[1]
 
 
-_lattices: dict[tuple[int, tuple[float, float, float], bool],
+_lattices: dict[tuple[int, tuple[float, float, float]],
                 tuple[NavField, HeadingField | None]] = {}
 
 
 def lattice_for(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
-                start: tuple[float, float, float] | None = None, monitor: bool = False
-                ) -> HeadingField | None:
+                start: tuple[float, float, float] | None = None) -> HeadingField | None:
     """The heading-aware costs-to-go to `goal` (nav/lattice.py), built once per field and
     goal (~0.05–0.2 s; its window reaches towards where the chair is then); None where the
-    goal region has no free state. `monitor`: within the safety monitor's forward stop
-    (PlanRequest.monitor)."""
-    key = (id(fld), goal, monitor)
+    goal region has no free state."""
+    key = (id(fld), goal)
     hit = _lattices.get(key)
     if hit is None or hit[0] is not fld:
         if len(_lattices) >= 4:
             _lattices.clear()
-        p = lattice.LatticeParams(ahead=lattice.monitor_ahead(fld) if monitor else None)
-        hit = (fld, lattice.build(fld, goal, ctg.phi, p, start=start))
+        hit = (fld, lattice.build(fld, goal, ctg.phi, start=start))
         _lattices[key] = hit
     return hit[1]
 
@@ -127,13 +121,12 @@ def uses_lattice(fld: NavField, goal: tuple[float, float, float],
 
 
 def prepare(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
-            start: tuple[float, float, float], params: MpepcParams | None = None,
-            monitor: bool = False) -> None:
+            start: tuple[float, float, float], params: MpepcParams | None = None) -> None:
     """Build the goal's lattice (`lattice_for`) when the goal is accepted, from `start` (where
     its first planning cycle on it begins), rather than in that cycle: 50-140 ms of a cycle
     budgeted at 100 ms, where acceptance has a second (nav_eval reports both)."""
     if uses_lattice(fld, goal, start, True, params or MpepcParams()):
-        lattice_for(fld, goal, ctg, start, monitor)
+        lattice_for(fld, goal, ctg, start)
 
 
 def free_field(points: list[tuple[float, float]], footprint: Footprint,
@@ -290,7 +283,7 @@ def _setup(req: PlanRequest, mp: MpepcParams
     error = path_error(fld, ctg, req.pose, req.goal, way_in=False)  # (checked at set_goal)
     if error or ctg is None:
         return ctg, given_up, error, None
-    hf = lattice_for(fld, req.goal, ctg, req.pose, req.monitor) \
+    hf = lattice_for(fld, req.goal, ctg, req.pose) \
         if uses_lattice(fld, req.goal, req.pose, req.final, mp) else None
     return ctg, given_up, "", hf
 
@@ -307,7 +300,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         doors = req.field.door_approaches(res.ctg, req.pose[0], req.pose[1])
         if doors:
             res = replace(res, lineup=doors[0])
-    hit = _lattices.get((id(req.field), req.goal, req.monitor))
+    hit = _lattices.get((id(req.field), req.goal))
     if hit is None or hit[0] is not req.field or hit[1] is None:
         return res
     cost, ok = hit[1].at(np.array(req.pose[0]), np.array(req.pose[1]), np.array(req.pose[2]))
@@ -359,7 +352,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
                                   and bool(fld.map.occupied.any())) \
                 or r_goal <= mp.final_from * req.law.tolerance_m:
             return hf
-        return lattice_for(fld, req.goal, ctg, req.pose, req.monitor)
+        return lattice_for(fld, req.goal, ctg, req.pose)
 
     at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
     if req.door and mp.stages and abs(req.omega) < 0.01:
