@@ -93,8 +93,9 @@ def ahead_of(fp: Footprint, pad_m: float, stop_m: float, cell_m: float = 0.0) ->
     step), as a rectangle from the bare front on (rear_m = −front_m); less half a map cell
     (`cell_m`) each way, which `footprint_kernel` grows it by again. (Against the monitor's
     own core on noiseless scans round the cabinet's, office A's and the cluttered room's far
-    corners: 95 % of states agree; the full strip, grown, also caught walls alongside 3 cm
-    clear of the padded body and refused the cluttered room's far corner, which is reached.)"""
+    corners: 91-95 % of states agree; the full strip, grown, also caught walls alongside 3 cm
+    clear of the padded body and refused the cluttered room's far corner, which is reached:
+    docs/experiments/monitor-envelope-way-in-s28.md.)"""
     return Footprint(front_m=fp.front_m + pad_m + stop_m - cell_m / 2, rear_m=-fp.front_m,
                      half_width_m=fp.half_width_m + pad_m - cell_m / 2)
 
