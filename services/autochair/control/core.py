@@ -293,6 +293,12 @@ class DriveGates:
     # goal ends because the chair does not follow (e.g. a command stream it took for stale).
     pid_inhibit: str = ""
 
+    @property
+    def monitor(self) -> bool:
+        """The safety monitor runs (its token alive, or a limit heard): the PID obeys its
+        limit, so navigation plans within it."""
+        return self.monitor_up or self.limit_t > -math.inf
+
     def why_not(self, now: float) -> str:
         """Why the PID would refuse a stream begun now ('' if it would obey one)."""
         if self.estop_s is not None and now - self.estop_t > self.estop_s:
@@ -318,6 +324,9 @@ class GoalCheck:
     error: str = ""
     ctg: CostToGo | None = None  # to the first waypoint
     lineups: tuple[Pose2D, ...] = ()  # poses to line up at before doors (field.door_approaches)
+    # The safety monitor's limit is in force (DriveGates.monitor): ways in within its
+    # forward stop margin (planner.path_error)
+    monitor: bool = False
 
     def routed(self) -> GoalCheck:
         """The route checked: a waypoint where the footprint does not fit — clear of
@@ -338,7 +347,7 @@ class GoalCheck:
         # (the forward way into the goal's own heading only for the goal itself: a first
         # waypoint of several is passed within pass_radius_m at any heading)
         error = path_error(self.fld, ctg, (o.x, o.y, o.yaw), (first.x_m, first.y_m,
-                           first.yaw_rad), way_in=len(wps) == 1)
+                           first.yaw_rad), way_in=len(wps) == 1, monitor=self.monitor)
         if error or ctg is None:  # (no ctg: path_error said why)
             return replace(self, error=error)
         lineups = self.fld.door_approaches(ctg, o.x, o.y)
@@ -706,7 +715,8 @@ class ControlCore:
             self._count("rejected_goals")
             return GoalReply(ok=False, error=error)
         assert o is not None
-        return GoalCheck(req, map_waypoints, o, self._field_for(o, req.waypoints))
+        return GoalCheck(req, map_waypoints, o, self._field_for(o, req.waypoints),
+                         monitor=self.gates.monitor)
 
     def why_not_ready(self, now: float) -> str:
         """Why a goal asked for now would be refused before its route is checked ('' if it

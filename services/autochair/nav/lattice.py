@@ -32,8 +32,10 @@ import scipy.ndimage as ndi
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
+from autochair.safety.core import SafetyTuning
+
 from . import gil
-from .field import NavField, place_xy
+from .field import Footprint, NavField, place_xy
 
 F64 = npt.NDArray[np.float64]
 Bool = npt.NDArray[np.bool_]
@@ -78,14 +80,39 @@ class LatticeParams:
     goal_turn_step_m: float = 0.01
     turn_m_per_rad: float = 1.33  # an in-place turn's cost: vmax / ω max
     max_cost: float = 1e3  # the window's "no way" (finite, so interpolation stays defined)
+    # With the safety monitor: the region ahead of the body (a rectangle in the chair frame,
+    # `ahead_of`) that a forward move's end state keeps clear: where it is not, the monitor
+    # bounds forward motion to 0 and the PID latches a stop (the cabinet's and office A's
+    # far corner's ways in, session 27). None: not checked (no monitor).
+    ahead: Footprint | None = None
 
 
-def footprint_kernel(fld: NavField, yaw: float, shift: tuple[float, float] = (0.0, 0.0)
-                     ) -> tuple[npt.NDArray[np.float64], int]:
-    """(2K+1)² mask of the map cells under the chair's rectangle at `yaw` round the axle's
-    cell (centre K, K), grown by half a cell (a cell counts if it may overlap); the axle
-    `shift` (x, y, within half a cell) off that cell's centre."""
-    fp, res = fld.footprint, fld.map.resolution_m
+def ahead_of(fp: Footprint, pad_m: float, stop_m: float, cell_m: float = 0.0) -> Footprint:
+    """The strip the safety monitor sweeps straight ahead of `fp` grown by `pad_m` before it
+    bounds forward motion to 0 (its free extent ≤ `stop_m`: the stop margin plus one sweep
+    step), as a rectangle from the bare front on (rear_m = −front_m); less half a map cell
+    (`cell_m`) each way, which `footprint_kernel` grows it by again. (Against the monitor's
+    own core on noiseless scans round the cabinet's, office A's and the cluttered room's far
+    corners: 91-95 % of states agree; the full strip, grown, also caught walls alongside 3 cm
+    clear of the padded body and refused the cluttered room's far corner, which is reached:
+    docs/experiments/monitor-envelope-way-in-s28.md.)"""
+    return Footprint(front_m=fp.front_m + pad_m + stop_m - cell_m / 2, rear_m=-fp.front_m,
+                     half_width_m=fp.half_width_m + pad_m - cell_m / 2)
+
+
+def monitor_ahead(fld: NavField) -> Footprint:
+    """`ahead_of` for the safety monitor's default tuning on this field's chair and cells."""
+    t = SafetyTuning()
+    return ahead_of(fld.footprint, t.padding_m, t.stop_margin_m + t.step_m,
+                    fld.map.resolution_m)
+
+
+def footprint_kernel(fld: NavField, yaw: float, shift: tuple[float, float] = (0.0, 0.0),
+                     fp: Footprint | None = None) -> tuple[npt.NDArray[np.float64], int]:
+    """(2K+1)² mask of the map cells under the chair's rectangle (or `fp`'s) at `yaw` round
+    the axle's cell (centre K, K), grown by half a cell (a cell counts if it may overlap);
+    the axle `shift` (x, y, within half a cell) off that cell's centre."""
+    fp, res = fp or fld.footprint, fld.map.resolution_m
     k = math.ceil((fp.reach_m + res) / res)
     off = np.arange(-k, k + 1) * res
     px, py = np.meshgrid(off - shift[0], off - shift[1])
@@ -263,17 +290,17 @@ _KERNELS: dict[tuple[object, ...], npt.NDArray[np.complex64]] = {}
 
 def free_states(fld: NavField, box: tuple[int, int, int, int], f: int, n: int,
                 min_clear_m: float, shift: tuple[float, float] = (0.0, 0.0),
-                extra: Bool | None = None) -> Bool:
+                extra: Bool | None = None, fp: Footprint | None = None) -> Bool:
     """(2n, H, W) free states at 2n orientations (the headings and the half steps between)
     at every f-th map cell of rows i0..i1, columns j0..j1 (box, inclusive; cells off the map
-    and `extra` map cells count as obstacles), the axle `shift` off the cells' centres. The
-    rectangle's transforms are kept per window shape."""
-    gm = fld.map
+    and `extra` map cells count as obstacles), the axle `shift` off the cells' centres; the
+    chair's rectangle, or `fp`'s. The rectangle's transforms are kept per window shape."""
+    gm, fp = fld.map, fp or fld.footprint
     i0, i1, j0, j1 = box
     near = fld.clearance < min_clear_m  # includes the obstacles themselves
     if extra is not None:
         near = near | extra
-    k = math.ceil((fld.footprint.reach_m + gm.resolution_m) / gm.resolution_m)
+    k = math.ceil((fp.reach_m + gm.resolution_m) / gm.resolution_m)
     rows, cols = i1 - i0 + 1 + 2 * k, j1 - j0 + 1 + 2 * k
     # Single precision: the correlation counts cells (≤ (2k+1)², ~2000), so its rounding error
     # (~1e-3) cannot cross the 0.5 threshold; half the work of double (the same states).
@@ -284,12 +311,12 @@ def free_states(fld: NavField, box: tuple[int, int, int, int], f: int, n: int,
     if a0 < a1 and b0 < b1:
         win[a0 - (i0 - k):a1 - (i0 - k), b0 - (j0 - k):b1 - (j0 - k)] = near[a0:a1, b0:b1]
     shape = (sfft.next_fast_len(rows, True), sfft.next_fast_len(cols, True))
-    key = (shape, gm.resolution_m, fld.footprint, n, k, shift)
+    key = (shape, gm.resolution_m, fp, n, k, shift)
     kers = _KERNELS.get(key)
     if kers is None:
         stack = []
         for j in range(2 * n):
-            ker, _ = footprint_kernel(fld, j * math.pi / n, shift)
+            ker, _ = footprint_kernel(fld, j * math.pi / n, shift, fp)
             stack.append(sfft.rfft2(ker[::-1, ::-1].astype(np.float32), shape))
         kers = _KERNELS[key] = np.stack(stack)
         if len(_KERNELS) > 8:
@@ -393,6 +420,8 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
     n = p.headings
     both = free_states(fld, box, f, n, p.min_clear_m)
     full, half_steps = both[0::2], both[1::2]
+    # (any map obstacle in the strip: the monitor sees what the map holds, ~1 mm in)
+    ahead = None if p.ahead is None else free_states(fld, box, f, n, 1e-3, fp=p.ahead)[0::2]
     tight = p.tight_factor > 0.0 and p.roomy_clear_m > p.min_clear_m
     if tight:
         roomy = free_states(fld, box, f, n, p.roomy_clear_m)
@@ -442,6 +471,8 @@ def build(fld: NavField, goal: tuple[float, float, float], ctg_phi: F64 | None =
 
     def edges() -> Iterator[tuple[int, int, Slices, Slices, Bool, F64]]:
         for k, k2, a, b, ok, length, in_place in legal_moves(full, half_steps, p):
+            if ahead is not None and not in_place:
+                ok = ok & ahead[k2][b]  # (ends where the monitor still lets it move on)
             c = np.full(int(ok.sum()), length) if in_place else \
                 (length / np.minimum(speed[a], speed[b]))[ok]
             if tight:

@@ -149,12 +149,17 @@ REACH_CLEAR_M = 0.02
 
 
 def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, float],
-               goal: tuple[float, float, float], way_in: bool = True) -> str:
+               goal: tuple[float, float, float], way_in: bool = True,
+               monitor: bool = False) -> str:
     """'' if the chair can get to `goal` from `pose`, else why not: no path for the axle
     (the 2-D field), or (`way_in`, the goal's own heading) no forward-only way into the goal
     pose. Autonomy may not reverse blind, so a pose the chair could only back into (behind a
     pillar, beside a plant: turning there sweeps the body into it) is refused at once rather
-    than driven at and aborted."""
+    than driven at and aborted. With the safety `monitor`, a way in counts only if each of
+    its forward moves ends where the monitor still lets the chair move forward
+    (lattice.monitor_ahead): a goal every way into which ends in its forward stop margin
+    was driven at and lost to a latched safety stop ~40 s later (behind the cluttered room's
+    cabinet: its only ways in turn onto the goal's heading facing a wall within the margin)."""
     if ctg is None:
         return (f"no path: the goal ({goal[0]:.2f}, {goal[1]:.2f}) is closer than "
                 f"{fld.pass_m:.2f} m to an obstacle or outside the map")
@@ -169,6 +174,14 @@ def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, fl
             return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
                     f"{math.degrees(goal[2]):.0f}°): the chair cannot turn onto that heading "
                     f"there with {REACH_CLEAR_M:.2f} m to spare, and it may not reverse blind")
+        if monitor:
+            hf = lattice.build(fld, goal, None, lattice.LatticeParams(
+                min_clear_m=REACH_CLEAR_M, tight_factor=0.0, goal_turn_clear_m=-math.inf,
+                ahead=lattice.monitor_ahead(fld)), start=pose, costs=False)
+            if hf is None or not hf.way_in(*pose):
+                return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
+                        f"{math.degrees(goal[2]):.0f}°) that the safety monitor lets through: "
+                        "each ends facing an obstacle within its forward stop margin")
     return ""
 
 
