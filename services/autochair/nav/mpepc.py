@@ -414,6 +414,10 @@ class Plan:
     # The chair stood under its margin and this motion gets it out by MPEPC's escape rule
     # (Mpepc.escapes): its least clearance is under contact_m, yet it is not a contact.
     escape: bool = False
+    # The door's sight rule where it was planned (Mpepc.sight_cap; inf: none binds): every
+    # candidate's vmax, the goal's own approach (row 0) too, was at most this, so the core's
+    # own final approach drives no faster (control/core.py _desired)
+    sight_mps: float = math.inf
 
 
 # A stage's straight is evaluated at this many speeds, the least to the top (Mpepc._one_stage):
@@ -1624,9 +1628,14 @@ class Mpepc:
         (a person beside the door beyond it is hidden behind the jambs till they step out);
         never under `v_min_mps`."""
         g = self.law
-        react = g.commit_s + (0.0 if chain is None else chain.v.delay + 2 * chain.v.lag)
         return max(sight_speed(far_m - self.field.footprint.front_m - self.p.brake_clear_m,
-                               g.a_mps2, g.jerk_mps3, react, g.vmax_mps), self.p.v_min_mps)
+                               g.a_mps2, g.jerk_mps3, self.react_s(chain), g.vmax_mps),
+                   self.p.v_min_mps)
+
+    def react_s(self, chain: Chain | None) -> float:
+        """How long before a plan can brake for what it sees: the plan period, and the drive
+        chain's mean lag (v: dead time and its two lags; `chain`, else none)."""
+        return self.law.commit_s + (0.0 if chain is None else chain.v.delay + 2 * chain.v.lag)
 
     def sight_cap(self, pose: tuple[float, float, float], ctg: CostToGo,
                   chain: Chain | None = None) -> float:
@@ -1643,9 +1652,8 @@ class Mpepc:
         jambs, at the law's top speed. Read on the costs-to-go's descent (~0.2 ms)."""
         fld, g = self.field, self.law
         # (beyond this the rule allows the top speed: the way's far side must lie nearer)
-        reach = fld.footprint.front_m + self.p.brake_clear_m + g.vmax_mps * (
-            g.commit_s + (0.0 if chain is None else chain.v.delay + 2 * chain.v.lag)) \
-            + stop_m(g.vmax_mps, g.a_mps2, g.jerk_mps3)
+        reach = fld.footprint.front_m + self.p.brake_clear_m + g.vmax_mps * self.react_s(
+            chain) + stop_m(g.vmax_mps, g.a_mps2, g.jerk_mps3)
         path = fld.descent_path(ctg, pose[0], pose[1], max_m=reach + 2.0)
         top = math.inf
         for j, k in passages(fld.clearance_at(path), NARROW_M):
@@ -2243,7 +2251,7 @@ class Mpepc:
         return self._plan_of(pose, best_z, best_c, best, float(cost[int(has_goal)]), evals,
                              is_goal=is_goal, goal_clearance_m=goal_clear, final_turn=final_turn,
                              goal_withheld=withheld and not is_goal and not final_turn,
-                             goal_stop_clear=goal_stop_clear)
+                             goal_stop_clear=goal_stop_clear, sight_mps=top)
 
     def capped(self, z: F64, top: float) -> F64:
         """Candidates z (N, 4) with vmax at most `top` (sight_cap; the core drives a plan at
