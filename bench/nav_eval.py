@@ -10,7 +10,8 @@ saw standing 1 s at the start, or for a case that starts where an earlier goal e
 there (DRIVEN) (bench/scan_map.py: what the live chair plans on; unseen cells are free, so a goal
 in an unseen room is accepted; the references below stay on the exact map).
 People are given to the planner from the world's ground truth (a perfect tracker: the stack has
-none yet). Metrics come
+none yet); in SIGHT_ONLY worlds only while the laser sees them (not hidden by the walls).
+`person_clearance_m`: the footprint's least distance to a person's disc. Metrics come
 from the simulator's ground truth: footprint clearance against the exact world (people included)
 every 0.05 s, collisions (any contact), the true final pose error, time and path length against the
 shortest feasible path, comfort peaks from the odometry (as control_eval), the wall time of
