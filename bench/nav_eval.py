@@ -10,7 +10,7 @@ saw standing 1 s at the start, or for a case that starts where an earlier goal e
 there (DRIVEN) (bench/scan_map.py: what the live chair plans on; unseen cells are free, so a goal
 in an unseen room is accepted; the references below stay on the exact map).
 People are given to the planner from the world's ground truth (a perfect tracker: the stack has
-none yet); in SIGHT_ONLY worlds only while the laser sees them (not hidden by the walls).
+none yet); in SIGHT_ONLY worlds only once the laser has seen them (not hidden by the walls).
 `person_clearance_m`: the footprint's least distance to a person's disc. Metrics come
 from the simulator's ground truth: footprint clearance against the exact world (people included)
 every 0.05 s, collisions (any contact), the true final pose error, time and path length against the
@@ -143,7 +143,7 @@ CASES: list[tuple[str, str, Pose, Pose, bool]] = [
     ("door person: through to room B", "door_person", (0, 0, 0), (6.5, 0.0, 0), True),
     ("door person: from before the door", "door_person", (2.6, 1.0, 0), (6.5, 0.0, 0), True),
 ]
-# Worlds whose people are given to the planner only while the laser sees them (not hidden by
+# Worlds whose people are given to the planner only once the laser has seen them (not hidden by
 # the walls from where it stands: a tracker's view, not the world's ground truth): a person
 # beside a door beyond it is unseen till they step out (H67).
 SIGHT_ONLY = {"door_person"}
@@ -259,15 +259,18 @@ def overlaps(w: World, fp: Footprint, x: float, y: float, yaw: float) -> bool:
     return False
 
 
-def people_at(world: World, t: float, laser: Pose | None = None) -> list[Person]:
-    """The world's people at t; with `laser` (its world pose) only those it sees (in its
-    field of view and range, not hidden by the walls: bench/people.py `visible`)."""
+def people_at(world: World, t: float, laser: Pose | None = None,
+              seen: set[int] | None = None) -> list[Person]:
+    """The world's people at t; with `laser` (its world pose) only those it has seen (in its
+    field of view and range, not hidden by the walls: bench/people.py `visible`), from the
+    first time on (`seen`, kept: a tracker holds a track out of view, as behind the chair)."""
     state = world.people_state(t)
-    if laser is not None:
+    if laser is not None and seen is not None:
         ends = UrgParams().step_angles()
         fov = max(abs(float(ends[0])), abs(float(ends[-1])))
-        state = state[[visible(world, p, laser, fov, UrgParams().dmax_mm / 1e3)
-                       for p in state]] if len(state) else state
+        seen.update(i for i, p in enumerate(state)
+                    if i not in seen and visible(world, p, laser, fov, UrgParams().dmax_mm / 1e3))
+        state = state[sorted(seen)]
     return [Person(float(x), float(y), float(vx), float(vy), float(r))
             for x, y, vx, vy, r in state]
 
@@ -296,7 +299,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     metrics' references keep); `driven`: that map grown along these poses first (DRIVEN);
     `monitor`: the safety monitor beside it, its limit required by the PID (bench/safety_rig);
     `on_tick(t, core, chair)`: called each tick once the chair has moved (the true chair);
-    `sight_only`: people given to the planner only where the laser sees them (SIGHT_ONLY)."""
+    `sight_only`: people given to the planner only once the laser has seen them (SIGHT_ONLY)."""
     from autochair_msgs import GoalRequest, Pose2D
 
     rig = Rig(make_pid("tuned", monitor is not None), start=start)  # as the node configures it
@@ -323,6 +326,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         map_ms.append((time.perf_counter() - t0) * 1e3)
     outline = fp.outline(0.02)
     mount = laser_mount()
+    seen: set[int] = set()  # (sight_only: the people the laser has seen so far)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
     rows: list[tuple[float, ...]] = []
     clear: list[float] = []
@@ -362,7 +366,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
             c, s_ = math.cos(model.yaw), math.sin(model.yaw)
             core.people = people_at(world, t, (
                 model.x + mount[0] * c - mount[1] * s_, model.y + mount[0] * s_ + mount[1] * c,
-                model.yaw + mount[2]) if sight_only else None)
+                model.yaw + mount[2]), seen) if sight_only else people_at(world, t)
             planning.tick(t)
             states.add(core.state)
             out = core.step(t)
