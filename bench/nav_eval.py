@@ -10,7 +10,8 @@ saw standing 1 s at the start, or for a case that starts where an earlier goal e
 there (DRIVEN) (bench/scan_map.py: what the live chair plans on; unseen cells are free, so a goal
 in an unseen room is accepted; the references below stay on the exact map).
 People are given to the planner from the world's ground truth (a perfect tracker: the stack has
-none yet). Metrics come
+none yet); in SIGHT_ONLY worlds only once the laser has seen them (not hidden by the walls).
+`person_clearance_m`: the footprint's least distance to a person's disc. Metrics come
 from the simulator's ground truth: footprint clearance against the exact world (people included)
 every 0.05 s, collisions (any contact), the true final pose error, time and path length against the
 shortest feasible path, comfort peaks from the odometry (as control_eval), the wall time of
@@ -69,12 +70,14 @@ from autochair.nav.field import Footprint, GridMap, NavField, place
 from autochair.nav.mpepc import MpepcParams, Person
 from autochair.nav.planner import PlanRequest, PlanResult, compute, warm
 from autochair.sim.chair.model import ChairModel
+from autochair.sim.lidar.scanner import UrgParams
 from autochair.sim.world import DEFAULT_WORLD, World, load_world
 from autochair.tune.lockstep import DT, Rig  # DT: the drive chain's rate
 from bench.clearance_bound import Room, lattice_attainable
 from bench.control_eval import Planning, deriv, make_pid, smooth, trapezoid_time
 from bench.min_time import Limits, cached, lookup
 from bench.path_time import fit, path_time
+from bench.people import visible
 from bench.safety_rig import SafetyRig
 from bench.scan_map import ScanMap
 
@@ -134,7 +137,16 @@ CASES: list[tuple[str, str, Pose, Pose, bool]] = [
     ("person: to the side", "crossing", (0, 0, 0), (8.0, 0.8, 0), False),
     ("person: passing head-on", "passing", (0, 0, 0), (11.0, 0.5, 0), False),
     ("person: overtaken, then met", "passing", (2.0, 0.6, 0), (6.0, 0.6, 0), False),
+    # H67: a person pacing out of room B across its door's far side, given to the planner only
+    # where the laser sees them (SIGHT_ONLY); from afar (the door's line-up, its straight) and
+    # from 1 m before the door (no line-up: MPEPC's own way through)
+    ("door person: through to room B", "door_person", (0, 0, 0), (6.5, 0.0, 0), True),
+    ("door person: from before the door", "door_person", (2.6, 1.0, 0), (6.5, 0.0, 0), True),
 ]
+# Worlds whose people are given to the planner only once the laser has seen them (not hidden by
+# the walls from where it stands: a tracker's view, not the world's ground truth): a person
+# beside a door beyond it is unseen till they step out (H67).
+SIGHT_ONLY = {"door_person"}
 # With `--map scans`, cases that start where the chair arrived on an earlier goal: their map is
 # the one grown on the way there (the laser's scans along these poses, bench/scan_map.py
 # ScanMap.driven), not a look from the start alone, which sees little behind the chair.
@@ -247,24 +259,47 @@ def overlaps(w: World, fp: Footprint, x: float, y: float, yaw: float) -> bool:
     return False
 
 
-def people_at(world: World, t: float) -> list[Person]:
+def people_at(world: World, t: float, laser: Pose | None = None,
+              seen: set[int] | None = None) -> list[Person]:
+    """The world's people at t; with `laser` (its world pose) only those it has seen (in its
+    field of view and range, not hidden by the walls: bench/people.py `visible`), from the
+    first time on (`seen`, kept: a tracker holds a track out of view, as behind the chair)."""
+    state = world.people_state(t)
+    if laser is not None and seen is not None:
+        ends = UrgParams().step_angles()
+        fov = max(abs(float(ends[0])), abs(float(ends[-1])))
+        seen.update(i for i, p in enumerate(state)
+                    if i not in seen and visible(world, p, laser, fov, UrgParams().dmax_mm / 1e3))
+        state = state[sorted(seen)]
     return [Person(float(x), float(y), float(vx), float(vy), float(r))
-            for x, y, vx, vy, r in world.people_state(t)]
+            for x, y, vx, vy, r in state]
+
+
+def person_clearance(world: World, outline: Any, x: float, y: float, yaw: float,
+                     t: float) -> float:
+    """Least distance of the footprint's outline to the people's discs (inf: no one)."""
+    state = world.people_state(t)
+    if not len(state):
+        return math.inf
+    pts = place(outline, x, y, yaw)
+    return float((np.hypot(pts[:, None, 0] - state[None, :, 0], pts[:, None, 1]
+                           - state[None, :, 1]) - state[None, :, 4]).min())
 
 
 def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig,
              fp: Footprint, params: MpepcParams | None = None, plan_delay_s: float = 0.0,
              scans: ScanMap | None = None, driven: list[Pose] | None = None,
              monitor: SafetyRig | None = None,
-             on_tick: Callable[[float, ControlCore, ChairModel], None] | None = None
-             ) -> dict[str, Any]:
+             on_tick: Callable[[float, ControlCore, ChairModel], None] | None = None,
+             sight_only: bool = False) -> dict[str, Any]:
     """One goal in lockstep. `plan_delay_s`: each plan takes effect this long after it was
     asked for (the node plans on its own thread meanwhile, the core driving the previous
     plan; 0: at once, as the figures are made). `scans`: the chair plans on the map grown
     from its laser's scans (bench/scan_map.py), not on `fld` (the exact world, which the
     metrics' references keep); `driven`: that map grown along these poses first (DRIVEN);
     `monitor`: the safety monitor beside it, its limit required by the PID (bench/safety_rig);
-    `on_tick(t, core, chair)`: called each tick once the chair has moved (the true chair)."""
+    `on_tick(t, core, chair)`: called each tick once the chair has moved (the true chair);
+    `sight_only`: people given to the planner only once the laser has seen them (SIGHT_ONLY)."""
     from autochair_msgs import GoalRequest, Pose2D
 
     rig = Rig(make_pid("tuned", monitor is not None), start=start)  # as the node configures it
@@ -290,9 +325,12 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
         grid_key = parked.occupied.tobytes()
         map_ms.append((time.perf_counter() - t0) * 1e3)
     outline = fp.outline(0.02)
+    mount = laser_mount()
+    seen: set[int] = set()  # (sight_only: the people the laser has seen so far)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
     rows: list[tuple[float, ...]] = []
     clear: list[float] = []
+    to_people: list[float] = []  # least distance to a person's disc (inf: no one)
     speeds: list[float] = []  # true |v| at each clearance sample
     where: list[tuple[float, float, float]] = []  # true pose at each clearance sample
     states: set[str] = set()
@@ -325,7 +363,10 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
                 core.on_field(new, None if req is None else warm(req, params))
             map_ms.append((time.perf_counter() - t0) * 1e3)
         if k % ctrl_every == 0:
-            core.people = people_at(world, t)
+            c, s_ = math.cos(model.yaw), math.sin(model.yaw)
+            core.people = people_at(world, t, (
+                model.x + mount[0] * c - mount[1] * s_, model.y + mount[0] * s_ + mount[1] * c,
+                model.yaw + mount[2]), seen) if sight_only else people_at(world, t)
             planning.tick(t)
             states.add(core.state)
             out = core.step(t)
@@ -336,6 +377,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
                      model.x, model.y, model.yaw))
         if k % TRUTH_EVERY == 0:
             clear.append(truth_clearance(world, fp, outline, model.x, model.y, model.yaw, t))
+            to_people.append(person_clearance(world, outline, model.x, model.y, model.yaw, t))
             speeds.append(abs(model.v))
             where.append((model.x, model.y, model.yaw))
         if t_end is None and not core.active:
@@ -361,6 +403,8 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     i = int(np.argmin(cl))  # where the least clearance was (what limits it)
     result["min_clearance_at"] = (round(where[i][0], 2), round(where[i][1], 2),
                                   round(math.degrees(where[i][2])), round(float(sp[i]), 2))
+    near = min(to_people, default=math.inf)
+    result["person_clearance_m"] = round(near, 3) if math.isfinite(near) else None
     tight = cl < TIGHT_M
     result["v_tight_mps"] = round(float(sp[tight].max()), 3) if tight.any() else 0.0
     return result
@@ -573,7 +617,8 @@ def main(argv: list[str] | None = None) -> int:
                      MpepcParams(seed=args.seed,
                                  heading_lattice=MpepcParams().heading_lattice
                                  and not args.no_lattice), args.plan_delay_s, scans,
-                     DRIVEN.get(name), SafetyRig(args.scan_seed) if args.monitor else None)
+                     DRIVEN.get(name), SafetyRig(args.scan_seed) if args.monitor else None,
+                     sight_only=wname in SIGHT_ONLY)
         r.update(name=name, world=wname, start=start, goal=goal, doorway=doorway)
         runs.append(r)
         if r["state"] == "refused":
@@ -594,6 +639,8 @@ def main(argv: list[str] | None = None) -> int:
               f"a={r['peak_a_mps2']:.2f} j={r['peak_jerk_mps3']:.2f} "
               f"ω̇={r['peak_omega_dot_radps2']:.2f} plan={r['plan_ms_median']}ms "
               f"accept={r['accept_ms']}ms "
+              + (f"person={r['person_clearance_m']} " if r["person_clearance_m"] is not None
+                 else "")
               + (f"map={r['map_s']}s/{r['scans_mapped']} " if scans else "")
               + (f"monitor={r['monitor']} " if args.monitor else "")
               + f"{r['reason']}", flush=True)

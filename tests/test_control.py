@@ -1198,3 +1198,37 @@ def test_arrival_is_judged_on_the_measured_heading_not_the_predicted_one(
     assert at_rest_at_goal(0.0).state == core_mod.ARRIVED
     off = at_rest_at_goal(math.radians(20.0))
     assert off.state != core_mod.ARRIVED and off.active
+
+
+def test_the_cores_own_final_approach_is_driven_no_faster_than_the_plans_sight_rule() -> None:
+    """H67: MPEPC caps every candidate by a door's sight rule (Mpepc.sight_cap), the goal's
+    own approach (row 0) too, and hands that cap on (Plan.sight_mps); the core's own final
+    approach drives the law at the goal's top speed, so it must keep to it as well, else it
+    drives faster than MPEPC checked it (through a door at up to 1.2 m/s). A goal 4 m ahead,
+    handed over (is_goal) with a cap of 0.3 m/s: the commanded speed peaks at it (positive
+    control: with none, over 1 m/s)."""
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    goal = (4.0, 0.0, 0.0)
+
+    def peak(sight: float) -> float:
+        core = fresh_core(INSTANT)
+        core.inline_planning = False
+        core.on_field(_post_field(np.zeros((0, 3))))  # type: ignore[arg-type]
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(*goal)]), 0.0).ok
+        plan = Plan((4.0, 0.0, 0.0, 1.2), goal, 1.2, 0.0, 0.0, 1.0, 1.0, np.zeros((1, 3)),
+                    True, 0.5, 0.0, 1, sight_mps=sight)
+        top = [0.0]
+
+        def fresh(t: float) -> None:  # (a plan each cycle, as MPEPC's, handing the goal on)
+            if round(t / 0.02) % 10 == 0:
+                core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
+            top[0] = max(top[0], core.limiter.v.value)
+
+        run_unicycle(core, 0.0, 3.0, [0.0, 0.0, 0.0], fresh)
+        assert core.final
+        return top[0]
+
+    assert peak(math.inf) > 1.0
+    assert 0.25 < peak(0.3) <= 0.3 + 1e-9

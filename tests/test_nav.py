@@ -307,6 +307,50 @@ def test_a_straight_stage_is_given_the_fastest_speed_it_is_evaluated_clear_at() 
     assert list(info["hit"]) == [0.0, 1.0]
 
 
+def two_rooms() -> NavField:
+    """nav_eval's doorway world: rooms A (x < 4) and B joined by a 0.9 m door at x = 4, its
+    gap y 0.55..1.45 (rasterised at 0.05 m, as nav_eval plans on it)."""
+    segs = [[-1, -2, 9, -2], [-1, 2, 9, 2], [-1, -2, -1, 2], [9, -2, 9, 2],
+            [4, -2, 4, 0.55], [4, 1.45, 4, 2]]
+    return NavField(GridMap.from_shapes(np.array(segs, dtype=float), np.zeros((0, 3))), FP)
+
+
+def test_mpepcs_own_way_through_a_door_from_close_by_is_sight_limited() -> None:
+    """H67's residual: from 1 m before a door (no line-up: the straight stage is not used)
+    MPEPC's own arc through it was driven at the law's top speed (the plan's vmax, which the
+    core drives at most: 0.93–1.15 m/s measured within 0.15 m of the jambs). Now each of its
+    candidates is capped by the door's sight rule (Mpepc.sight_cap: stop with the front short
+    of the door's far side after the reaction, the rule the door's straight is given): the
+    plan's vmax, and its predicted peak speed, within the sight speed from where the chair
+    stands, or from the door's line-up where it stands nearer (the door's wall line at x = 4,
+    its far side taken 0.15 m past it: generous; here without the drive chain, the reaction
+    is the plan period alone; old code: vmax 0.69 and 1.2, peaks the same). Positive
+    control: farther from the door than the rule binds, the same planner still plans at over
+    1 m/s."""
+    from autochair.nav.mpepc import sight_speed
+
+    fld = two_rooms()
+    goal = (6.5, 0.0, 0.0)
+    ctg = fld.cost_to_go(goal[0], goal[1])
+    assert ctg is not None
+    m, dt = planner(fld), MpepcParams().dt_s
+    for x in (2.6, 3.0):
+        pose = (x, 1.0, 0.0)
+        p = m.plan(pose, 0.0, 0.0, goal, ctg)
+        assert p.progress_m > 0.3 and p.min_clearance_m >= MpepcParams().contact_m
+        peak = float((np.hypot(*np.diff(p.path[:, :2], axis=0).T) / dt).max())
+        # (nearer than the door's line-up, 1.5 m before its narrowest point, as from there)
+        far = max(4.15 - x, 1.5 + 0.15)
+        bound = sight_speed(far - FP.front_m - MpepcParams().brake_clear_m, LAW.a_mps2,
+                            LAW.jerk_mps3, LAW.commit_s, LAW.vmax_mps)
+        assert 0.0 < bound < 0.65
+        assert p.vmax_mps <= max(bound, MpepcParams().v_min_mps) + 1e-9
+        assert peak <= max(bound, MpepcParams().v_min_mps) + 0.01
+    # (positive control: 4.5 m before the door, farther than the rule binds)
+    assert m.sight_cap((-0.5, 1.0, 0.0), ctg) == math.inf
+    assert m.plan((-0.5, 1.0, 0.0), 0.0, 0.0, goal, ctg).vmax_mps > 1.0
+
+
 def test_survival_is_limited_by_the_tightest_point() -> None:
     fld = corridor_with_wall()
     ctg = fld.cost_to_go(6.0, 2.0)

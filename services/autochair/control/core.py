@@ -1288,8 +1288,10 @@ class ControlCore:
             self._land_left = None
         if self.aligning:
             return self._align(goal, o, now)
+        # (no faster than the door's sight rule MPEPC checked this approach at: H67)
         out = park_kuipers(o.x, o.y, o.yaw, goal.x_m, goal.y_m, goal.yaw_rad, self.gains,
-                           self.vmax, omega_floor=cfg.omega_floor_radps)
+                           min(self.vmax, math.inf if self.plan is None
+                               else self.plan.sight_mps), omega_floor=cfg.omega_floor_radps)
         along = r * math.cos(out.delta_rad)
         lateral = abs(r * math.sin(out.delta_rad))
         # (judged on the heading the chair stops turning at: braking a turn still under way

@@ -315,6 +315,12 @@ def _sample_one(grid: F64, gm: GridMap, x: float, y: float, outside: float) -> f
     return v if inside else outside
 
 
+# A way is in a narrow passage (a door) where the axle's clearance is under this
+NARROW_M = 0.6
+# A door's line-up pose stands this far before its narrowest point (NavField.door_approaches)
+LINE_UP_M = 1.5
+
+
 def passages(clr: F64, narrow_m: float) -> Iterator[tuple[int, int]]:
     """The narrow passages (doors) along a way whose clearances are `clr` (N,): each one's
     end (the first index past it with `narrow_m` again; N: the way ends in it) and its
@@ -872,8 +878,8 @@ class NavField:
         pts.append((gx, gy))
         return np.array(pts)
 
-    def door_approaches(self, ctg: CostToGo, x: float, y: float, narrow_m: float = 0.6,
-                        back_m: float = 1.5, clear_m: float = 0.05, stand_m: float = 0.1
+    def door_approaches(self, ctg: CostToGo, x: float, y: float, narrow_m: float = NARROW_M,
+                        back_m: float = LINE_UP_M, clear_m: float = 0.05, stand_m: float = 0.1
                         ) -> list[tuple[float, float, float]]:
         """Poses to line up at before each narrow passage (a door) on the way from (x, y):
         `back_m` before its narrowest point, facing along the passage, the chair `stand_m`
@@ -902,7 +908,7 @@ class NavField:
         return out
 
     def passage_ahead(self, ctg: CostToGo, x: float, y: float, within_m: float,
-                      narrow_m: float = 0.6) -> tuple[F64, int, int] | None:
+                      narrow_m: float = NARROW_M) -> tuple[F64, int, int] | None:
         """The first narrow passage (a door: the axle's clearance under `narrow_m`, as
         `door_approaches`) on the way from (x, y) whose narrowest point lies within `within_m`
         along it: the way's points (N, 2) up to the passage's end, the narrowest point's index

@@ -46,11 +46,15 @@ from autochair.geometry import along_lateral
 from .field import (
     BATCH_POINTS,
     COARSE_SPACING_M,
+    LINE_UP_M,
+    NARROW_M,
     Contact,
     CostToGo,
     NavField,
     heading_through,
+    passages,
     place_xy,
+    walked_to,
 )
 from .lattice import HeadingField
 
@@ -410,6 +414,10 @@ class Plan:
     # The chair stood under its margin and this motion gets it out by MPEPC's escape rule
     # (Mpepc.escapes): its least clearance is under contact_m, yet it is not a contact.
     escape: bool = False
+    # The door's sight rule where it was planned (Mpepc.sight_cap; inf: none binds): every
+    # candidate's vmax, the goal's own approach (row 0) too, was at most this, so the core's
+    # own final approach drives no faster (control/core.py _desired)
+    sight_mps: float = math.inf
 
 
 # A stage's straight is evaluated at this many speeds, the least to the top (Mpepc._one_stage):
@@ -1605,6 +1613,63 @@ class Mpepc:
                          cost + hf.params.turn_m_per_rad * turn, math.inf)
         return np.asarray(total.min(-1), dtype=float)
 
+    def door_far(self, path: F64, k: int) -> int:
+        """The index of a door's far side on the way `path` (N, 2) whose narrowest point is k:
+        the last point of the way within 1 cm of its narrowest clearance (a door leaf along a
+        jamb narrows the way before the wall's line)."""
+        clr = self.field.clearance_at(path[k:])
+        return k + int(np.nonzero(clr <= clr[0] + 0.01)[0].max())
+
+    def sight_top(self, far_m: float, chain: Chain | None) -> float:
+        """The sight rule (H67): the fastest the chair may set off from where it stands, its
+        axle `far_m` short of a door's far side, so that, reacting after the plan period and
+        the drive chain's mean lag (`chain`; without it the plan period alone), it stops at
+        the comfort deceleration and jerk with its front `brake_clear_m` short of that side
+        (a person beside the door beyond it is hidden behind the jambs till they step out);
+        never under `v_min_mps`."""
+        g = self.law
+        return max(sight_speed(far_m - self.field.footprint.front_m - self.p.brake_clear_m,
+                               g.a_mps2, g.jerk_mps3, self.react_s(chain), g.vmax_mps),
+                   self.p.v_min_mps)
+
+    def react_s(self, chain: Chain | None) -> float:
+        """How long before a plan can brake for what it sees: the plan period, and the drive
+        chain's mean lag (v: dead time and its two lags; `chain`, else none)."""
+        return self.law.commit_s + (0.0 if chain is None else chain.v.delay + 2 * chain.v.lag)
+
+    def sight_cap(self, pose: tuple[float, float, float], ctg: CostToGo,
+                  chain: Chain | None = None) -> float:
+        """The top speed of MPEPC's own motions (and stages given none) from `pose` where the
+        way to the goal runs through a narrow passage (a door: the axle's clearance under
+        `NARROW_M`, as NavField.passage_ahead; not one the way ends in or runs on in) ahead:
+        `sight_top` of the way's length to its far
+        side, the rule a door's straight is given (through_door), applied again at every plan
+        from where the chair then stands, or from the door's line-up (`LINE_UP_M` before its
+        narrowest point) where it stands nearer. inf: no passage near enough to bind, or the
+        chair's front is past its far side (what stepped out there is in the laser's view).
+        Why (H67): MPEPC's own arcs through a door (no line-up: a start within 1.5 m of it,
+        leaving office A, the store room) were driven at 0.93–1.15 m/s within 0.15 m of the
+        jambs, at the law's top speed. Read on the costs-to-go's descent (~0.2 ms)."""
+        fld, g = self.field, self.law
+        # (beyond this the rule allows the top speed: the way's far side must lie nearer)
+        reach = fld.footprint.front_m + self.p.brake_clear_m + g.vmax_mps * self.react_s(
+            chain) + stop_m(g.vmax_mps, g.a_mps2, g.jerk_mps3)
+        path = fld.descent_path(ctg, pose[0], pose[1], max_m=reach + 2.0)
+        top = math.inf
+        for j, k in passages(fld.clearance_at(path), NARROW_M):
+            if j == len(path) or walked_to(path, k) > reach:
+                break  # (the way ends in it or runs on beyond what was read; the rest is far)
+            # (each one whose far side the front has still to pass: a jamb's end beside the
+            # axle reads as a passage of its own, just before the door's)
+            far = walked_to(path, self.door_far(path, k))
+            # (nearer than the door's line-up, as fast as a chair that set off from there: its
+            # straight keeps that speed through, and a chair slowed to a crawl in the door
+            # turned in place in it, MPEPC's collision cost over time outweighing the progress)
+            at = max(far, LINE_UP_M + far - walked_to(path, k))
+            if fld.footprint.front_m < far and at < reach:
+                top = min(top, self.sight_top(at, chain))
+        return top
+
     def through_door(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                      ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                      rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
@@ -1671,15 +1736,9 @@ class Mpepc:
         if ok[0] and (not lined or moving or turned or abs(float(wrap(np.array(
                 psi[best_i] - yaw)))) <= math.radians(p.door_turn_step_deg)):
             d = float(along[0])  # on a clear straight through: drive it
-            g = self.law
-            react = g.commit_s + (0.0 if chain is None else chain.v.delay + 2 * chain.v.lag)
-            # (the door's far side: the last point of the way within 1 cm of its narrowest
-            # clearance; a door leaf along a jamb narrows the way before the wall's line)
-            clr = fld.clearance_at(path[k:])
-            far = k + int(np.nonzero(clr <= clr[0] + 0.01)[0].max())
-            jamb = (path[far, 0] - x) * c[0] + (path[far, 1] - y) * s[0]
-            top = max(sight_speed(float(jamb) - fld.footprint.front_m - p.brake_clear_m,
-                                  g.a_mps2, g.jerk_mps3, react, g.vmax_mps), p.v_min_mps)
+            far = self.door_far(path, k)
+            top = self.sight_top(float((path[far, 0] - x) * c[0] + (path[far, 1] - y) * s[0]),
+                                 chain)
             return self._one_stage(pose, (d, 0.0), (x + d * c[0], y + d * s[0], yaw), False,
                                    ctg, people, goal, hf, rates, v0, final=final, top=top)
         if moving or not ok.any():
@@ -1702,7 +1761,8 @@ class Mpepc:
                    rates: tuple[float, float] = (0.0, 0.0),
                    straight_to: tuple[float, float] | None = None,
                    v0: float = 0.0, turn_to: float | None = None, land: bool = False,
-                   anywhere: bool = False, top: float | None = None) -> Plan | None:
+                   anywhere: bool = False, top: float | None = None,
+                   chain: Chain | None = None) -> Plan | None:
         """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
         with `straight_to` (the landing of a straight stage under way, or of a stage's turn
         done), the rest of that straight if it still lies ahead on the chair's line and
@@ -1714,7 +1774,8 @@ class Mpepc:
         candidates are (`_costs`: people, the stop after the plan period) and dropped if
         that predicts a hit; a straight's speed is the fastest clear up to `top` (_one_stage:
         the rest of a straight under way at most the speed it was given, so a door's
-        sight-limited speed holds through it and the move is never sped up mid-way).
+        sight-limited speed holds through it and the move is never sped up mid-way; a new
+        straight given none, at most `sight_cap` from where it sets off, `chain` the core's).
         None: no stage."""
         x, y, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
@@ -1761,15 +1822,15 @@ class Mpepc:
             goal, hf, rates, v0, True,
             straight_to if straight_to is not None else
             (x + dist * math.cos(psi), y + dist * math.sin(psi)) if turn and dist > 0.0
-            else None, top)
+            else None, top, chain)
 
     def _one_stage(self, pose: tuple[float, float, float], rz: tuple[float, float],
                    tgt: tuple[float, float, float], turn: bool, ctg: CostToGo,
                    people: list[Person], goal: tuple[float, float, float],
                    hf: HeadingField | None, rates: tuple[float, float] = (0.0, 0.0),
                    v0: float = 0.0, final: bool = True,
-                   then: tuple[float, float] | None = None, top: float | None = None
-                   ) -> Plan | None:
+                   then: tuple[float, float] | None = None, top: float | None = None,
+                   chain: Chain | None = None) -> Plan | None:
         """One stage as a plan: the law's target `rz` (r, θ; a turn in place: r 0), `tgt` its
         pose, `turn` whether it turns (else a straight of r), `then` where a turn's straight
         lands. Evaluated as MPEPC's candidates are (`_costs`: people, the stop after the plan
@@ -1780,9 +1841,12 @@ class Mpepc:
         (default the law's vmax), and given the fastest up to which every one is clear (the
         core may drive it slower than given: a short straight's peak, the goal's own top speed,
         the monitor's bound; H67: evaluated at the least speed only, stages were driven at up
-        to 1.16 m/s)."""
+        to 1.16 m/s). A straight given no `top` sets off at most at `sight_cap` (`chain`: the
+        core's, for its reaction time)."""
         vmin = self.p.v_min_mps
-        hi = self.law.vmax_mps if top is None else min(top, self.law.vmax_mps)
+        if top is None and not turn:
+            top = self.sight_cap(pose, ctg, chain)
+        hi = min(top, self.law.vmax_mps) if top is not None else self.law.vmax_mps
         lo = min(vmin, hi)
         # (a straight shorter than in_place_r_m is predicted standing, its sweep checked by the
         # caller: at the least speed, as before; a row over it would be "turn, then go on")
@@ -1902,7 +1966,8 @@ class Mpepc:
                     rows += [[*zz, v] for v in (self.p.v_min_mps, vmax / 5, vmax / 3)]
         if not rows:
             return None
-        z = np.array([[0.0, 0.0, 0.0, 0.0], *rows])  # (row 0: braking, i.e. standing here)
+        z = self.capped(np.array([[0.0, 0.0, 0.0, 0.0], *rows]),  # (row 0: braking, standing)
+                        self.sight_cap(pose, ctg, chain))
         cost, info = self._costs(pose, 0.0, 0.0, z, ctg, people, goal, rates, final, hf, chain)
         ok = (info["hit"] == 0.0) & (info["phi0"] - info["phi_end"] >= progress_m) \
             & (cost < float(cost[0]) - gain)
@@ -2082,7 +2147,8 @@ class Mpepc:
             if rel[0] <= self.p.r_max_m and abs(rel[2]) <= self.p.delta_max_rad:
                 prev = (float(rel[0]), float(rel[1]), float(rel[2]), previous_target[3])
         seeds, has_goal = self.seeds(pose, goal, prev, ctg, heading)
-        z = np.concatenate([seeds, self._global])
+        top = self.sight_cap(pose, ctg, chain)
+        z = self.capped(np.concatenate([seeds, self._global]), top)
         cost, info = self._costs(pose, v0, w0, z, ctg, people, goal, rates, final,
                                   heading, chain)
         evals = len(z)
@@ -2090,7 +2156,8 @@ class Mpepc:
         best_z, best_c, best = z[i].copy(), float(cost[i]), {k: v[i] for k, v in info.items()}
         scale = (hi - lo) * 0.15
         for _ in range(self.p.local_rounds):
-            cand = np.clip(best_z + self._rng.normal(size=(self.p.n_local, 4)) * scale, lo, hi)
+            cand = self.capped(np.clip(best_z + self._rng.normal(size=(self.p.n_local, 4))
+                                       * scale, lo, hi), top)
             c2, inf2 = self._costs(pose, v0, w0, cand, ctg, people, goal, rates, final,
                                    heading, chain)
             evals += len(cand)
@@ -2184,7 +2251,19 @@ class Mpepc:
         return self._plan_of(pose, best_z, best_c, best, float(cost[int(has_goal)]), evals,
                              is_goal=is_goal, goal_clearance_m=goal_clear, final_turn=final_turn,
                              goal_withheld=withheld and not is_goal and not final_turn,
-                             goal_stop_clear=goal_stop_clear)
+                             goal_stop_clear=goal_stop_clear, sight_mps=top)
+
+    def capped(self, z: F64, top: float) -> F64:
+        """Candidates z (N, 4) with vmax at most `top` (sight_cap; the core drives a plan at
+        most at its vmax, so the prediction stays the core's motion). A turn-then-go row stays
+        one (in_place_targets tells it by vmax over v_min + 0.01: at least v_min + 0.02)."""
+        if top >= self.law.vmax_mps:
+            return z
+        z = z.copy()
+        go = (z[:, 0] < self.p.in_place_r_m) & (z[:, 3] > self.p.v_min_mps + 0.01)
+        z[:, 3] = np.where(go, np.maximum(np.minimum(z[:, 3], top), self.p.v_min_mps + 0.02),
+                           np.minimum(z[:, 3], top))
+        return z
 
     def _costs(self, pose: tuple[float, float, float], v0: float, w0: float, z: F64,
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],

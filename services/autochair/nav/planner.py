@@ -317,7 +317,8 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
     if req.straight and req.previous is not None and abs(req.omega) < 0.01:
         # A straight stage under way (Mpepc.stage_plan): its rest, rechecked.
         on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
-                            straight_to=req.previous[:2], v0=req.v, top=req.previous[3])
+                            straight_to=req.previous[:2], v0=req.v, top=req.previous[3],
+                            chain=req.chain)
         if on is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
     carried: Plan | None = None
@@ -325,7 +326,8 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         # A stage's turn under way: its rest; done (at rest): its straight; each rechecked.
         on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
                             straight_to=req.then,
-                            turn_to=req.previous[2] if abs(req.omega) >= 0.01 else None)
+                            turn_to=req.previous[2] if abs(req.omega) >= 0.01 else None,
+                            chain=req.chain)
         if on is not None and not req.turn_first:
             return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
         # (turn_first's turn: carried on only where the chair's own plan is stuck, below)
@@ -389,7 +391,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         hf2 = near_lattice()
         for land in (True, False):  # (the stage onto the goal; the lattice's next stage)
             staged = mpc.stage_plan(req.pose, req.goal, ctg, hf2, req.people, req.rates,
-                                    land=land) \
+                                    land=land, chain=req.chain) \
                 if not land or req.law.tolerance_m < r_goal <= mp.final_move_m else None
             if staged is not None:
                 return PlanResult(req.goal_id, req.index, fld, ctg, staged, given_up=given_up)
@@ -401,12 +403,14 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
             and req.law.tolerance_m < r_goal <= mp.final_from * req.law.tolerance_m:
         # At rest just outside the tolerance, the goal not handed over: the stage onto it
         # (Mpepc.landing; the law only creeps there, and the chair stood 5–7.5 cm off).
-        landed = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates, land=True)
+        landed = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates, land=True,
+                                chain=req.chain)
         if landed is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, landed, given_up=given_up)
     if blocked and at_rest and (hf2 := near_lattice()) is not None:
         # At rest and blocked where the lattice has a way: its next stage, driven exactly.
-        staged = mpc.stage_plan(req.pose, req.goal, ctg, hf2, req.people, req.rates)
+        staged = mpc.stage_plan(req.pose, req.goal, ctg, hf2, req.people, req.rates,
+                                chain=req.chain)
         if staged is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, staged, given_up=given_up)
     if blocked and at_rest:
@@ -437,7 +441,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         # till aborted though the lattice had a way (turn away, drive 0.3 m, turn onto the
         # door; nav_eval --map scans, walls a cell thick towards the chair)
         staged = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
-                                anywhere=True)
+                                anywhere=True, chain=req.chain)
         if staged is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, staged, given_up=given_up)
     return PlanResult(req.goal_id, req.index, fld, ctg, plan, blocked_by=blocked,
