@@ -353,7 +353,7 @@ class GoalCheck:
         lineups = self.fld.door_approaches(ctg, o.x, o.y)
         if len(wps) == 1:
             prepare(self.fld, (first.x_m, first.y_m, wrap(first.yaw_rad)), ctg,
-                    lineups[-1] if lineups else (o.x, o.y, o.yaw), monitor=self.monitor)
+                    lineups[-1] if lineups else (o.x, o.y, o.yaw))
         return replace(self, ctg=ctg, lineups=tuple(Pose2D(*a) for a in lineups))
 
 
@@ -995,7 +995,7 @@ class ControlCore:
                            self.final, self._chain_now(o, now), self.final and self.straight,
                            self.plan is not None and self.plan.turn_first, self._door,
                            self.index == self.lineups and self.field is not None
-                           and fld is not self._lineup_field, self.gates.monitor)
+                           and fld is not self._lineup_field)
 
     def _standing_omega(self, now: float) -> float:
         """The safety monitor's standing |ω| bound (PLAN_OMEGA_WINDOW_S): the largest it

@@ -107,42 +107,6 @@ def monitor_ahead(fld: NavField) -> Footprint:
                     fld.map.resolution_m)
 
 
-def monitor_strip(fld: NavField) -> Footprint:
-    """The safety monitor's forward stop strip as it is (`ahead_of`, not shrunk by half a
-    cell), for continuous poses (`ahead_blocked`). Against its own core on noiseless scans at
-    2,242 free states round office A's far corner (5 cm, 12 headings): blocked at all 358
-    where it bounds forward motion to 0, and at 1 where it does not (H74)."""
-    t = SafetyTuning()
-    return ahead_of(fld.footprint, t.padding_m, t.stop_margin_m + t.step_m)
-
-
-def ahead_blocked(fld: NavField, strip: Footprint, x: F64, y: F64, yaw: F64,
-                  spacing_m: float = 0.025) -> Bool:
-    """Which poses (...) hold a map obstacle in `strip` (`ahead_of`, the safety monitor's
-    forward stop region) ahead of the chair: the strip filled with points `spacing_m` apart,
-    any within an occupied cell's square. The continuous poses' counterpart of the lattice's
-    `LatticeParams.ahead` (a plan's prediction, a stage's landing: planner.compute, H74)."""
-    us = np.linspace(-strip.rear_m, strip.front_m,
-                     max(2, math.ceil((strip.front_m + strip.rear_m) / spacing_m) + 1))
-    vs = np.linspace(-strip.half_width_m, strip.half_width_m,
-                     max(2, math.ceil(2 * strip.half_width_m / spacing_m) + 1))
-    u, v = (a.ravel() for a in np.meshgrid(us, vs))
-    x, y, yaw = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x, y, yaw)))
-    out = np.zeros(x.shape, dtype=bool)
-    # (only poses whose body is within the strip's farthest point of an obstacle: the strip
-    # lies within that of the body; the rest are clear, and most poses are such)
-    fp = fld.footprint
-    far = math.hypot(max(strip.front_m - fp.front_m, 0.0),
-                     max(strip.half_width_m - fp.half_width_m, 0.0))
-    near = np.asarray(fld.footprint_clearance(x, y, yaw)) < far + 1e-3 if x.size else out
-    if near.any():
-        xn, yn, an = x[near][:, None], y[near][:, None], yaw[near][:, None]
-        c, s = np.cos(an), np.sin(an)
-        d = fld.clearance_xy(xn + c * u - s * v, yn + s * u + c * v)
-        out[near] = (d < 1e-3).any(-1)
-    return out
-
-
 def footprint_kernel(fld: NavField, yaw: float, shift: tuple[float, float] = (0.0, 0.0),
                      fp: Footprint | None = None) -> tuple[npt.NDArray[np.float64], int]:
     """(2K+1)² mask of the map cells under the chair's rectangle (or `fp`'s) at `yaw` round

@@ -32,7 +32,6 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
@@ -53,7 +52,7 @@ from .field import (
     heading_through,
     place_xy,
 )
-from .lattice import HeadingField, ahead_blocked, monitor_strip
+from .lattice import HeadingField
 
 F64 = npt.NDArray[np.float64]
 ALIGNED_RAD = 0.05  # an in-place turn is done within this heading error (then it may go)
@@ -502,10 +501,6 @@ def spread(yaw: float, offs: F64, spare: float) -> F64:
     side: F64 = np.where(offs == 0.0, 0.0, spare)[:, None] * np.array([-1.0, 0.0, 1.0])
     psi: F64 = yaw + offs[:, None] + side
     return psi
-
-
-# Which straight stages' landings (x, y, yaw arrays) end in the monitor's stop (Mpepc._shut)
-Shut = Callable[[F64, F64, F64], npt.NDArray[np.bool_]]
 
 
 class Mpepc:
@@ -1463,8 +1458,7 @@ class Mpepc:
         return (offs, ds, straight_ok.astype(float), turn_ok.astype(float), lx0, ly0, move)
 
     def _last_stage(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
-                    pairs: tuple[F64, F64, F64, F64, F64, F64, F64],
-                    shut: Shut | None = None) -> tuple[int, int] | None:
+                    pairs: tuple[F64, F64, F64, F64, F64, F64, F64]) -> tuple[int, int] | None:
         """Of `pairs` (Mpepc._pairs at `pose`), the least costly of the first
         `stage_final_tries` straights that land where the final manoeuvre (final_heading)
         has a way to the goal, as (ψ index, d index); None: none of those."""
@@ -1478,8 +1472,6 @@ class Mpepc:
         for flat in order[:min(p.stage_final_tries, int(band.sum()))]:
             i, j = np.unravel_index(int(flat), band.shape)
             land = (float(lx0[i, j]), float(ly0[i, j]), pose[2] + float(offs[i]))
-            if shut is not None and shut(*map(np.array, land)):
-                continue
             if self.final_heading(land, goal, turn=True, straight=True, step_deg=2.0) \
                     is not None:
                 return int(i), int(j)
@@ -1513,8 +1505,7 @@ class Mpepc:
         pairs = self._pairs(pose, hf.params.turn_m_per_rad, step_deg, step_m, spare_deg,
                             spare_m)
         offs, ds, straight_ok, turn_ok, _, _, move = pairs
-        shut = self._shut(hf, spare_m)
-        last = self._last_stage(pose, goal, pairs, shut)
+        last = self._last_stage(pose, goal, pairs)
         if last is not None:
             return yaw + float(offs[last[0]]), float(ds[last[1]])
         # the landings within the spares: the lattice's costs-to-go there (the worst)
@@ -1531,28 +1522,10 @@ class Mpepc:
         for flat in np.argsort(np.where(good, total, math.inf), axis=None)[:int(good.sum())]:
             i, j = np.unravel_index(int(flat), good.shape)
             psi_ij, d = yaw + float(offs[i]), float(ds[j])
-            if d > 0.0 and shut(np.array(x + d * math.cos(psi_ij)),
-                                np.array(y + d * math.sin(psi_ij)), np.array(psi_ij)):
-                continue
             if self.turn_on_clear(hf, (x + d * math.cos(psi_ij), y + d * math.sin(psi_ij),
                                        psi_ij)):
                 return psi_ij, d
-        return self.stage_way(pose, goal, hf, pairs, shut)
-
-    def _shut(self, hf: HeadingField, spare_m: float) -> Shut:
-        """Whether a straight stage landing at a pose (+ `spare_m` and `final_overshoot_m`
-        on: landed 1 cm past, the chair stood in the margin) ends where the safety monitor's
-        strip ahead holds an obstacle: there it bounds forward motion to 0 as the chair comes
-        to rest, and the PID latches a stop (H74). Only for a lattice built within the
-        monitor's envelope (`LatticeParams.ahead`); else never."""
-        if hf.params.ahead is None:
-            return lambda x, y, yaw: np.zeros(np.shape(x), dtype=bool)
-        strip, over = monitor_strip(self.field), spare_m + self.p.final_overshoot_m
-
-        def shut(x: F64, y: F64, yaw: F64) -> npt.NDArray[np.bool_]:
-            return ahead_blocked(self.field, strip, x + over * np.cos(yaw),
-                                 y + over * np.sin(yaw), yaw)
-        return shut
+        return self.stage_way(pose, goal, hf, pairs)
 
     def turn_on_clear(self, hf: HeadingField, pose: tuple[float, float, float]) -> bool:
         """Whether the in-place turn the lattice's way from `pose` begins with (if any)
@@ -1573,8 +1546,8 @@ class Mpepc:
         return self.field.turn_clearance(pose, e) >= self.p.contact_m
 
     def stage_way(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
-                  hf: HeadingField, pairs: tuple[F64, F64, F64, F64, F64, F64, F64],
-                  shut: Shut | None = None) -> tuple[float, float] | None:
+                  hf: HeadingField, pairs: tuple[F64, F64, F64, F64, F64, F64, F64]
+                  ) -> tuple[float, float] | None:
         """The first stage (ψ, d) of a way of 2 to `stage_depth` stages (Mpepc.stage: each
         sweep clear with its spares) whose last one lands where the final manoeuvre has a
         way (Mpepc._last_stage); the shortest first, None: none found. Where no single stage
@@ -1596,9 +1569,6 @@ class Mpepc:
                 ok[:, 0] = False  # (a turn alone: the next stage's own turn)
                 heads = np.broadcast_to((node[2] + offs)[:, None], lx.shape)
                 f = np.where(ok, g + move + self._landing_cost(hf, lx, ly, heads), math.inf)
-                if way is None and shut is not None:  # (the first stage, which is driven)
-                    fin = np.isfinite(f)
-                    f[fin] = np.where(shut(lx[fin], ly[fin], heads[fin]), math.inf, f[fin])
                 for flat in np.argsort(f, axis=None)[:int(np.isfinite(f).sum())]:
                     i, j = np.unravel_index(int(flat), f.shape)
                     land = (float(lx[i, j]), float(ly[i, j]), float(heads[i, j]))

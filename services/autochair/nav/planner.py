@@ -50,10 +50,6 @@ class PlanRequest:
     # Look for a door to line up at on the way to `goal` (PlanResult.lineup): the map has
     # changed since the goal's route was checked (ControlCore: on the first leg only)
     seek_lineup: bool = False
-    # The safety monitor's limit is in force (DriveGates.monitor): the goal's lattice is
-    # built within its forward envelope (lattice.monitor_ahead), and near the goal a plan
-    # whose prediction runs into that envelope's stop counts as stuck (its stages then)
-    monitor: bool = False
 
 
 @dataclass(frozen=True)
@@ -93,24 +89,21 @@ def planner_for(fld: NavField, law: LawParams, params: MpepcParams | None = None
     return hit[1]
 
 
-_lattices: dict[tuple[int, tuple[float, float, float], bool],
+_lattices: dict[tuple[int, tuple[float, float, float]],
                 tuple[NavField, HeadingField | None]] = {}
 
 
 def lattice_for(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
-                start: tuple[float, float, float] | None = None, monitor: bool = False
-                ) -> HeadingField | None:
+                start: tuple[float, float, float] | None = None) -> HeadingField | None:
     """The heading-aware costs-to-go to `goal` (nav/lattice.py), built once per field and
     goal (~0.05–0.2 s; its window reaches towards where the chair is then); None where the
-    goal region has no free state. With the safety `monitor`, its forward moves end where the
-    monitor's strip ahead is clear (lattice.monitor_ahead; H74)."""
-    key = (id(fld), goal, monitor)
+    goal region has no free state."""
+    key = (id(fld), goal)
     hit = _lattices.get(key)
     if hit is None or hit[0] is not fld:
         if len(_lattices) >= 4:
             _lattices.clear()
-        params = lattice.LatticeParams(ahead=lattice.monitor_ahead(fld)) if monitor else None
-        hit = (fld, lattice.build(fld, goal, ctg.phi, params, start=start))
+        hit = (fld, lattice.build(fld, goal, ctg.phi, start=start))
         _lattices[key] = hit
     return hit[1]
 
@@ -128,13 +121,12 @@ def uses_lattice(fld: NavField, goal: tuple[float, float, float],
 
 
 def prepare(fld: NavField, goal: tuple[float, float, float], ctg: CostToGo,
-            start: tuple[float, float, float], params: MpepcParams | None = None,
-            monitor: bool = False) -> None:
+            start: tuple[float, float, float], params: MpepcParams | None = None) -> None:
     """Build the goal's lattice (`lattice_for`) when the goal is accepted, from `start` (where
     its first planning cycle on it begins), rather than in that cycle: 50-140 ms of a cycle
     budgeted at 100 ms, where acceptance has a second (nav_eval reports both)."""
     if uses_lattice(fld, goal, start, True, params or MpepcParams()):
-        lattice_for(fld, goal, ctg, start, monitor)
+        lattice_for(fld, goal, ctg, start)
 
 
 def free_field(points: list[tuple[float, float]], footprint: Footprint,
@@ -154,9 +146,6 @@ def free_field(points: list[tuple[float, float]], footprint: Footprint,
 # the lattice's coarser motions do not refuse what the planner can do (measured: at 4 cm the
 # cluttered room's far corner, which the chair reaches, had no way in).
 REACH_CLEAR_M = 0.02
-# With the safety monitor, near the goal: how far past the law's predicted poses its forward
-# stop strip is checked (planner.compute's into_monitor, H74)
-PREDICTION_SPARE_M = 0.10
 
 
 def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, float],
@@ -294,7 +283,7 @@ def _setup(req: PlanRequest, mp: MpepcParams
     error = path_error(fld, ctg, req.pose, req.goal, way_in=False)  # (checked at set_goal)
     if error or ctg is None:
         return ctg, given_up, error, None
-    hf = lattice_for(fld, req.goal, ctg, req.pose, req.monitor) \
+    hf = lattice_for(fld, req.goal, ctg, req.pose) \
         if uses_lattice(fld, req.goal, req.pose, req.final, mp) else None
     return ctg, given_up, "", hf
 
@@ -311,7 +300,7 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
         doors = req.field.door_approaches(res.ctg, req.pose[0], req.pose[1])
         if doors:
             res = replace(res, lineup=doors[0])
-    hit = _lattices.get((id(req.field), req.goal, req.monitor))
+    hit = _lattices.get((id(req.field), req.goal))
     if hit is None or hit[0] is not req.field or hit[1] is None:
         return res
     cost, ok = hit[1].at(np.array(req.pose[0]), np.array(req.pose[1]), np.array(req.pose[2]))
@@ -342,31 +331,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         # (turn_first's turn: carried on only where the chair's own plan is stuck, below)
         carried = None if on is None else replace(on, turn_first=True)
 
-    # (lengthened by what the chair runs on past the law's prediction: the monitor's |ω|
-    # bound widens its arcs, and one crept into the east wall's margin braking, H74)
-    # (where progress is measured on the lattice, within lattice_within_m of the goal: a
-    # plan farther out that would reach the margin is replanned long before it does)
-    strip = replace(s, front_m=s.front_m + PREDICTION_SPARE_M) \
-        if req.monitor and hf is not None and mpc.lattice_active(
-            hf, req.pose, float(ctg.at(fld.map, np.array(req.pose[:2])))) \
-        and (s := lattice.monitor_strip(fld)) else None
-
-    def into_monitor(plan: Plan) -> bool:
-        """With the safety monitor, near the goal (its lattice in use): the prediction drives
-        forward into a pose whose monitor strip holds an obstacle, where the monitor bounds
-        forward motion to 0 and the PID latches a stop (office A's far corner: the law's arcs
-        crept into the north wall's margin, "does not follow"; H74). Turns in place are not."""
-        if strip is None or plan.final_turn or plan.path.shape[0] < 2:
-            return False
-        xy = plan.path[:, :2]
-        moved = np.concatenate([[False], np.hypot(*(xy[1:] - xy[:-1]).T) > 1e-3])
-        p = plan.path[moved]
-        return bool(p.size) and bool(lattice.ahead_blocked(fld, strip, p[:, 0], p[:, 1],
-                                                           p[:, 2]).any())
-
     def stuck(plan: Plan) -> bool:
-        if into_monitor(plan):
-            return True
         if plan.min_clearance_m < mp.contact_m and not plan.escape:
             # Every motion is predicted to touch something: stand still (blocked) rather than
             # take the least bad contact. (An escape, from where the chair stands under its
@@ -387,7 +352,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
                                   and bool(fld.map.occupied.any())) \
                 or r_goal <= mp.final_from * req.law.tolerance_m:
             return hf
-        return lattice_for(fld, req.goal, ctg, req.pose, req.monitor)
+        return lattice_for(fld, req.goal, ctg, req.pose)
 
     at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
     if req.door and mp.stages and abs(req.omega) < 0.01:
@@ -463,7 +428,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         # ... else the law towards targets just beyond the lattice's way (Mpepc.along_lattice)
         along = mpc.along_lattice(req.pose, req.goal, ctg, req.people, req.final, hf,
                                   blocked_progress_m, blocked_gain, req.rates, req.chain)
-        if along is not None and not into_monitor(along):
+        if along is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, along, given_up=given_up)
     if blocked and at_rest and hf is not None:
         # ... else the lattice's next stage, beyond lattice_within_m too: before a narrow door
