@@ -55,6 +55,19 @@ def test_a_goal_every_way_into_which_the_monitor_stops_is_refused_with_the_monit
                                              0.0).ok
 
 
+def test_the_goal_check_uses_the_monitors_own_margins() -> None:
+    """The control service checks the way in against the monitor's tuning as its [safety]
+    section sets it (ControlCore.monitor_tuning), not the defaults: with a stop margin of
+    0.3 m the far corner, taken at the default 0.10 m (positive control), is refused."""
+    _, fld = _room()
+    core = _core(fld, monitor=True)
+    core.monitor_tuning = SafetyTuning(stop_margin_m=0.3)
+    reply = core.set_goal(GoalRequest(waypoints=[Pose2D(*FAR_CORNER)]), 0.0)
+    assert not reply.ok and "safety monitor" in reply.error
+    assert _core(fld, monitor=True).set_goal(GoalRequest(waypoints=[Pose2D(*FAR_CORNER)]),
+                                             0.0).ok
+
+
 def _monitor_allows(world: World, core: SafetyCore, pose: tuple[float, float, float]) -> bool:
     """The monitor's own core on a noiseless simulated scan: forward motion allowed?"""
     urg, mount = UrgParams(), ChairGeometry().laser_mount

@@ -46,6 +46,7 @@ from autochair.nav.planner import (
     path_error,
     prepare,
 )
+from autochair.safety.core import SafetyTuning
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, heads_for, park_kuipers
@@ -324,9 +325,9 @@ class GoalCheck:
     error: str = ""
     ctg: CostToGo | None = None  # to the first waypoint
     lineups: tuple[Pose2D, ...] = ()  # poses to line up at before doors (field.door_approaches)
-    # The safety monitor's limit is in force (DriveGates.monitor): ways in within its
-    # forward stop margin (planner.path_error)
-    monitor: bool = False
+    # While the safety monitor's limit is in force (DriveGates.monitor), its tuning: ways in
+    # within its forward stop margin (planner.path_error)
+    monitor: SafetyTuning | None = None
 
     def routed(self) -> GoalCheck:
         """The route checked: a waypoint where the footprint does not fit — clear of
@@ -546,6 +547,9 @@ class ControlCore:
         self.gates = gates or DriveGates()
         self._omega_bounds: deque[tuple[float, float]] = deque()  # (t, the monitor's |ω| bound)
         self._held: str | None = None  # why the monitor's bound holds a motion under way
+        # The safety monitor's tuning (the node's [safety] section): the goal check plans
+        # within its forward stop margin while it runs (GoalCheck.monitor)
+        self.monitor_tuning = SafetyTuning()
         # Navigation (nav/): the map's field (None: free space around the goal), the costs-to-go
         # to the waypoint planned to, MPEPC's last plan, moving people.
         self.footprint = footprint or Footprint()
@@ -716,7 +720,7 @@ class ControlCore:
             return GoalReply(ok=False, error=error)
         assert o is not None
         return GoalCheck(req, map_waypoints, o, self._field_for(o, req.waypoints),
-                         monitor=self.gates.monitor)
+                         monitor=self.monitor_tuning if self.gates.monitor else None)
 
     def why_not_ready(self, now: float) -> str:
         """Why a goal asked for now would be refused before its route is checked ('' if it

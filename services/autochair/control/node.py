@@ -29,7 +29,9 @@ from autochair.nav.mpepc import Person
 from autochair.nav.planner import PlanRequest, PlanResult, compute, warm
 from autochair.people.core import ScanPeople, StaticMap
 from autochair.runtime import ConfigError, Node, service_main
+from autochair.runtime.config import load_section
 from autochair.runtime.helper import HelperProcess
+from autochair.safety.node import SafetyConfig
 from autochair_msgs import (
     CommandOwner,
     EStopState,
@@ -72,6 +74,9 @@ class ControlNode:
         except ValueError as e:
             raise ConfigError(f"[control] {e}") from None
         self.core.inline_planning = False  # planned on its own thread (plan_tick)
+        # (the monitor's margins, as its service reads them from the same file: a goal is
+        # checked for a way in the monitor lets through, H71)
+        self.core.monitor_tuning = load_section(SafetyConfig, "safety", node.config_path)
         self._due: float | None = None  # the last tick's schedule (Node.due)
         self.node, self.cfg = node, cfg
         self.lock = threading.Lock()

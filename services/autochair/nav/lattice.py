@@ -100,9 +100,10 @@ def ahead_of(fp: Footprint, pad_m: float, stop_m: float, cell_m: float = 0.0) ->
                      half_width_m=fp.half_width_m + pad_m - cell_m / 2)
 
 
-def monitor_ahead(fld: NavField) -> Footprint:
-    """`ahead_of` for the safety monitor's default tuning on this field's chair and cells."""
-    t = SafetyTuning()
+def monitor_ahead(fld: NavField, tuning: SafetyTuning | None = None) -> Footprint:
+    """`ahead_of` for the safety monitor's `tuning` (default: its defaults) on this field's
+    chair and cells."""
+    t = tuning or SafetyTuning()
     return ahead_of(fld.footprint, t.padding_m, t.stop_margin_m + t.step_m,
                     fld.map.resolution_m)
 

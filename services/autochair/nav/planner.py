@@ -13,6 +13,8 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
+from autochair.safety.core import SafetyTuning
+
 from . import lattice
 from .field import CostToGo, Footprint, GridMap, NavField
 from .lattice import HeadingField
@@ -150,13 +152,13 @@ REACH_CLEAR_M = 0.02
 
 def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, float],
                goal: tuple[float, float, float], way_in: bool = True,
-               monitor: bool = False) -> str:
+               monitor: SafetyTuning | None = None) -> str:
     """'' if the chair can get to `goal` from `pose`, else why not: no path for the axle
     (the 2-D field), or (`way_in`, the goal's own heading) no forward-only way into the goal
     pose. Autonomy may not reverse blind, so a pose the chair could only back into (behind a
     pillar, beside a plant: turning there sweeps the body into it) is refused at once rather
-    than driven at and aborted. With the safety `monitor`, a way in counts only if each of
-    its forward moves ends where the monitor still lets the chair move forward
+    than driven at and aborted. With the safety `monitor` (its tuning), a way in counts only
+    if each of its forward moves ends where the monitor still lets the chair move forward
     (lattice.monitor_ahead): a goal every way into which ends in its forward stop margin
     was driven at and lost to a latched safety stop ~40 s later (behind the cluttered room's
     cabinet: its only ways in turn onto the goal's heading facing a wall within the margin)."""
@@ -177,7 +179,7 @@ def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, fl
         if monitor:
             hf = lattice.build(fld, goal, None, lattice.LatticeParams(
                 min_clear_m=REACH_CLEAR_M, tight_factor=0.0, goal_turn_clear_m=-math.inf,
-                ahead=lattice.monitor_ahead(fld)), start=pose, costs=False)
+                ahead=lattice.monitor_ahead(fld, monitor)), start=pose, costs=False)
             if hf is None or not hf.way_in(*pose):
                 return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
                         f"{math.degrees(goal[2]):.0f}°) that the safety monitor lets through: "

@@ -111,6 +111,7 @@ class Node:
         self.name = name
         self.stale = stale or StaleConfig()  # the watchdog chain's thresholds ([stale])
         self.chair = chair or ChairGeometry()  # footprint and laser mount ([chair])
+        self.config_path: str | None = None  # the file read (None: $AUTOCHAIR_CONFIG)
         self.log = logging.getLogger(name)
         self.stop_event = threading.Event()
         self.health = HealthState(name)
@@ -714,6 +715,7 @@ def service_main(
     except ConfigError as e:
         print(f"autochair-{name}: error: {e}", file=sys.stderr)
         return 2
+    node.config_path = args.config
     _install_signal_handlers(node.stop_event, node.hang)
     try:
         start(node, config)
