@@ -679,11 +679,12 @@ class ControlCore:
         # the limiter slows with it) is a safety stop, as the PID's is (H03): the goal ends
         # once the chair stands, commanded and measured (step). Capped here, the PID saw no
         # stop, and the held turn went on by itself once the bound lifted (H73). Lifted before
-        # the chair stands, it was a slow-down; at a stand already, a turn waits for it.
+        # the chair stands, it was a slow-down; a chair not yet moving (measured: a command
+        # just begun is still in the drive chain's dead time) waits for it.
         if omega_max > HELD_RADPS:
             self._held = None
-        elif self.active and self._held is None and (
-                abs(self.limiter.v.value) > 1e-3 or abs(self.limiter.w.value) > HELD_RADPS):
+        elif self.active and self._held is None and (o := self.odom) is not None and (
+                abs(o.v) >= self.cfg.rest_mps or abs(o.omega) >= self.cfg.rest_mps):
             self._held = reason or "no reason given"
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
