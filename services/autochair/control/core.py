@@ -683,8 +683,8 @@ class ControlCore:
         # just begun is still in the drive chain's dead time) waits for it.
         if omega_max > HELD_RADPS:
             self._held = None
-        elif self.active and self._held is None and (o := self.odom) is not None and (
-                abs(o.v) >= self.cfg.rest_mps or abs(o.omega) >= self.cfg.rest_mps):
+        elif self.active and self._held is None and self.odom is not None \
+                and not self._stands(self.odom):
             self._held = reason or "no reason given"
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
@@ -863,10 +863,8 @@ class ControlCore:
             self._plan_chain[0].push(dt, v)
             self._plan_chain[1].push(dt, w)
         v, w = self._lead_out(v, w, dt)
-        o = self.odom
         if self._held is not None and self.active and v < 1e-3 and abs(w) <= HELD_RADPS \
-                and o is not None and abs(o.v) < self.cfg.rest_mps \
-                and abs(o.omega) < self.cfg.rest_mps:
+                and self.odom is not None and self._stands(self.odom):
             self._stopped(ABORTED, f"the safety monitor stopped the chair ({self._held}); "
                                    "give the goal again to go on", now)
         self._history.append((dt, v, w))
@@ -1138,12 +1136,15 @@ class ControlCore:
         elif waited >= self.cfg.blocked_wait_s and not self._replanned:
             self._replanned, self._ctg_index = True, -1  # next cycle: a new path
 
+    def _stands(self, o: OdomSample) -> bool:
+        """The measured chair at rest (`rest_mps` on both axes)."""
+        return abs(o.v) < self.cfg.rest_mps and abs(o.omega) < self.cfg.rest_mps
+
     def _watch_progress(self, o: OdomSample, now: float) -> None:
         """Abort a goal the chair does not follow, or that makes no progress."""
         cfg = self.cfg
         moving_cmd = abs(self.limiter.v.value) > 0.05 or abs(self.limiter.w.value) > 0.05
-        at_rest = abs(o.v) < cfg.rest_mps and abs(o.omega) < cfg.rest_mps
-        if not (moving_cmd and at_rest):
+        if not (moving_cmd and self._stands(o)):
             self._still_since = None
         elif self._still_since is None:
             self._still_since = now
@@ -1461,8 +1462,7 @@ class ControlCore:
             # beside office B's desk "arrived" 34° off its heading: nav_eval --monitor seed 7
             # with a planner change that handed the core a turn the monitor stopped, H68)
             a = self.odom
-            if self.limiter.at_rest and a is not None and abs(a.v) < cfg.rest_mps \
-                    and abs(a.omega) < cfg.rest_mps \
+            if self.limiter.at_rest and a is not None and self._stands(a) \
                     and math.hypot(goal.x_m - a.x, goal.y_m - a.y) <= self.tol_m \
                     and abs(wrap(goal.yaw_rad - a.yaw)) <= self.tol_rad:
                 self._end(ARRIVED, "", now)
