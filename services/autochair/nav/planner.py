@@ -168,22 +168,27 @@ def path_error(fld: NavField, ctg: CostToGo | None, pose: tuple[float, float, fl
     if not math.isfinite(fld.start_cost(ctg, pose[0], pose[1])):
         return (f"no path from ({pose[0]:.2f}, {pose[1]:.2f}) to ({goal[0]:.2f}, "
                 f"{goal[1]:.2f}) that the chair fits through")
-    if way_in:
+    if not way_in:
+        return ""
+
+    def has_way(ahead: Footprint | None) -> bool:
         hf = lattice.build(fld, goal, None, lattice.LatticeParams(
-            min_clear_m=REACH_CLEAR_M, tight_factor=0.0, goal_turn_clear_m=-math.inf),
-                           start=pose, costs=False)
-        if hf is None or not hf.way_in(*pose):
-            return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
-                    f"{math.degrees(goal[2]):.0f}°): the chair cannot turn onto that heading "
-                    f"there with {REACH_CLEAR_M:.2f} m to spare, and it may not reverse blind")
-        if monitor:
-            hf = lattice.build(fld, goal, None, lattice.LatticeParams(
-                min_clear_m=REACH_CLEAR_M, tight_factor=0.0, goal_turn_clear_m=-math.inf,
-                ahead=lattice.monitor_ahead(fld, monitor)), start=pose, costs=False)
-            if hf is None or not hf.way_in(*pose):
-                return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
-                        f"{math.degrees(goal[2]):.0f}°) that the safety monitor lets through: "
-                        "each ends facing an obstacle within its forward stop margin")
+            min_clear_m=REACH_CLEAR_M, tight_factor=0.0, goal_turn_clear_m=-math.inf,
+            ahead=ahead), start=pose, costs=False)
+        return hf is not None and hf.way_in(*pose)
+
+    # (the monitor's strip only takes moves away: a way it lets through is a way, so a goal
+    # taken needs one lattice; the plain one only says which refusal it is)
+    if monitor is not None and has_way(lattice.monitor_ahead(fld, monitor)):
+        return ""
+    if not has_way(None):
+        return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
+                f"{math.degrees(goal[2]):.0f}°): the chair cannot turn onto that heading "
+                f"there with {REACH_CLEAR_M:.2f} m to spare, and it may not reverse blind")
+    if monitor is not None:
+        return (f"no forward way into ({goal[0]:.2f}, {goal[1]:.2f}, "
+                f"{math.degrees(goal[2]):.0f}°) that the safety monitor lets through: "
+                "each ends facing an obstacle within its forward stop margin")
     return ""
 
 
