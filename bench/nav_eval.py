@@ -64,6 +64,7 @@ from typing import Any
 import numpy as np
 
 from autochair.control.core import ARRIVED, ControlConfig, ControlCore, OdomSample
+from autochair.geometry import compose
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav import planner
 from autochair.nav.field import Footprint, GridMap, NavField, place
@@ -363,10 +364,8 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
                 core.on_field(new, None if req is None else warm(req, params))
             map_ms.append((time.perf_counter() - t0) * 1e3)
         if k % ctrl_every == 0:
-            c, s_ = math.cos(model.yaw), math.sin(model.yaw)
-            core.people = people_at(world, t, (
-                model.x + mount[0] * c - mount[1] * s_, model.y + mount[0] * s_ + mount[1] * c,
-                model.yaw + mount[2]), seen) if sight_only else people_at(world, t)
+            core.people = people_at(world, t, compose((model.x, model.y, model.yaw), mount),
+                                    seen) if sight_only else people_at(world, t)
             planning.tick(t)
             states.add(core.state)
             out = core.step(t)
