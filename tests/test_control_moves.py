@@ -284,11 +284,13 @@ def test_a_plan_stopped_at_once_leaves_nothing_ahead_at_rest() -> None:
         assert abs(off) < 1e-3 and abs(ahead) < 1e-3, (at_once, math.degrees(off), ahead)
 
 
-def turn_under_bound(bound: Callable[[float], float]) -> tuple[str, str, float, float]:
+def turn_under_bound(bound: Callable[[float], float], seen: set[tuple[str, str]] | None = None
+                     ) -> tuple[str, str, float, float]:
     """A 90° in-place goal in lockstep on the simulated chair (the tuned PID requiring the
     monitor's limit), the safety monitor's |ω| bound `bound(t)` at 20 Hz: (the goal's state,
     its reason, how far past the goal's heading the chair ever was, how far it turned once at
-    a stand after the goal's end, till 3 s after it), in degrees."""
+    a stand after the goal's end, till 3 s after it), in degrees. `seen` collects the
+    (state, reason) the goal's status showed."""
     cfg = ControlConfig()
     rig = Rig(make_pid("tuned", True), start=(0.0, 0.0, 0.0))
     core = ControlCore(cfg)
@@ -307,13 +309,15 @@ def turn_under_bound(bound: Callable[[float], float]) -> tuple[str, str, float, 
             assert core.set_goal(GoalRequest(waypoints=[Pose2D(0.0, 0.0, math.pi / 2)]), t).ok
         out = core.step(t) if k % ctrl_every == 0 else None
         rig.act(t, st.v, st.omega, out)
+        if seen is not None and core.active:
+            seen.add((core.status().state, core.status().reason))
         peak = max(peak, rig.chair.yaw)
         if t_end == math.inf and not core.active:
             t_end = t
         if math.isnan(yaw_end) and t >= t_end and abs(rig.chair.omega) < 0.01:
             yaw_end = rig.chair.yaw  # (at a stand after the goal's end)
         k += 1
-        assert t < 30.0
+        assert t < 40.0
     return (core.state, core.reason, math.degrees(peak) - 90.0,
             math.degrees(abs(rig.chair.yaw - yaw_end)))
 
@@ -342,6 +346,23 @@ def test_a_turn_the_monitor_stops_ends_the_goal_and_does_not_go_on_by_itself() -
     assert after < 1.0
     state, _, past, _ = turn_under_bound(lambda t: 0.0 if 0.8 <= t < 1.2 else 3.0)
     assert state == "arrived" and past <= 3.0
+
+
+def test_a_turn_the_monitor_holds_before_it_began_waits_as_blocked_and_is_given_up() -> None:
+    """The monitor's |ω| bound of 0 from the goal's start (something beside the chair): the
+    chair has not moved, so the goal waits, shown as blocked by the monitor with its reason;
+    lifted at 5 s, the turn the goal asked for goes on and arrives (as after a person in the
+    way). Held for `blocked_abort_s` (12 s), the goal ends saying so, and the chair does not
+    turn when the bound lifts at 13 s. The old core showed "driving" at a stand
+    and ended only on "no progress" after 15 s."""
+    seen: set[tuple[str, str]] = set()
+    state, _, past, _ = turn_under_bound(lambda t: 0.0 if t < 5.0 else 3.0, seen)
+    assert state == "arrived" and past <= 3.0
+    assert ("blocked", "the safety monitor holds the chair: held") in seen, seen
+    state, reason, _, after = turn_under_bound(lambda t: 0.0 if t < 13.0 else 3.0)
+    assert state == "aborted" and reason.startswith("the safety monitor held the chair for 12 s"), \
+        reason
+    assert after < 1.0
 
 
 @pytest.mark.parametrize("goal_m", [1.0, 3.0], ids=["from-rest", "moving"])

@@ -547,6 +547,8 @@ class ControlCore:
         self.gates = gates or DriveGates()
         self._omega_bounds: deque[tuple[float, float]] = deque()  # (t, the monitor's |ω| bound)
         self._held: str | None = None  # why the monitor's bound holds a motion under way
+        self._limit_reason = ""  # the monitor's newest reason for its bounds
+        self._waits: float | None = None  # since when its bound holds a chair not yet moving
         # The safety monitor's tuning (the node's [safety] section): the goal check plans
         # within its forward stop margin while it runs (GoalCheck.monitor)
         self.monitor_tuning = SafetyTuning()
@@ -682,10 +684,11 @@ class ControlCore:
         # the chair stands, it was a slow-down; a chair not yet moving (measured: a command
         # just begun is still in the drive chain's dead time) waits for it.
         if omega_max > HELD_RADPS:
-            self._held = None
+            self._held = self._waits = None
         elif self.active and self._held is None and self.odom is not None \
                 and not self._stands(self.odom):
             self._held = reason or "no reason given"
+        self._limit_reason = reason or "no reason given"
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
         while bounds[0][0] < now - PLAN_OMEGA_WINDOW_S:
@@ -778,7 +781,7 @@ class ControlCore:
         self.ctg, self._ctg_field, self._ctg_index, self.plan = ctg, check.fld, 0, None
         self._lineup_field = check.fld
         self.given_up = None
-        self._plan_t, self._blocked_since, self._held = -math.inf, None, None
+        self._plan_t, self._blocked_since, self._held, self._waits = -math.inf, None, None, None
         self._last_blocked = ("", -math.inf)
         self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
@@ -863,10 +866,11 @@ class ControlCore:
             self._plan_chain[0].push(dt, v)
             self._plan_chain[1].push(dt, w)
         v, w = self._lead_out(v, w, dt)
-        if self._held is not None and self.active and v < 1e-3 and abs(w) <= HELD_RADPS \
-                and self.odom is not None and self._stands(self.odom):
-            self._stopped(ABORTED, f"the safety monitor stopped the chair ({self._held}); "
-                                   "give the goal again to go on", now)
+        if self.active and v < 1e-3 and abs(w) <= HELD_RADPS and self.odom is not None \
+                and self._stands(self.odom):
+            self._hold_stand(now)
+        else:
+            self._waits = None
         self._history.append((dt, v, w))
         if dt > 0.0:
             self._chain[0].push(dt, v)
@@ -1135,6 +1139,29 @@ class ControlCore:
             self._end(ABORTED, f"{why} (for {waited:.0f} s)", now)
         elif waited >= self.cfg.blocked_wait_s and not self._replanned:
             self._replanned, self._ctg_index = True, -1  # next cycle: a new path
+
+    def _hold_stand(self, now: float) -> None:
+        """The chair stands, commanded and measured, during a goal: under the monitor's |ω|
+        bound of ~0 (`on_limit`). A motion under way it brought to a stand is a safety stop:
+        the goal ends (H73). A chair it holds before it moved waits as blocked, saying why, and
+        goes on once the bound lifts, as for a person in the way: the start the goal asked
+        for, shown, not a restart. Held for `blocked_abort_s`, the goal ends. The old core
+        showed "driving" at a stand and went on by itself up to `no_progress_s` later."""
+        if self._held is not None:
+            self._stopped(ABORTED, f"the safety monitor stopped the chair ({self._held}); "
+                                   "give the goal again to go on", now)
+            return
+        if not self._omega_bounds or self._omega_bounds[-1][1] > HELD_RADPS:
+            return
+        if self._waits is None:
+            self._waits = now
+            self._count("monitor_holds")
+        why = self._limit_reason
+        self._last_blocked = (f"the safety monitor holds the chair: {why}", now)
+        if now - self._waits >= self.cfg.blocked_abort_s:
+            self._stopped(ABORTED, f"the safety monitor held the chair for "
+                                   f"{now - self._waits:.0f} s ({why}); give the goal again",
+                          now)
 
     def _stands(self, o: OdomSample) -> bool:
         """The measured chair at rest (`rest_mps` on both axes)."""
@@ -1529,8 +1556,11 @@ class ControlCore:
             dist = first + sum(
                 math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) for a, b in itertools.pairwise(wps))
             eta = self.eta(dist, wrap(self.waypoints[-1].yaw_rad - o.yaw))
-        return Status(self.goal_id, self.state, max(self.index - self.lineups, 0),
-                      len(self.waypoints) - self.lineups, dist, eta, self.reason)
+        state, reason = self.state, self.reason
+        if self._waits is not None and self.active and state != BLOCKED:
+            state, reason = BLOCKED, f"the safety monitor holds the chair: {self._limit_reason}"
+        return Status(self.goal_id, state, max(self.index - self.lineups, 0),
+                      len(self.waypoints) - self.lineups, dist, eta, reason)
 
     def eta(self, dist: float, yaw_error: float) -> float:
         """Rough time left from the law's own speed profile: cruise at vmax, then the
