@@ -35,6 +35,10 @@ Time is compared with (`timing`):
 - `bound_trapezoid_s` / `time_ratio_trapezoid` (the measure before session 17): max(trapezoid
   over the path's length at v_max, a_max; trapezoid over |goal yaw − start yaw| at ω_max, ω̇_max),
   which ignores the jerk limit, the turns onto and off the path and the curvature's limit on v.
+- `time_ratio_blind` (`--monitor` only; shown beside the goal's measure, not instead of it): the
+  same reference with |ω| also within the monitor's standing bound, the unseen footprint's swing
+  (blind_speed_mps / its radius: 0.35 rad/s for the default chair), which holds on every turn
+  whatever the obstacles: what the time is over it is not that fixed cap's.
 - `min_time_s`: the least time without obstacles (bench/min_time.py, forward only, all comfort
   limits), read from its cache (`--min-time` solves what is missing, ~30 s a case): a lower
   bound the reference should not undercut (`cases_ref_under_min_time`; it is a local optimum,
@@ -52,6 +56,7 @@ the cases under min(the goal's 0.05 / 0.2 m, the bound).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import json
 import math
@@ -445,9 +450,10 @@ def metrics(rows: list[tuple[float, ...]], clear: list[float], plan_ms: list[flo
 
 
 def timing(fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig, t_goal: float,
-           solve_min_time: bool) -> dict[str, Any]:
+           solve_min_time: bool, omega_cap: float = math.inf) -> dict[str, Any]:
     """The time against the references: the shortest path driven at the comfort limits (the
-    goal's measure), the old trapezoid bound, and the least time without obstacles."""
+    goal's measure), the old trapezoid bound, and the least time without obstacles; with a
+    finite `omega_cap` (the monitor's standing |ω| bound), that path within it too."""
     shortest, xy = shortest_path(fld, start, goal)
     turn = abs(wrap(goal[2] - start[2]))
     bound = max(trapezoid_time(shortest, cfg.vmax_mps, cfg.a_max_mps2),
@@ -462,7 +468,10 @@ def timing(fld: NavField, start: Pose, goal: Pose, cfg: ControlConfig, t_goal: f
             "bound_trapezoid_s": round(bound, 2),
             "time_ratio_trapezoid": round(t_goal / bound, 2) if bound > 0 else None,
             "min_time_s": None if least is None else round(least.time_s, 2),
-            "min_time_ok": None if least is None else least.ok}
+            "min_time_ok": None if least is None else least.ok,
+            **({} if omega_cap == math.inf else {"time_ratio_blind": round(t_goal / reference(
+                fld, xy, start, goal, dataclasses.replace(lim, w_max=min(lim.w_max, omega_cap))
+            )["time_s"], 2)})}
 
 
 def clearance_goal(doorway: bool) -> float:
@@ -532,6 +541,9 @@ def summarise(runs: list[dict[str, Any]], refused: list[dict[str, Any]], wall: f
             < min(clearance_goal(r["doorway"]), r["clearance_lattice_m"]) for r in ok),
         "median_time_ratio": statistics.median(r["time_ratio"] for r in ok if r["arrived"])
         if any(r["arrived"] for r in ok) else None,
+        **({"median_time_ratio_blind": statistics.median(
+            r["time_ratio_blind"] for r in ok if r["arrived"])}
+           if any(r["arrived"] and "time_ratio_blind" in r for r in ok) else {}),
         "cases_time_ratio_over_1_5": sum(r["arrived"] and r["time_ratio"] > 1.5 for r in ok),
         "median_time_ratio_trapezoid": statistics.median(
             r["time_ratio_trapezoid"] for r in ok if r["arrived"])
@@ -605,6 +617,7 @@ def main(argv: list[str] | None = None) -> int:
     runs: list[dict[str, Any]] = []
     ref_wall = 0.0
     t0 = time.perf_counter()
+    omega_cap = SafetyRig().omega_cap if args.monitor else math.inf
     for name, wname, start, goal, doorway in cases:
         if wname not in fields:
             fields[wname] = build(wname, fp)
@@ -624,12 +637,13 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name:34s} REFUSED {r['reason']}", flush=True)
             continue
         t_ref = time.perf_counter()
-        r.update(timing(fld, start, goal, cfg, r["time_s"], args.min_time))
+        r.update(timing(fld, start, goal, cfg, r["time_s"], args.min_time, omega_cap))
         if wname not in rooms:
             rooms[wname] = Room(world)
         r.update(room_for(fld, rooms[wname], fp, start, goal))
         ref_wall += time.perf_counter() - t_ref  # (not the stack's: left out of wall_time_s)
-        print(f"{name:34s} {r['state']:8s} t={r['time_s']:6.2f}s x{r['time_ratio']:<5} "
+        blind = f"(blind x{r['time_ratio_blind']}) " if "time_ratio_blind" in r else ""
+        print(f"{name:34s} {r['state']:8s} t={r['time_s']:6.2f}s x{r['time_ratio']:<5} {blind}"
               f"(trapezoid x{r['time_ratio_trapezoid']}) "
               f"path x{r['path_ratio']} err={r['true_pos_error_m'] * 100:4.1f}cm/"
               f"{r['true_yaw_error_deg']:4.1f}° clr={r['min_clearance_m']:.3f}"

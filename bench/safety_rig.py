@@ -34,6 +34,11 @@ class SafetyRig:
         sim = LidarSimConfig(tcp_port=0)  # (an endpoint is required; none is opened here)
         self.urg, self.noise_m = UrgParams(scan_rate_hz=sim.scan_rate_hz), sim.noise_std_m
         self.inc = 2 * math.pi / self.urg.ares
+        u = self.urg
+        # The monitor's standing |ω| bound: its unseen footprint swings at blind_speed_mps
+        # (fov as the monitor reads it off each scan: each beam ±half an increment)
+        self.omega_cap = core.fov_swing(((u.amin - u.afrt - 0.5) * self.inc,
+                                         (u.amax - u.amin + 1) * self.inc))[1]
         self.rng = np.random.default_rng(seed)
         self.next_t = 0.0
         self.scans = 0
