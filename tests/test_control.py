@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import itertools
 import math
@@ -19,7 +20,7 @@ from autochair.control.limits import ComfortLimiter, ComfortLimits, SCurveAxis
 from autochair.geometry import compose, inverse
 from autochair.geometry import wrap_angle as wrap
 from autochair.nav import planner
-from autochair.nav.field import Footprint
+from autochair.nav.field import Footprint, NavField
 from autochair.nav.mpepc import MpepcParams, Person
 from autochair.nav.planner import compute
 from autochair_msgs import GoalRequest, Pose2D
@@ -544,6 +545,45 @@ def test_progress_on_the_goals_lattice_counts_as_progress(manoeuvring: bool,
         assert core.active, core.reason
     else:
         assert core.state == "aborted" and "no progress for 3 s" in core.reason
+
+
+@pytest.mark.parametrize("case", ["longer", "flicker", "standing"])
+def test_a_new_map_that_shows_the_way_longer_rebases_progress(
+        case: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """At 2 s a new map that has seen the whole room (the old one none of it) shows the way
+    5 m longer (a wall where unseen space counted free): progress along it is progress,
+    though the old map's shorter way is never beaten (laser map, office A to B: "no
+    progress" 15 s after the first turn showed the office's back wall). Positive controls:
+    on the new map standing still, "no progress"; a map flickering between the two every
+    0.5 s (a door seen shut and open) re-bases once, on its first new sight, so the goal
+    still ends."""
+    t = 0.0
+    fields: dict[bool, NavField] = {}
+
+    def planned(req: planner.PlanRequest) -> planner.PlanResult:
+        res = planner.compute(req)
+        new = t >= 2.0 and (case != "flicker" or int(t / 0.5) % 2 == 0)
+        if new not in fields:  # (one object per map; the new one has seen every cell)
+            fld = fields[new] = copy.copy(res.field)
+            fld.map = dataclasses.replace(fld.map, unknown=np.full(fld.map.occupied.shape,
+                                                                   not new))
+        fld = fields[new]
+        left = 9.0 - 0.2 * t if t < 2.0 else {
+            "longer": 14.0 - 0.2 * (t - 2.0), "standing": 14.0, "flicker": 8.6 + 5.0 * new}[case]
+        return dataclasses.replace(res, field=fld, lattice_left=left)
+
+    monkeypatch.setattr(core_mod, "compute", planned)
+    core = fresh_core(ControlConfig(no_progress_s=3.0, lead=False))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+    while core.active and t < 30:
+        out = core.step(t) or (0.0, 0.0)
+        core.on_odom(OdomSample(0.1 * math.sin(t), 0.1 * math.cos(t), t, out[0], 0.3, t))
+        t += 0.02
+    if case == "longer":
+        assert core.active, core.reason
+    else:
+        assert core.state == "aborted" and "no progress for 3 s" in core.reason, core.reason
+        assert t < 2.0 + 3.0 * 3, t
 
 
 def test_goals_beyond_the_maximum_distance_are_refused() -> None:

@@ -87,6 +87,9 @@ PLAN_OMEGA_WINDOW_S = 5.0
 # The safety monitor's |ω| bound at or under which a motion it holds stands: the velocity
 # PID's stop_eps, below which a turn left by its limit is a stop (H03)
 HELD_RADPS = 0.02
+# A new map that lengthens the way left by more than this re-bases the goal's progress (m)
+REBASE_M = 1.0
+NEW_SIGHT_M2 = 1.0  # ... if the map has seen this much more since (m²)
 # The longest gap a late tick makes up (ControlCore.step): the velocity PID takes a stream
 # silent for longer for stale ([stale] desired_velocity_s, 0.3 s) and stops.
 MAX_CATCH_UP_S = 0.3
@@ -598,6 +601,8 @@ class ControlCore:
         self._best_t = 0.0
         self._lattice_left: float | None = None  # the newest plan's (PlanResult.lattice_left)
         self._best_lattice = math.inf  # its least seen
+        self._progress_field: NavField | None = None  # the map those were measured on
+        self._seen = 0.0  # the map's area seen when they were last re-based (m²)
         self._last_t: float | None = None
         self._ended_t = -math.inf
         self.counters: dict[str, int] = {}
@@ -786,6 +791,7 @@ class ControlCore:
         self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
         self._lattice_left, self._best_lattice = None, math.inf
+        self._progress_field, self._seen = check.fld, self._seen_m2(check.fld)
         self._count("goals")
         return GoalReply(ok=True, goal_id=self.goal_id)
 
@@ -1163,6 +1169,15 @@ class ControlCore:
                                    f"{now - self._waits:.0f} s ({why}); give the goal again",
                           now)
 
+    @staticmethod
+    def _seen_m2(fld: NavField | None) -> float:
+        """The area of the map ever seen (m²; a map without unseen cells: 0, so a new one
+        never counts as new sight)."""
+        if fld is None or fld.map.unknown is None:
+            return 0.0
+        u = fld.map.unknown
+        return float(u.size - np.count_nonzero(u)) * fld.map.resolution_m ** 2
+
     def _stands(self, o: OdomSample) -> bool:
         """The measured chair at rest (`rest_mps` on both axes)."""
         return abs(o.v) < self.cfg.rest_mps and abs(o.omega) < self.cfg.rest_mps
@@ -1191,7 +1206,25 @@ class ControlCore:
         # Progress on the 2-D distance left, or on the goal's lattice: a stage that turns the
         # chair away to get round a jamb adds to the first, and live before office A's door a
         # chair on such stages, turning onto the door at last, was aborted half-way round.
-        lat, progressed = self._lattice_left, left < self._best_left - 0.05
+        lat = self._lattice_left
+        if self._ctg_field is not self._progress_field:
+            # A map that has seen more can show the way longer (a wall where unseen space was
+            # free): progress is then measured on it, not against the old map's shorter way,
+            # which no chair could beat (laser map, office A to B: aborted 15 s after the
+            # first turn showed office A's back wall). Only on new sight (cells seen for the
+            # first time: finite, so a door flickering shut and open in the map, or its noise,
+            # cannot hold a goal for ever: re-based on each new map, a chair dithered at a
+            # jamb for 50 s) and by a wall's worth.
+            self._progress_field = self._ctg_field
+            seen = self._seen_m2(self._ctg_field)
+            longer = left > self._best_left + REBASE_M or (
+                lat is not None and lat > self._best_lattice + REBASE_M)
+            if longer and seen >= self._seen + NEW_SIGHT_M2:
+                self._seen = seen
+                self._best_left = max(self._best_left, left)
+                if lat is not None:
+                    self._best_lattice = max(self._best_lattice, lat)
+        progressed = left < self._best_left - 0.05
         if progressed:
             self._best_left = left
         if lat is not None and lat < self._best_lattice - 0.05:
