@@ -541,8 +541,8 @@ def summarise(runs: list[dict[str, Any]], refused: list[dict[str, Any]], wall: f
             < min(clearance_goal(r["doorway"]), r["clearance_lattice_m"]) for r in ok),
         "median_time_ratio": statistics.median(r["time_ratio"] for r in ok if r["arrived"])
         if any(r["arrived"] for r in ok) else None,
-        **({"median_time_ratio_blind": statistics.median(
-            r["time_ratio_blind"] for r in ok if r["arrived"])}
+        **({"median_time_ratio_blind": round(statistics.median(
+            r["time_ratio_blind"] for r in ok if r["arrived"]), 3)}
            if any(r["arrived"] and "time_ratio_blind" in r for r in ok) else {}),
         "cases_time_ratio_over_1_5": sum(r["arrived"] and r["time_ratio"] > 1.5 for r in ok),
         "median_time_ratio_trapezoid": statistics.median(
