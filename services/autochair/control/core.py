@@ -46,7 +46,7 @@ from autochair.nav.planner import (
     path_error,
     prepare,
 )
-from autochair.safety.core import SafetyTuning
+from autochair.safety.core import SafetyTuning, stop_speed
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, heads_for, park_kuipers
@@ -547,6 +547,11 @@ class ControlCore:
         self.gates = gates or DriveGates()
         self._omega_bounds: deque[tuple[float, float]] = deque()  # (t, the monitor's |ω| bound)
         self._held: str | None = None  # why the monitor's bound holds a motion under way
+        # The monitor's forward bound as a way left (_fwd_cap): its free extent less its stop
+        # margin as of its last limit (stop_speed inverted), and the measured (x, y) then;
+        # None while the bound is its cap (nothing bounds v within the goal's speed)
+        self._fwd_room: tuple[float, float, float] | None = None
+        self._held_fwd: str | None = None  # ... the forward bound holds a drive under way
         # The safety monitor's tuning (the node's [safety] section): the goal check plans
         # within its forward stop margin while it runs (GoalCheck.monitor)
         self.monitor_tuning = SafetyTuning()
@@ -686,6 +691,24 @@ class ControlCore:
         elif self.active and self._held is None and self.odom is not None \
                 and not self._stands(self.odom):
             self._held = reason or "no reason given"
+        # The forward bound is a braking curve over the free extent ahead, v_b = S(d); the PID
+        # clamps v to it. Reached from above, the clamp steps the chair's acceleration: nav_eval
+        # --monitor's jerk peaks of 2.3-4.3 m/s³ (H68's residual, H76). Kept as the way left,
+        # the core plans v under it (_fwd_cap).
+        # A drive under way (commanded and measured) that the bound brings to a stand (0: the
+        # PID's latched stop, H03) ends the goal as a turn's does; lifted before the chair
+        # stands, it was a slow-down; a chair not yet moving waits for it. (A graded bound
+        # only slows: the chair creeps on under it to a goal near a wall, as it did under the
+        # PID's clamp; judged at the stop_eps of 0.02 m/s, the dead end's goal was lost.)
+        if v_fwd > 0.0:
+            self._held_fwd = None
+        elif self.active and self._held_fwd is None and self.odom is not None \
+                and self.odom.v >= self.cfg.rest_mps and self.limiter.v.value > 0.0:
+            self._held_fwd = reason or "no reason given"
+        m = self.monitor_tuning
+        self._fwd_room = None if v_fwd >= m.v_max_fwd_mps or self.odom is None else (
+            max(v_fwd, 0.0) * m.reaction_s + v_fwd * v_fwd / (2.0 * m.decel_mps2),
+            self.odom.x, self.odom.y)
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
         while bounds[0][0] < now - PLAN_OMEGA_WINDOW_S:
@@ -779,6 +802,7 @@ class ControlCore:
         self._lineup_field = check.fld
         self.given_up = None
         self._plan_t, self._blocked_since, self._held = -math.inf, None, None
+        self._held_fwd = None
         self._last_blocked = ("", -math.inf)
         self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
@@ -850,12 +874,18 @@ class ControlCore:
                     self._led[i] = True
                 else:
                     self._lead[i].reset(0.0)
+        cap = self._fwd_cap() if self.active else math.inf
         if self._move is not None and self.active:
-            v, w = self.limiter.move(*self._move, dt, vmax=min(self.vmax, self._move_vmax),
+            v_to, w_to = self._move
+            if cap <= 1e-3:  # (a move needs a top speed > 0: braked by the tracker)
+                v_to = None
+            v, w = self.limiter.move(v_to, w_to, dt, vmax=min(self.vmax, self._move_vmax, cap),
                                      v_lim=self._v_lim())
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
+            if v_des > cap:  # (on the same curve: ω with v, as the limiter slows it)
+                w_des, v_des = (w_des * cap / v_des if cap > 0.0 else 0.0), cap
             # (led v within the lead's limits also once its move is over or given up: someone
             # stepped in on the straight final and the law brakes it, or the final turn's stop)
             v, w = self.limiter.step(v_des, w_des, dt, v_lim=self._v_lim())
@@ -863,9 +893,10 @@ class ControlCore:
             self._plan_chain[0].push(dt, v)
             self._plan_chain[1].push(dt, w)
         v, w = self._lead_out(v, w, dt)
-        if self._held is not None and self.active and v < 1e-3 and abs(w) <= HELD_RADPS \
+        held = self._held or self._held_fwd
+        if held is not None and self.active and v < 1e-3 and abs(w) <= HELD_RADPS \
                 and self.odom is not None and self._stands(self.odom):
-            self._stopped(ABORTED, f"the safety monitor stopped the chair ({self._held}); "
+            self._stopped(ABORTED, f"the safety monitor stopped the chair ({held}); "
                                    "give the goal again to go on", now)
         self._history.append((dt, v, w))
         if dt > 0.0:
@@ -877,6 +908,30 @@ class ControlCore:
         if not self.active and not self.limiter.at_rest:
             self._ended_t = now  # the zero burst starts once braked to rest
         return v, w
+
+    def _fwd_cap(self) -> float:
+        """The most the limiter's v is steered to so that it stays under the safety monitor's
+        forward bound as that falls ahead of the chair: the bound S(d) where the measured
+        chair is now is the last limit's free extent less the way driven since (the PID
+        clamps the command to a staircase of these, one step a scan). inf: no graded bound.
+
+        The cap looks ahead by the time v's rate takes to swing to 0 (its rise meanwhile
+        taken off too: the limiter starts braking once v would peak over the bound), and by
+        the lag of a jerk-limited tracker following the bound down: a target falling at r
+        is tracked r²/2J above it, and along the bound r = S'(d)·S(d) ≤ the monitor's decel
+        a, so S(d − v·look) leads by enough with look = a/2J (0.25 s)."""
+        if self._fwd_room is None or self.odom is None:
+            return math.inf
+        room, x, y = self._fwd_room
+        o, m = self.odom, self.monitor_tuning
+        left = room - math.hypot(o.x - x, o.y - y)
+        ax, jmax = self.limiter.v, self._v_lim()[1]
+        up = max(ax.rate, 0.0)
+        rise = up * up / (2.0 * jmax)
+        look = (up + 0.5 * m.decel_mps2) / jmax
+        cap = stop_speed(left - (max(ax.value, 0.0) + rise) * look, m.decel_mps2,
+                         m.reaction_s, 0.0) - rise
+        return max(cap, 0.0)
 
     def _lead_out(self, v: float, w: float, dt: float) -> tuple[float, float]:
         """What is sent for the planned (v, ω): led past the PID's prefilter (LeadAxis),
