@@ -929,8 +929,10 @@ class ControlCore:
         up = max(ax.rate, 0.0)
         rise = up * up / (2.0 * jmax)
         look = (up + 0.5 * m.decel_mps2) / jmax
-        cap = stop_speed(left - (max(ax.value, 0.0) + rise) * look, m.decel_mps2,
-                         m.reaction_s, 0.0) - rise
+        # (led, what is sent runs ahead of a rising plan by 2τ·its rate: LeadAxis)
+        lead = 2.0 * self._lead[0].tau * up if self._led[0] else 0.0
+        cap = stop_speed(left - (max(ax.value, 0.0) + rise + lead) * look, m.decel_mps2,
+                         m.reaction_s, 0.0) - rise - lead
         return max(cap, 0.0)
 
     def _lead_out(self, v: float, w: float, dt: float) -> tuple[float, float]:
