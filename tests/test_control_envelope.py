@@ -77,7 +77,7 @@ def test_the_core_plans_v_under_the_monitors_forward_bound() -> None:
     reached the chair (peak jerk 4.4 m/s³; nav_eval --monitor 2.3-4.3 m/s³, H76)."""
     r = drive_to_wall(4.5, 10.0, gone_s=4.0)
     assert r["state"] == "arrived", r
-    assert r["jerk"] <= 2.0 and float(r["over"]) < 0.15, r
+    assert float(r["jerk"]) <= 2.0 and float(r["over"]) < 0.15, r
 
 
 def test_without_the_cap_the_pid_clamps_and_jolts(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -85,7 +85,7 @@ def test_without_the_cap_the_pid_clamps_and_jolts(monkeypatch: pytest.MonkeyPatc
     clamped far over the bound and jolts."""
     monkeypatch.setattr(ControlCore, "_fwd_cap", lambda self: math.inf, raising=False)
     r = drive_to_wall(4.5, 10.0, gone_s=4.0)
-    assert r["jerk"] > 2.0 and float(r["over"]) > 0.5, r
+    assert float(r["jerk"]) > 2.0 and float(r["over"]) > 0.5, r
 
 
 def test_a_drive_the_forward_bound_stops_ends_the_goal() -> None:

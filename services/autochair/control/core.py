@@ -552,6 +552,7 @@ class ControlCore:
         # None while the bound is its cap (nothing bounds v within the goal's speed)
         self._fwd_room: tuple[float, float, float] | None = None
         self._held_fwd: str | None = None  # ... the forward bound holds a drive under way
+        self._fwd_stop: str | None = None  # the monitor's reason while its forward bound is 0
         # The safety monitor's tuning (the node's [safety] section): the goal check plans
         # within its forward stop margin while it runs (GoalCheck.monitor)
         self.monitor_tuning = SafetyTuning()
@@ -693,18 +694,15 @@ class ControlCore:
             self._held = reason or "no reason given"
         # The forward bound is a braking curve over the free extent ahead, v_b = S(d); the PID
         # clamps v to it. Reached from above, the clamp steps the chair's acceleration: nav_eval
-        # --monitor's jerk peaks of 2.3-4.3 m/s³ (H68's residual, H76). Kept as the way left,
-        # the core plans v under it (_fwd_cap).
-        # A drive under way (commanded and measured) that the bound brings to a stand (0: the
-        # PID's latched stop, H03) ends the goal as a turn's does; lifted before the chair
-        # stands, it was a slow-down; a chair not yet moving waits for it. (A graded bound
-        # only slows: the chair creeps on under it to a goal near a wall, as it did under the
-        # PID's clamp; judged at the stop_eps of 0.02 m/s, the dead end's goal was lost.)
+        # --monitor's jerk peaks of 2.3-4.3 m/s³ (H68's residual, H76). Kept as the way left
+        # (None: the bound is its cap, which says nothing of the way beyond), the core plans
+        # v under it (_fwd_cap). A bound of 0 is a stop, as the PID's (H03: `_held_fwd`, step);
+        # a graded one only slows: the chair creeps on under it to a goal near a wall, as it
+        # did under the PID's clamp (judged at the stop_eps of 0.02 m/s, the dead end's goal
+        # was lost).
+        self._fwd_stop = None if v_fwd > 0.0 else reason or "no reason given"
         if v_fwd > 0.0:
             self._held_fwd = None
-        elif self.active and self._held_fwd is None and self.odom is not None \
-                and self.odom.v >= self.cfg.rest_mps and self.limiter.v.value > 0.0:
-            self._held_fwd = reason or "no reason given"
         m = self.monitor_tuning
         self._fwd_room = None if v_fwd >= m.v_max_fwd_mps or self.odom is None else (
             max(v_fwd, 0.0) * m.reaction_s + v_fwd * v_fwd / (2.0 * m.decel_mps2),
@@ -874,17 +872,24 @@ class ControlCore:
                     self._led[i] = True
                 else:
                     self._lead[i].reset(0.0)
-        cap = self._fwd_cap() if self.active else math.inf
         if self._move is not None and self.active:
-            v_to, w_to = self._move
-            if cap <= 1e-3:  # (a move needs a top speed > 0: braked by the tracker)
-                v_to = None
-            v, w = self.limiter.move(v_to, w_to, dt, vmax=min(self.vmax, self._move_vmax, cap),
+            # (not capped by the forward bound: the goal's last moves, a door's straight stage
+            # and turns in place are short and slow, and each ends at rest where it was
+            # checked to; capped, a single scan's bound of 0 cut the landing of L's corner
+            # short for good, and the chair stood 1 cm off, "no progress": nav_eval seed 1)
+            v, w = self.limiter.move(*self._move, dt, vmax=min(self.vmax, self._move_vmax),
                                      v_lim=self._v_lim())
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
+            cap = self._fwd_cap() if self.active else math.inf
             if v_des > cap:  # (on the same curve: ω with v, as the limiter slows it)
+                # A drive under way (commanded and measured) that a bound of 0 brings to a
+                # stand ends the goal as a turn's does (H73, below); lifted before the chair
+                # stands, it was a slow-down; a chair not yet moving waits for it.
+                if self._fwd_stop is not None and self._held_fwd is None \
+                        and self.odom is not None and self.odom.v >= self.cfg.rest_mps:
+                    self._held_fwd = self._fwd_stop
                 w_des, v_des = (w_des * cap / v_des if cap > 0.0 else 0.0), cap
             # (led v within the lead's limits also once its move is over or given up: someone
             # stepped in on the straight final and the law brakes it, or the final turn's stop)
