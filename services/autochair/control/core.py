@@ -884,11 +884,15 @@ class ControlCore:
         else:
             cap = self._fwd_cap() if self.active else math.inf
             if v_des > cap:  # (on the same curve: ω with v, as the limiter slows it)
-                # A drive under way (commanded and measured) that a bound of 0 brings to a
-                # stand ends the goal as a turn's does (H73, below); lifted before the chair
-                # stands, it was a slow-down; a chair not yet moving waits for it.
+                # A drive under way that a bound of 0 brings to a stand ends the goal as a
+                # turn's does (H73, below); lifted before the chair stands, it was a
+                # slow-down; a chair not yet moving waits for it. Under way: measured moving,
+                # or commanded (the limiter brakes v within its limits, and the PID latches a
+                # stop on a command > 0 its limit bars, H03: waiting for the bound, the goal
+                # would have ended only "no progress", 15 s later).
                 if self._fwd_stop is not None and self._held_fwd is None \
-                        and self.odom is not None and self.odom.v >= self.cfg.rest_mps:
+                        and self.odom is not None and (self.odom.v >= self.cfg.rest_mps
+                                                       or self.limiter.v.value > 1e-3):
                     self._held_fwd = self._fwd_stop
                 w_des, v_des = (w_des * cap / v_des if cap > 0.0 else 0.0), cap
             # (led v within the lead's limits also once its move is over or given up: someone
