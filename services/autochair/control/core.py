@@ -46,7 +46,7 @@ from autochair.nav.planner import (
     path_error,
     prepare,
 )
-from autochair.safety.core import SafetyTuning
+from autochair.safety.core import SafetyTuning, stop_speed
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, heads_for, park_kuipers
@@ -552,6 +552,12 @@ class ControlCore:
         self._held: str | None = None  # why the monitor's bound holds a motion under way
         self._limit_reason = ""  # the monitor's newest reason for its bounds
         self._waits: float | None = None  # since when its bound holds a chair not yet moving
+        # The monitor's forward bound as a way left (_fwd_cap): its free extent less its stop
+        # margin as of its last limit (stop_speed inverted), and the measured (x, y) then;
+        # None while the bound is its cap (nothing bounds v within the goal's speed)
+        self._fwd_room: tuple[float, float, float] | None = None
+        self._held_fwd: str | None = None  # ... the forward bound holds a drive under way
+        self._fwd_stop: str | None = None  # the monitor's reason while its forward bound is 0
         # The safety monitor's tuning (the node's [safety] section): the goal check plans
         # within its forward stop margin while it runs (GoalCheck.monitor)
         self.monitor_tuning = SafetyTuning()
@@ -689,11 +695,28 @@ class ControlCore:
         # the chair stands, it was a slow-down; a chair not yet moving (measured: a command
         # just begun is still in the drive chain's dead time) waits for it.
         if omega_max > HELD_RADPS:
-            self._held = self._waits = None
+            self._held = None
         elif self.active and self._held is None and self.odom is not None \
                 and not self._stands(self.odom):
             self._held = reason or "no reason given"
         self._limit_reason = reason or "no reason given"
+        # The forward bound is a braking curve over the free extent ahead, v_b = S(d); the PID
+        # clamps v to it. Reached from above, the clamp steps the chair's acceleration: nav_eval
+        # --monitor's jerk peaks of 2.3-4.3 m/s³ (H68's residual, H76). Kept as the way left
+        # (None: the bound is its cap, which says nothing of the way beyond), the core plans
+        # v under it (_fwd_cap). A bound of 0 is a stop, as the PID's (H03: `_held_fwd`, step);
+        # a graded one only slows: the chair creeps on under it to a goal near a wall, as it
+        # did under the PID's clamp (judged at the stop_eps of 0.02 m/s, the dead end's goal
+        # was lost).
+        self._fwd_stop = None if v_fwd > 0.0 else reason or "no reason given"
+        if v_fwd > 0.0:
+            self._held_fwd = None
+        m = self.monitor_tuning
+        self._fwd_room = None if v_fwd >= m.v_max_fwd_mps or self.odom is None else (
+            max(v_fwd, 0.0) * m.reaction_s + v_fwd * v_fwd / (2.0 * m.decel_mps2),
+            self.odom.x, self.odom.y)
+        if omega_max > HELD_RADPS and self._fwd_stop is None:
+            self._waits = None
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
         while bounds[0][0] < now - PLAN_OMEGA_WINDOW_S:
@@ -787,6 +810,7 @@ class ControlCore:
         self._lineup_field = check.fld
         self.given_up = None
         self._plan_t, self._blocked_since, self._held, self._waits = -math.inf, None, None, None
+        self._held_fwd = None
         self._last_blocked = ("", -math.inf)
         self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
@@ -860,11 +884,28 @@ class ControlCore:
                 else:
                     self._lead[i].reset(0.0)
         if self._move is not None and self.active:
+            # (not capped by the forward bound: the goal's last moves, a door's straight stage
+            # and turns in place are short and slow, and each ends at rest where it was
+            # checked to; capped, a single scan's bound of 0 cut the landing of L's corner
+            # short for good, and the chair stood 1 cm off, "no progress": nav_eval seed 1)
             v, w = self.limiter.move(*self._move, dt, vmax=min(self.vmax, self._move_vmax),
                                      v_lim=self._v_lim())
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
+            cap = self._fwd_cap() if self.active else math.inf
+            if v_des > cap:  # (on the same curve: ω with v, as the limiter slows it)
+                # A drive under way that a bound of 0 brings to a stand ends the goal as a
+                # turn's does (H73, below); lifted before the chair stands, it was a
+                # slow-down; a chair not yet moving waits for it. Under way: measured moving,
+                # or commanded (the limiter brakes v within its limits, and the PID latches a
+                # stop on a command > 0 its limit bars, H03: waiting for the bound, the goal
+                # would have ended only "no progress", 15 s later).
+                if self._fwd_stop is not None and self._held_fwd is None \
+                        and self.odom is not None and (self.odom.v >= self.cfg.rest_mps
+                                                       or self.limiter.v.value > 1e-3):
+                    self._held_fwd = self._fwd_stop
+                w_des, v_des = (w_des * cap / v_des if cap > 0.0 else 0.0), cap
             # (led v within the lead's limits also once its move is over or given up: someone
             # stepped in on the straight final and the law brakes it, or the final turn's stop)
             v, w = self.limiter.step(v_des, w_des, dt, v_lim=self._v_lim())
@@ -887,6 +928,32 @@ class ControlCore:
         if not self.active and not self.limiter.at_rest:
             self._ended_t = now  # the zero burst starts once braked to rest
         return v, w
+
+    def _fwd_cap(self) -> float:
+        """The most the limiter's v is steered to so that it stays under the safety monitor's
+        forward bound as that falls ahead of the chair: the bound S(d) where the measured
+        chair is now is the last limit's free extent less the way driven since (the PID
+        clamps the command to a staircase of these, one step a scan). inf: no graded bound.
+
+        The cap looks ahead by the time v's rate takes to swing to 0 (its rise meanwhile
+        taken off too: the limiter starts braking once v would peak over the bound), and by
+        the lag of a jerk-limited tracker following the bound down: a target falling at r
+        is tracked r²/2J above it, and along the bound r = S'(d)·S(d) ≤ the monitor's decel
+        a, so S(d − v·look) leads by enough with look = a/2J (0.25 s)."""
+        if self._fwd_room is None or self.odom is None:
+            return math.inf
+        room, x, y = self._fwd_room
+        o, m = self.odom, self.monitor_tuning
+        left = room - math.hypot(o.x - x, o.y - y)
+        ax, jmax = self.limiter.v, self._v_lim()[1]
+        up = max(ax.rate, 0.0)
+        rise = up * up / (2.0 * jmax)
+        look = (up + 0.5 * m.decel_mps2) / jmax
+        # (led, what is sent runs ahead of a rising plan by 2τ·its rate: LeadAxis)
+        lead = 2.0 * self._lead[0].tau * up if self._led[0] else 0.0
+        cap = stop_speed(left - (max(ax.value, 0.0) + rise + lead) * look, m.decel_mps2,
+                         m.reaction_s, 0.0) - rise - lead
+        return max(cap, 0.0)
 
     def _lead_out(self, v: float, w: float, dt: float) -> tuple[float, float]:
         """What is sent for the planned (v, ω): led past the PID's prefilter (LeadAxis),
@@ -1153,11 +1220,13 @@ class ControlCore:
         goes on once the bound lifts, as for a person in the way: the start the goal asked
         for, shown, not a restart. Held for `blocked_abort_s`, the goal ends. The old core
         showed "driving" at a stand and went on by itself up to `no_progress_s` later."""
-        if self._held is not None:
-            self._stopped(ABORTED, f"the safety monitor stopped the chair ({self._held}); "
+        held = self._held or self._held_fwd
+        if held is not None:
+            self._stopped(ABORTED, f"the safety monitor stopped the chair ({held}); "
                                    "give the goal again to go on", now)
             return
-        if not self._omega_bounds or self._omega_bounds[-1][1] > HELD_RADPS:
+        if (not self._omega_bounds or self._omega_bounds[-1][1] > HELD_RADPS) \
+                and self._fwd_stop is None:
             return
         if self._waits is None:
             self._waits = now
