@@ -1215,8 +1215,9 @@ class ControlCore:
 
     def _hold_stand(self, now: float) -> None:
         """The chair stands, commanded and measured, during a goal: under the monitor's |ω|
-        bound of ~0 (`on_limit`). A motion under way it brought to a stand is a safety stop:
-        the goal ends (H73). A chair it holds before it moved waits as blocked, saying why, and
+        bound of ~0 or its forward bound of 0 (`on_limit`). A motion under way it brought to a
+        stand is a safety stop: the goal ends (H73, H76). A chair it holds before it moved
+        waits as blocked, saying why, and
         goes on once the bound lifts, as for a person in the way: the start the goal asked
         for, shown, not a restart. Held for `blocked_abort_s`, the goal ends. The old core
         showed "driving" at a stand and went on by itself up to `no_progress_s` later."""
