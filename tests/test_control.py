@@ -523,6 +523,22 @@ def test_a_goal_without_progress_aborts() -> None:
     assert core.state == "aborted" and "no progress for 3 s" in core.reason
 
 
+def circling(planned: Callable[[planner.PlanResult, float], planner.PlanResult], until_s: float,
+             monkeypatch: pytest.MonkeyPatch) -> tuple[ControlCore, float]:
+    """A 5 m goal (no_progress_s 3 s) whose chair circles where it is, following its
+    commands but never nearer, each plan passed through `planned(result, t)`, until the goal
+    ends or `until_s`: the core, and the time then."""
+    t = 0.0
+    monkeypatch.setattr(core_mod, "compute", lambda req: planned(planner.compute(req), t))
+    core = fresh_core(ControlConfig(no_progress_s=3.0, lead=False))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+    while core.active and t < until_s:
+        out = core.step(t) or (0.0, 0.0)
+        core.on_odom(OdomSample(0.1 * math.sin(t), 0.1 * math.cos(t), t, out[0], 0.3, t))
+        t += 0.02
+    return core, t
+
+
 @pytest.mark.parametrize("manoeuvring", [True, False])
 def test_progress_on_the_goals_lattice_counts_as_progress(manoeuvring: bool,
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
@@ -530,19 +546,8 @@ def test_progress_on_the_goals_lattice_counts_as_progress(manoeuvring: bool,
     door) gets no nearer on the 2-D distance for a while, but its lattice cost-to-go falls:
     that is progress (live, office A from the hallway was aborted half-way through such
     stages). Positive control: the lattice cost standing still, "no progress"."""
-    t = 0.0
-
-    def planned(req: planner.PlanRequest) -> planner.PlanResult:
-        return dataclasses.replace(planner.compute(req),
-                                   lattice_left=9.0 - (0.2 * t if manoeuvring else 0.0))
-
-    monkeypatch.setattr(core_mod, "compute", planned)
-    core = fresh_core(ControlConfig(no_progress_s=3.0, lead=False))
-    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
-    while core.active and t < 10:
-        out = core.step(t) or (0.0, 0.0)
-        core.on_odom(OdomSample(0.1 * math.sin(t), 0.1 * math.cos(t), t, out[0], 0.3, t))
-        t += 0.02
+    core, _ = circling(lambda res, t: dataclasses.replace(
+        res, lattice_left=9.0 - (0.2 * t if manoeuvring else 0.0)), 10.0, monkeypatch)
     if manoeuvring:
         assert core.active, core.reason
     else:
@@ -559,11 +564,9 @@ def test_a_new_map_that_shows_the_way_longer_rebases_progress(
     on the new map standing still, "no progress"; a map flickering between the two every
     0.5 s (a door seen shut and open) re-bases once, on its first new sight, so the goal
     still ends."""
-    t = 0.0
     fields: dict[bool, NavField] = {}
 
-    def planned(req: planner.PlanRequest) -> planner.PlanResult:
-        res = planner.compute(req)
+    def planned(res: planner.PlanResult, t: float) -> planner.PlanResult:
         new = t >= 2.0 and (case != "flicker" or int(t / 0.5) % 2 == 0)
         if new not in fields:  # (one object per map; the new one has seen every cell)
             fld = fields[new] = copy.copy(res.field)
@@ -574,13 +577,7 @@ def test_a_new_map_that_shows_the_way_longer_rebases_progress(
             "longer": 14.0 - 0.2 * (t - 2.0), "standing": 14.0, "flicker": 8.6 + 5.0 * new}[case]
         return dataclasses.replace(res, field=fld, lattice_left=left)
 
-    monkeypatch.setattr(core_mod, "compute", planned)
-    core = fresh_core(ControlConfig(no_progress_s=3.0, lead=False))
-    assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
-    while core.active and t < 30:
-        out = core.step(t) or (0.0, 0.0)
-        core.on_odom(OdomSample(0.1 * math.sin(t), 0.1 * math.cos(t), t, out[0], 0.3, t))
-        t += 0.02
+    core, t = circling(planned, 30.0, monkeypatch)
     if case == "longer":
         assert core.active, core.reason
     else:
