@@ -557,7 +557,7 @@ class ControlCore:
         # None while the bound is its cap (nothing bounds v within the goal's speed)
         self._fwd_room: tuple[float, float, float] | None = None
         self._held_fwd: str | None = None  # ... the forward bound holds a drive under way
-        self._fwd_stop: str | None = None  # the monitor's reason while its forward bound is 0
+        self._fwd_zero = False  # its forward bound is 0 (why: `_limit_reason`)
         # The safety monitor's tuning (the node's [safety] section): the goal check plans
         # within its forward stop margin while it runs (GoalCheck.monitor)
         self.monitor_tuning = SafetyTuning()
@@ -708,14 +708,14 @@ class ControlCore:
         # a graded one only slows: the chair creeps on under it to a goal near a wall, as it
         # did under the PID's clamp (judged at the stop_eps of 0.02 m/s, the dead end's goal
         # was lost).
-        self._fwd_stop = None if v_fwd > 0.0 else reason or "no reason given"
+        self._fwd_zero = not v_fwd > 0.0
         if v_fwd > 0.0:
             self._held_fwd = None
         m = self.monitor_tuning
         self._fwd_room = None if v_fwd >= m.v_max_fwd_mps or self.odom is None else (
             max(v_fwd, 0.0) * m.reaction_s + v_fwd * v_fwd / (2.0 * m.decel_mps2),
             self.odom.x, self.odom.y)
-        if omega_max > HELD_RADPS and self._fwd_stop is None:
+        if omega_max > HELD_RADPS and not self._fwd_zero:
             self._waits = None
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
@@ -901,10 +901,10 @@ class ControlCore:
                 # or commanded (the limiter brakes v within its limits, and the PID latches a
                 # stop on a command > 0 its limit bars, H03: waiting for the bound, the goal
                 # would have ended only "no progress", 15 s later).
-                if self._fwd_stop is not None and self._held_fwd is None \
+                if self._fwd_zero and self._held_fwd is None \
                         and self.odom is not None and (self.odom.v >= self.cfg.rest_mps
                                                        or self.limiter.v.value > 1e-3):
-                    self._held_fwd = self._fwd_stop
+                    self._held_fwd = self._limit_reason
                 w_des, v_des = (w_des * cap / v_des if cap > 0.0 else 0.0), cap
             # (led v within the lead's limits also once its move is over or given up: someone
             # stepped in on the straight final and the law brakes it, or the final turn's stop)
@@ -1217,17 +1217,17 @@ class ControlCore:
         """The chair stands, commanded and measured, during a goal: under the monitor's |ω|
         bound of ~0 or its forward bound of 0 (`on_limit`). A motion under way it brought to a
         stand is a safety stop: the goal ends (H73, H76). A chair it holds before it moved
-        waits as blocked, saying why, and
-        goes on once the bound lifts, as for a person in the way: the start the goal asked
-        for, shown, not a restart. Held for `blocked_abort_s`, the goal ends. The old core
-        showed "driving" at a stand and went on by itself up to `no_progress_s` later."""
+        waits as blocked, saying why, and goes on once the bound lifts, as for a person in the
+        way: the start the goal asked for, shown, not a restart. Held for `blocked_abort_s`,
+        the goal ends. The old core showed "driving" at a stand and went on by itself up to
+        `no_progress_s` later."""
         held = self._held or self._held_fwd
         if held is not None:
             self._stopped(ABORTED, f"the safety monitor stopped the chair ({held}); "
                                    "give the goal again to go on", now)
             return
         if (not self._omega_bounds or self._omega_bounds[-1][1] > HELD_RADPS) \
-                and self._fwd_stop is None:
+                and not self._fwd_zero:
             return
         if self._waits is None:
             self._waits = now
