@@ -45,12 +45,17 @@ class SafetyRig:
         self.binding = 0  # scans whose limit held the chair under what navigation asked
         self.stops: list[tuple[float, str]] = []  # (t, reason) of scans that stop motion
         self.estops = 0
+        self._owed: tuple[float, float, str, float] | None = None  # the limit for the control
 
     def tick(self, t: float, world: World, pose: tuple[float, float, float],
              twist: tuple[float, float], odom: tuple[float, float],
              pid: VelocityPidCore, control: ControlCore) -> None:
         """One 100 Hz tick: the odometry's motion to the monitor; a scan when one is due, its
         limit to the PID and to the control core (as the control node passes it on)."""
+        control.gates.monitor_up = True  # (its liveliness token, seen before any goal)
+        if self._owed is not None:
+            control.on_limit(*self._owed)
+            self._owed = None
         self.monitor.on_odom(*odom, t)
         if t + 1e-9 < self.next_t:
             return
@@ -68,7 +73,11 @@ class SafetyRig:
         if (lim.v_fwd == 0.0 and odom[0] > 0.05) or (lim.omega == 0.0 and abs(odom[1]) > 0.05):
             self.stops.append((round(t, 2), lim.reason))
         pid.set_limit(lim.v_fwd, lim.v_rev, lim.omega, t, lim.v_rev_autonomy)
-        control.on_limit(lim.v_fwd, lim.omega, lim.reason, t)
+        # The control node hears the limit as the PID does, but acts on it at its own next
+        # tick: the PID's 100 Hz update first applies it to the command it holds (one with
+        # v > 0 under a forward bound of 0 latches its stop). Passed on in the same tick, the
+        # core's answer reached the PID first, which a live stack cannot count on.
+        self._owed = (lim.v_fwd, lim.omega, lim.reason, t)
         if v.estop is EStopAction.ASSERT:
             self.estops += 1
             pid.set_estop(True, t, round(t * 1e9))

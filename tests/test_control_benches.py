@@ -42,8 +42,9 @@ def test_sim_rate_sees_skipped_ticks() -> None:
 
 def test_the_benchmarks_safety_monitor_bounds_the_pid_before_a_wall() -> None:
     """nav_eval --monitor (bench/safety_rig.py): the scan, the monitor's verdict and its limit
-    reach the PID and the control core. Facing the hallway's wall 0.45 m ahead at 0.5 m/s the
-    forward bound is under 0.5; down the hallway (positive control) it is the monitor's cap."""
+    reach the PID, and the control core a tick later. Facing the hallway's wall 0.45 m ahead
+    at 0.5 m/s the forward bound is under 0.5; down the hallway (positive control) it is the
+    monitor's cap."""
     from bench.control_eval import make_pid
     from bench.safety_rig import SafetyRig
 
@@ -60,7 +61,10 @@ def test_the_benchmarks_safety_monitor_bounds_the_pid_before_a_wall() -> None:
         core = ControlCore(ControlConfig(), footprint=fp)
         pose = (3.0, 0.0, math.radians(yaw_deg))
         rig.tick(0.0, world, pose, (0.5, 0.0), (0.5, 0.0), pid, core)
-        assert rig.scans == 1 and core.gates.limit_t == 0.0 and pid._limit is not None
+        assert rig.scans == 1 and pid._limit is not None
+        assert core.gates.limit_t == -math.inf  # (the control acts on it at its next tick)
+        rig.tick(0.01, world, pose, (0.5, 0.0), (0.5, 0.0), pid, core)
+        assert rig.scans == 1 and core.gates.limit_t == 0.0
         return pid._limit[0]
 
     assert forward_bound(90.0) < 0.4
@@ -134,8 +138,8 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     assert max(speed) <= first.vmax_mps + 0.02
 
 
-def _to_the_side(seed: int) -> dict[str, Any]:
-    """nav_eval's "person: to the side" with the safety monitor, MPEPC's sampler at `seed`."""
+def _monitored(name: str, seed: int) -> dict[str, Any]:
+    """nav_eval's case `name` with the safety monitor, MPEPC's sampler at `seed`."""
     from bench import nav_eval as ne
     from bench.safety_rig import SafetyRig
 
@@ -146,7 +150,7 @@ def _to_the_side(seed: int) -> dict[str, Any]:
 
     chair = ChairGeometry()
     fp = Footprint(chair.front_m, chair.rear_m, chair.half_width_m)
-    _, wname, start, goal, _ = next(c for c in ne.CASES if c[0] == "person: to the side")
+    _, wname, start, goal, _ = next(c for c in ne.CASES if c[0] == name)
     world, fld = ne.build(wname, fp)
     planner._planners.clear()  # (a fresh planner and sampler, as nav_eval's)
     planner._lattices.clear()
@@ -162,7 +166,7 @@ def test_a_person_crossing_does_not_walk_into_the_monitored_chair() -> None:
     planned, stopped with its rear on the person's line and the person walked into it (1
     contact, the case's old result); predicted within the bound it drives on straight ahead,
     clear."""
-    r = _to_the_side(2)
+    r = _monitored("person: to the side", 2)
     assert r["arrived"]
     assert r["collisions"] == 0
     assert r["min_clearance_m"] > 0.2
@@ -179,7 +183,31 @@ def test_a_person_turning_back_at_a_wall_does_not_walk_into_the_monitored_chair(
     results). Predicted turning back at the wall (mpepc.wall_turn), crossing later is no
     longer as good as crossing now: it sets off 1.5 s earlier, in the window there is, and
     crosses clear (0.29 / 0.32 m; 13.3 s, was 16.7 / 21.4)."""
-    r = _to_the_side(seed)
+    r = _monitored("person: to the side", seed)
     assert r["arrived"]
     assert r["collisions"] == 0
     assert r["min_clearance_m"] > 0.2
+
+
+def test_the_core_brakes_for_the_bound_the_monitor_will_read(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """H76's residual (nav_eval --monitor seed 7, "door: room B corner"): the monitor sweeps the
+    arc the chair is measured on, up to its horizon, so the chair turning for the corner met
+    its bound already falling, and the PID's clamp jolted it (peak jerk 2.75 m/s³). Braking
+    for the bound the monitor's own sweep reads along the planned arc on the map
+    (`ControlCore._map_room`), the chair keeps the comfort jerk, 2 m/s³. Positive control:
+    without that sweep, the same run jolts."""
+    r = _monitored("door: room B corner", 7)
+    assert r["arrived"] and r["collisions"] == 0, r
+    assert r["peak_jerk_mps3"] <= 2.0, r
+    monkeypatch.setattr(ControlCore, "_map_room", lambda self, v, w: math.inf)
+    old = _monitored("door: room B corner", 7)
+    assert old["peak_jerk_mps3"] > 2.0, old
+
+
+def test_a_creep_near_an_obstacle_stops_short_of_the_monitors_last_step() -> None:
+    """nav_eval --monitor seed 7, behind the table: the chair creeping round the table met the
+    monitor's bound of 0 with v still sent, and the PID latched its stop ("does not follow").
+    Planned clear of the bound's last sweep step (`ControlCore._fwd_cap`), it arrives."""
+    r = _monitored("clutter: behind the table", 7)
+    assert r["arrived"] and r["collisions"] == 0, r

@@ -83,7 +83,7 @@ def test_the_core_plans_v_under_the_monitors_forward_bound() -> None:
 def test_without_the_cap_the_pid_clamps_and_jolts(monkeypatch: pytest.MonkeyPatch) -> None:
     """Positive control of the test above: without the cap (the old core) the same drive is
     clamped far over the bound and jolts."""
-    monkeypatch.setattr(ControlCore, "_fwd_cap", lambda self: math.inf, raising=False)
+    monkeypatch.setattr(ControlCore, "_fwd_cap", lambda self, v, w: math.inf)
     r = drive_to_wall(4.5, 10.0, gone_s=4.0)
     assert float(r["jerk"]) > 2.0 and float(r["over"]) > 0.5, r
 
@@ -97,3 +97,33 @@ def test_a_drive_the_forward_bound_stops_ends_the_goal() -> None:
     r = drive_to_wall(20.0, 6.0, blocked=(1.5, 6.0))
     assert r["state"] == "aborted" and "safety monitor stopped" in str(r["reason"]), r
     assert abs(float(r["after"])) < 0.01, r
+
+
+def test_a_bound_of_0_met_with_v_sent_ends_the_goal_though_it_lifts_at_once() -> None:
+    """The forward bound 0 for a single scan (1.5 s) while the chair drives: the PID latches
+    its stop on the v still sent (H03) and obeys that stream no more. The goal ends once the
+    chair stands, naming the monitor. The old core took the bound's lift before the chair
+    stood for a slow-down and drove on into the latched PID, ending 2 s later "does not
+    follow" (nav_eval --monitor seed 7, the clutter's far side)."""
+    r = drive_to_wall(20.0, 6.0, blocked=(1.5, 1.6))
+    assert r["state"] == "aborted" and "safety monitor stopped" in str(r["reason"]), r
+
+
+def test_the_last_sweep_step_before_a_bound_of_0_is_not_driven_into() -> None:
+    """The monitor reads its free extent in sweep steps (`step_m`), and the next scan may read
+    the last step before its bound of 0 as 0: the PID then latches a stop on any v > 0 still
+    sent (H03), though the chair had not yet moved. So the core plans no v on a bound whose
+    way left is one step (nav_eval --monitor seed 7: a turn in place in the clutter read
+    0.12 then 0.10 m free, v just begun, "does not follow"; behind the table and at office
+    B's desk, creeping on, the same). Positive control: three steps left, it creeps on."""
+    m = SafetyTuning()
+    caps = []
+    for steps in (1, 3):
+        core = ControlCore(ControlConfig())
+        core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(2.0, 0.0, 0.0)]), 0.0).ok
+        free = m.stop_margin_m + steps * m.step_m
+        bound = stop_speed(free, m.decel_mps2, m.reaction_s, m.stop_margin_m)
+        core.on_limit(bound, 1.0, f"free fwd {free:.2f} m", 0.0)
+        caps.append(core._fwd_cap(0.1, 0.0))
+    assert caps[0] == 0.0 < caps[1], caps

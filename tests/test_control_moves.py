@@ -284,13 +284,14 @@ def test_a_plan_stopped_at_once_leaves_nothing_ahead_at_rest() -> None:
         assert abs(off) < 1e-3 and abs(ahead) < 1e-3, (at_once, math.degrees(off), ahead)
 
 
-def turn_under_bound(bound: Callable[[float], float], seen: set[tuple[str, str]] | None = None
-                     ) -> tuple[str, str, float, float]:
+def turn_under_bound(bound: Callable[[float], float], seen: set[tuple[str, str]] | None = None,
+                     stale_rad: float = 0.0) -> tuple[str, str, float, float]:
     """A 90° in-place goal in lockstep on the simulated chair (the tuned PID requiring the
     monitor's limit), the safety monitor's |ω| bound `bound(t)` at 20 Hz: (the goal's state,
     its reason, how far past the goal's heading the chair ever was, how far it turned once at
     a stand after the goal's end, till 3 s after it), in degrees. `seen` collects the
-    (state, reason) the goal's status showed."""
+    (state, reason) the goal's status showed; `stale_rad` is put in the turn's lead as motion
+    sent ahead (`LeadAxis.ahead`) that never comes."""
     cfg = ControlConfig()
     rig = Rig(make_pid("tuned", True), start=(0.0, 0.0, 0.0))
     core = ControlCore(cfg)
@@ -308,6 +309,9 @@ def turn_under_bound(bound: Callable[[float], float], seen: set[tuple[str, str]]
         if k == 0:
             assert core.set_goal(GoalRequest(waypoints=[Pose2D(0.0, 0.0, math.pi / 2)]), t).ok
         out = core.step(t) if k % ctrl_every == 0 else None
+        if stale_rad and core._led[1]:
+            core._lead[1].ahead += stale_rad
+            stale_rad = 0.0
         rig.act(t, st.v, st.omega, out)
         if seen is not None and core.active:
             seen.add((core.status().state, core.status().reason))
@@ -363,6 +367,17 @@ def test_a_turn_the_monitor_holds_before_it_began_waits_as_blocked_and_is_given_
     assert state == "aborted" and reason.startswith("the safety monitor held the chair for 12 s"), \
         reason
     assert after < 1.0
+
+
+def test_a_turn_at_rest_off_its_heading_goes_on_from_the_measured_heading() -> None:
+    """The turn's lead counts 6° as held back that never comes (as a clamp the lead did not
+    see would leave it): the predictor puts the chair in the goal's band while it stands 6°
+    short. At rest, commanded and measured, the stale lead is dropped and the turn goes on
+    from the measured heading: the goal arrives. The old core stood there, its prediction in
+    the band and the measured heading out of tolerance, until "no progress" (nav_eval
+    --monitor seed 7, L's corner, 4.4° off)."""
+    state, reason, past, _ = turn_under_bound(lambda t: 3.0, stale_rad=-math.radians(6.0))
+    assert state == "arrived" and past <= 3.0, (state, reason, past)
 
 
 @pytest.mark.parametrize("goal_m", [1.0, 3.0], ids=["from-rest", "moving"])
