@@ -183,3 +183,39 @@ def test_a_person_turning_back_at_a_wall_does_not_walk_into_the_monitored_chair(
     assert r["arrived"]
     assert r["collisions"] == 0
     assert r["min_clearance_m"] > 0.2
+
+
+@pytest.mark.parametrize("name", ["door person: from before the door",
+                                  "door person: through to room B"])
+def test_a_door_a_person_paces_beyond_is_crossed_clear_of_them_with_the_monitor(
+        name: str) -> None:
+    """H75 (nav_eval --monitor, seed 1): a person paces at 1 m/s from room B's far wall out
+    across its door's exit and back, forever. The old code stood in the door (or spun at its
+    line-up) till the goal was aborted: from the door its plans were capped at the door's sight
+    speed for their whole horizon (a crawl through the person's lane, a hit), and from the
+    line-up a crossing is too slow to be out of their reach. MPEPC's own way out of the door,
+    once uncapped, steered, was slowed by the monitor's turn bound in the door frame, stopped in
+    the lane and was walked into (−0.24 m). Now: into the door (the line-up's straight, its
+    front to the far side), wait there, blocked by the person, and cross on a straight whose
+    start is timed so that every later plan finds the rest of it out of their reach, as they
+    are predicted (Mpepc.door_crossing): arrived, clear of them."""
+    from bench import nav_eval as ne
+    from bench.safety_rig import SafetyRig
+
+    from autochair.nav import planner
+    from autochair.nav.field import Footprint
+    from autochair.nav.mpepc import MpepcParams
+    from autochair.runtime.config import ChairGeometry, load_section
+
+    chair = ChairGeometry()
+    fp = Footprint(chair.front_m, chair.rear_m, chair.half_width_m)
+    _, wname, start, goal, _ = next(c for c in ne.CASES if c[0] == name)
+    world, fld = ne.build(wname, fp)
+    planner._planners.clear()  # (a fresh planner and sampler, as nav_eval's)
+    planner._lattices.clear()
+    cfg = load_section(ControlConfig, "control", None, [])  # (as nav_eval's)
+    r = ne.run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=1),
+                    monitor=SafetyRig(0), sight_only=True)
+    assert r["arrived"], r["reason"]
+    assert r["collisions"] == 0 and r["monitor"]["estops"] == 0
+    assert r["person_clearance_m"] >= 0.15
