@@ -138,8 +138,9 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     assert max(speed) <= first.vmax_mps + 0.02
 
 
-def _monitored(name: str, seed: int) -> dict[str, Any]:
-    """nav_eval's case `name` with the safety monitor, MPEPC's sampler at `seed`."""
+def _monitored(name: str, seed: int, sight_only: bool = False) -> dict[str, Any]:
+    """nav_eval's case `name` with the safety monitor, MPEPC's sampler at `seed` (`sight_only`:
+    people known once seen, as nav_eval's door_person cases)."""
     from bench import nav_eval as ne
     from bench.safety_rig import SafetyRig
 
@@ -156,7 +157,7 @@ def _monitored(name: str, seed: int) -> dict[str, Any]:
     planner._lattices.clear()
     cfg = load_section(ControlConfig, "control", None, [])  # (as nav_eval's)
     return ne.run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=seed),
-                       monitor=SafetyRig(0))
+                       monitor=SafetyRig(0), sight_only=sight_only)
 
 
 def test_a_person_crossing_does_not_walk_into_the_monitored_chair() -> None:
@@ -211,3 +212,23 @@ def test_a_creep_near_an_obstacle_stops_short_of_the_monitors_last_step() -> Non
     Planned clear of the bound's last sweep step (`ControlCore._fwd_cap`), it arrives."""
     r = _monitored("clutter: behind the table", 7)
     assert r["arrived"] and r["collisions"] == 0, r
+
+
+@pytest.mark.parametrize("name", ["door person: from before the door",
+                                  "door person: through to room B"])
+def test_a_door_a_person_paces_beyond_is_crossed_clear_of_them_with_the_monitor(
+        name: str) -> None:
+    """H75 (nav_eval --monitor, seed 1): a person paces at 1 m/s from room B's far wall out
+    across its door's exit and back, forever. The old code stood in the door (or spun at its
+    line-up) till the goal was aborted: from the door its plans were capped at the door's sight
+    speed for their whole horizon (a crawl through the person's lane, a hit), and from the
+    line-up a crossing is too slow to be out of their reach. MPEPC's own way out of the door,
+    once uncapped, steered, was slowed by the monitor's turn bound in the door frame, stopped in
+    the lane and was walked into (−0.24 m). Now: into the door (the line-up's straight, its
+    front to the far side), wait there, blocked by the person, and cross on a straight whose
+    start is timed so that every later plan finds the rest of it out of their reach, as they
+    are predicted (Mpepc.door_crossing): arrived, clear of them."""
+    r = _monitored(name, 1, sight_only=True)
+    assert r["arrived"], r["reason"]
+    assert r["collisions"] == 0 and r["monitor"]["estops"] == 0
+    assert r["person_clearance_m"] >= 0.15

@@ -351,6 +351,41 @@ def test_mpepcs_own_way_through_a_door_from_close_by_is_sight_limited() -> None:
     assert m.plan((-0.5, 1.0, 0.0), 0.0, 0.0, goal, ctg).vmax_mps > 1.0
 
 
+def test_a_chair_in_a_door_crosses_a_pacing_persons_way_only_when_all_of_it_is_clear() -> None:
+    """H75 (nav_eval door_person: a person pacing at 1 m/s from room B's far wall out across
+    its door's exit and back). A chair at rest in the door, its front 5 cm short of the far
+    side: from rest it cannot reach the door's sight speed before its front is past, so its
+    plans are not capped (old code: capped at ~0.5 m/s for the whole horizon, every way on a
+    crawl through the person's lane, a hit: it stood in the door till the goal was
+    aborted). With the person walking away (down room B, to turn back at its wall) it
+    crosses on a straight along the door's axis (no steering: the monitor's turn bound in a
+    door frame slowed MPEPC's own arc, and the chair stopped in the lane and was walked
+    into), fast, to where it stands out of their reach wherever they are predicted; coming
+    back up, or turning back at the wall too soon for the crossing to be out of their reach
+    at every later plan, it stands, blocked by them."""
+    fld = two_rooms()
+    goal = (6.5, 0.0, 0.0)
+    pose = (3.11, 1.0, 0.0)
+
+    def plan(person: Person):  # type: ignore[no-untyped-def]
+        return compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, None, None, LAW,
+                                   [person]))
+
+    away = plan(Person(4.5, -0.75, 0.0, -1.0))
+    p = away.plan
+    assert not away.blocked_by and p is not None
+    assert p.straight_m > 2.5 and p.vmax_mps > 1.0  # (old code: no straight, blocked)
+    assert p.crossing and p.target[1] == pytest.approx(1.0) and p.target[2] == 0.0
+    # (its end out of the person's reach, 1 s at 1 m/s, wherever on their walk: x = 4.5)
+    assert p.target[0] - FP.rear_m >= 4.5 + 0.25 + 1.0
+    for person in (Person(4.5, -0.75, 0.0, 1.0),  # coming back up
+                   Person(4.5, -1.4, 0.0, -1.0),  # turning back at the wall too soon
+                   Person(4.5, 0.5, 0.0, -1.0)):  # walking away, but within reach now
+        held = plan(person)
+        assert held.blocked_by.startswith("blocked by a person")
+        assert held.plan is not None and held.plan.vmax_mps == 0.0 and held.plan.hold
+
+
 def test_survival_is_limited_by_the_tightest_point() -> None:
     fld = corridor_with_wall()
     ctg = fld.cost_to_go(6.0, 2.0)

@@ -1134,7 +1134,8 @@ class ControlCore:
                            self.final, self._chain_now(o, now), self.final and self.straight,
                            self.plan is not None and self.plan.turn_first, self._door,
                            self.index == self.lineups and self.field is not None
-                           and fld is not self._lineup_field)
+                           and fld is not self._lineup_field,
+                           self.plan is not None and self.plan.crossing)
 
     def _standing_omega(self, now: float) -> float:
         """The safety monitor's standing |ω| bound (PLAN_OMEGA_WINDOW_S): the largest it
@@ -1191,7 +1192,8 @@ class ControlCore:
             return
         plan = self.plan = res.plan
         self._plan_got_t = now
-        if self._door and (plan.straight_m > 0.0 or (self._door_rest and not plan.final_turn)):
+        if self._door and not plan.hold and (plan.straight_m > 0.0
+                                             or (self._door_rest and not plan.final_turn)):
             self._door = False  # (through on a straight stage; or from rest, none: MPEPC's)
         self._door_rest = False  # (a turn onto the straight: asked again from rest after it)
         if plan.is_goal and self.index == len(self.waypoints) - 1 and not self._door:
@@ -1571,6 +1573,8 @@ class ControlCore:
             # point without steering, as the straight final; its translation rechecked here.
             # No faster than MPEPC evaluated it (people, its stop): at the goal's top speed a
             # stage judged at 0.15 m/s was driven through office B's door at 1.16 (H67).
+            if now < self._plan_got_t + p.start_s:
+                return 0.0, 0.0  # (a door's crossing, timed: stand till it sets off, H75)
             along = along_lateral((o.x, o.y, o.yaw), tx, ty)[0]
             if not self._room_to_go(o, along):
                 self._count("straights_refused")

@@ -418,6 +418,16 @@ class Plan:
     # candidate's vmax, the goal's own approach (row 0) too, was at most this, so the core's
     # own final approach drives no faster (control/core.py _desired)
     sight_mps: float = math.inf
+    # A door's crossing straight (Mpepc.door_crossing): the rest of it under way is rechecked
+    # at the speed it was given only (stage_plan's `crossing`), not from the least speed up:
+    # crossing a person's way, slower is not safer (a crawl is still in it when they come).
+    crossing: bool = False
+    # ... set off this long after the plan takes effect (standing till then): the crossing's
+    # start timed within the plan period (Mpepc.door_crossing)
+    start_s: float = 0.0
+    # The chair stands for people at a door (Mpepc.through_door's line-up, door_crossing):
+    # blocked, the door looked at again at the next plan (the core keeps its line-up's door)
+    hold: bool = False
 
 
 # A stage's straight is evaluated at this many speeds, the least to the top (Mpepc._one_stage):
@@ -1638,7 +1648,7 @@ class Mpepc:
         return self.law.commit_s + (0.0 if chain is None else chain.v.delay + 2 * chain.v.lag)
 
     def sight_cap(self, pose: tuple[float, float, float], ctg: CostToGo,
-                  chain: Chain | None = None) -> float:
+                  chain: Chain | None = None, v0: float = 0.0) -> float:
         """The top speed of MPEPC's own motions (and stages given none) from `pose` where the
         way to the goal runs through a narrow passage (a door: the axle's clearance under
         `NARROW_M`, as NavField.passage_ahead; not one the way ends in or runs on in) ahead:
@@ -1646,7 +1656,13 @@ class Mpepc:
         side, the rule a door's straight is given (through_door), applied again at every plan
         from where the chair then stands, or from the door's line-up (`LINE_UP_M` before its
         narrowest point) where it stands nearer. inf: no passage near enough to bind, or the
-        chair's front is past its far side (what stepped out there is in the laser's view).
+        chair's front is past its far side (what stepped out there is in the laser's view),
+        or so near it that the chair, from its speed `v0` (the command's), could not reach
+        the door's top before its front is past, at the comfort acceleration (H75: a chair
+        stopped in a door, its front 5 cm short of the far side, was predicted at 0.54 m/s
+        for the whole horizon, crawling through the room beyond: every way on was a hit
+        against a person pacing there, and it stood in the door till the goal was aborted;
+        the next plan, its front past, would have lifted the cap).
         Why (H67): MPEPC's own arcs through a door (no line-up: a start within 1.5 m of it,
         leaving office A, the store room) were driven at 0.93–1.15 m/s within 0.15 m of the
         jambs, at the law's top speed. Read on the costs-to-go's descent (~0.2 ms)."""
@@ -1666,8 +1682,13 @@ class Mpepc:
             # straight keeps that speed through, and a chair slowed to a crawl in the door
             # turned in place in it, MPEPC's collision cost over time outweighing the progress)
             at = max(far, LINE_UP_M + far - walked_to(path, k))
-            if fld.footprint.front_m < far and at < reach:
-                top = min(top, self.sight_top(at, chain))
+            # (an upper bound of the speed at which the front passes the far side: the whole
+            # comfort acceleration from now on, no jerk ramp)
+            passing = math.sqrt(max(v0, 0.0) ** 2 + 2.0 * g.a_mps2 * max(
+                far - fld.footprint.front_m, 0.0))
+            if fld.footprint.front_m < far and at < reach \
+                    and passing > (cap := self.sight_top(at, chain)):
+                top = min(top, cap)
         return top
 
     def through_door(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
@@ -1737,10 +1758,14 @@ class Mpepc:
                 psi[best_i] - yaw)))) <= math.radians(p.door_turn_step_deg)):
             d = float(along[0])  # on a clear straight through: drive it
             far = self.door_far(path, k)
-            top = self.sight_top(float((path[far, 0] - x) * c[0] + (path[far, 1] - y) * s[0]),
-                                 chain)
+            far_m = float((path[far, 0] - x) * c[0] + (path[far, 1] - y) * s[0])
+            top = self.sight_top(far_m, chain)
+            # (people about: judged whole, H75: a straight longer than its speed covers in
+            # the horizon was judged on its first part only, and a crawl looked clear of a
+            # person pacing across the door's exit that the rest of it ran into)
             return self._one_stage(pose, (d, 0.0), (x + d * c[0], y + d * s[0], yaw), False,
-                                   ctg, people, goal, hf, rates, v0, final=final, top=top)
+                                   ctg, people, goal, hf, rates, v0, final=final, top=top,
+                                   whole=lined and bool(people))
         if moving or not ok.any():
             return None
         best = float(psi[best_i])
@@ -1756,13 +1781,182 @@ class Mpepc:
                                    goal, hf, rates, final=final, then=(x, y))
         return None
 
+    def standing(self, pose: tuple[float, float, float]) -> Plan:
+        """A plan to stand where the chair is (a hold: the core stands while it is blocked;
+        not the goal's approach: its clearance 0 drops the core's own, ControlCore.on_plan)."""
+        return Plan((0.0, 0.0, 0.0, 0.0), pose, 0.0, 0.0, 0.0, 1.0,
+                    self.pose_clearance(pose), np.array([pose], dtype=np.float64), False, 0.0,
+                    0.0, 0, hold=True)
+
+    def later_plans_clear(self, xs: F64, ys: F64, yaws: F64, people: list[Person]
+                          ) -> npt.NDArray[np.bool_]:
+        """(N,): whether every later plan along the predicted motions (N, T) finds the rest
+        of it out of each person's reach disc (`evaluate`'s: r + speed·min(t, react_s) from
+        where they stand then) with the people where MPEPC predicts them then
+        (`walk_points`), at every step of the horizon (their phase against the plans' is
+        not known; H75)."""
+        p = self.p
+        horizon = np.asarray(np.arange(self.steps + 1) * p.dt_s, dtype=np.float64)
+        t = horizon[1:]
+        later = t[:, None] > horizon[None, :]  # (T, T + 1): a plan at τ checks the poses after it
+        px, py = place_xy(self.field.outline, xs, ys, yaws)  # (N, T, P)
+        ok = np.ones(xs.shape[0], dtype=np.bool_)
+        for q in people:
+            w = self.walk_points(q, horizon)
+            v = math.hypot(q.vx_mps, q.vy_mps)
+            need = q.radius_m + v * np.clip(t[:, None] - horizon[None, :], 0.0, p.react_s)
+            d = np.hypot(px[:, :, :, None, None] - w[None, None, None, :, :, 0],
+                         py[:, :, :, None, None] - w[None, None, None, :, :, 1]).min((2, 4))
+            ok &= ~((d < need[None]) & later[None]).any((1, 2))
+        return ok
+
+    def walk_points(self, person: Person, taus: F64) -> F64:
+        """(T, M, 2): where MPEPC predicts `person` may be at times `taus` (s from now; sorted,
+        within the horizon), as `outline_distances` does: walking on at their velocity, or
+        turned back short of a wall (`wall_turn`: anywhere on its span, sampled)."""
+        cv = np.stack([person.x_m + person.vx_mps * taus, person.y_m + person.vy_mps * taus], -1)
+        out = np.repeat(cv[:, None, :], 6, axis=1)
+        turn = wall_turn(person, self.field, float(taus[-1]))
+        if turn is not None:
+            after = taus >= turn.from_s
+            if after.any():
+                ax, ay, bx, by = turn.span(person, taus[after])
+                f = np.linspace(0.0, 1.0, 5)
+                out[after, 1:, 0] = ax[:, None] + (bx - ax)[:, None] * f
+                out[after, 1:, 1] = ay[:, None] + (by - ay)[:, None] * f
+        return out
+
+    def door_crossing(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
+                      ctg: CostToGo, hf: HeadingField | None, people: list[Person],
+                      rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
+                      chain: Chain | None = None) -> tuple[bool, Plan | None]:
+        """H75: a chair at rest facing through a door on its way (within `door_ahead_m`),
+        with people tracked: (True, a plan) or (True, None: stand, blocked, and wait), else
+        (False, None: not this rule's).
+
+        Short of the door (the sight rule binds): the straight into it, its front to the far
+        side (see below). In it (from rest the sight rule cannot bind: `sight_cap` inf): the
+        crossing, the straight along its heading out of the door to the first point at which
+        the chair at rest is out of every person's reach (r + speed·react_s) wherever MPEPC
+        predicts them over the horizon (`walk_points`), so that it does not stand in their
+        way when they come back; driven at the fastest of STAGE_SPEEDS speeds that passes
+        MPEPC's checks (`_costs`: people, the stop) and the check every later plan along it
+        will make (`later_plans_clear`). So, as predicted, no plan finds the chair blocked
+        half-way across their way and stops it there: a chair stopped in a person's lane is
+        walked into (nav_eval --monitor seed 1: MPEPC's own way out of the door, slowed by the
+        monitor's turn bound in the frame, blocked in the lane, −0.24 m). Its start is timed
+        within the plan period (`start_s`); the rest of it under way is rechecked at its own
+        speed (Plan.crossing). No steering: the monitor's turn bound in a door frame slowed
+        MPEPC's arcs, unpredicted. A person who turns back unpredicted is seen at the next
+        plan: the rest of the straight is then a hit and the chair brakes, as for any plan
+        (the residual)."""
+        p, fld = self.p, self.field
+        x, y, yaw = pose
+        if not people or not p.stages:
+            return False, None
+        found = fld.passage_ahead(ctg, x, y, p.door_ahead_m)
+        if found is None or math.hypot(goal[0] - x, goal[1] - y) <= p.door_ahead_m:
+            return False, None
+        path, k, j = found
+        c, s = math.cos(yaw), math.sin(yaw)
+        if abs((path[k, 1] - y) * c - (path[k, 0] - x) * s) > 0.1:
+            return False, None  # (not facing through it: MPEPC's, through_door's)
+        out = float((path[j, 0] - x) * c + (path[j, 1] - y) * s)  # (to the door's exit)
+        if out <= 0.0:
+            return False, None
+        if (top := self.sight_cap(pose, ctg, chain)) < math.inf:
+            # Short of the door: into it first, its front to the door's far side (1 cm short
+            # of where the sight rule's reading of the way has it: the rule then binds no
+            # more, from rest), judged whole (it ends at rest within the horizon); else stand.
+            # From farther out (a line-up) the crossing itself is too slow to clear the way of
+            # a person pacing beyond (the sight-limited speed to the far side: ~4 s against
+            # ~2.3 s of each 5.5 s walk out of their reach). Not `brake_clear_m` short of it,
+            # where the rule stops a chair: there the monitor reads the padded front corners
+            # beside the jambs' ends unable to turn (its |ω| bound ~0), and a chair brought to
+            # a stand under it ends its goal (H73; nav_eval --monitor seeds 7, 2: aborted).
+            far = self.door_far(path, k)
+            d0 = float((path[far, 0] - x) * c + (path[far, 1] - y) * s) \
+                - fld.footprint.front_m - p.brake_clear_m
+            past = next((float(d) for d in np.arange(max(d0, 0.02), d0 + 0.2, 0.01)
+                         if self.sight_cap((x + d * c, y + d * s, yaw), ctg, chain,
+                                           self.law.vmax_mps) == math.inf), None)
+            d_in = None if past is None else past - 0.01
+            if d_in is not None and self.sight_cap((x + d_in * c, y + d_in * s, yaw), ctg,
+                                                   chain) < math.inf:
+                d_in = past
+            if d_in is None or fld.straight_clearance(pose, np.arange(
+                    0.0, d_in + 0.01 + p.final_overshoot_m + 0.005, 0.01)) < p.contact_m:
+                return False, None  # (not a clear straight in: through_door's, MPEPC's)
+            inside = self._one_stage(pose, (d_in, 0.0), (x + d_in * c, y + d_in * s, yaw),
+                                     False, ctg, people, goal, hf, rates, final=final, top=top,
+                                     whole=True)
+            return True, inside
+        horizon = np.asarray((np.arange(self.steps + 1)) * p.dt_s, dtype=np.float64)
+        walks = [(q, self.walk_points(q, horizon)) for q in people]
+        spare = 0.01 + p.final_overshoot_m
+        ds = np.arange(out, out + 4.0, 0.05)
+        rest_x, rest_y = place_xy(fld.outline, x + ds * c, y + ds * s, np.full(ds.size, yaw))
+        away = np.ones(ds.size, dtype=np.bool_)
+        for q, w in walks:
+            reach = q.radius_m + math.hypot(q.vx_mps, q.vy_mps) * p.react_s
+            d = np.hypot(rest_x[:, :, None, None] - w[None, None, :, :, 0],
+                         rest_y[:, :, None, None] - w[None, None, :, :, 1])
+            away &= d.reshape(ds.size, -1).min(1) >= reach
+        if not away.any():
+            return True, None
+        dist = float(ds[int(np.argmax(away))])
+        line = fld.straight_clearance(pose, np.arange(0.0, dist + spare + 0.005, 0.01))
+        if line < p.contact_m:
+            return False, None  # (not a clear straight out: MPEPC's)
+        speeds = np.linspace(min(p.v_min_mps, self.law.vmax_mps), self.law.vmax_mps,
+                             STAGE_SPEEDS)
+        n = speeds.size
+        zz = np.zeros((n + 1, 4))  # (the last row: braking to rest, the stop cost)
+        zz[:n, 0], zz[:n, 3] = dist, speeds
+
+        def crossing(wait: float) -> Plan | None:
+            # (set off `wait` s later: as setting off now with the people moved on by as much,
+            # as the core moves them on to where the plan takes effect)
+            moved = [replace(q, x_m=q.x_m + q.vx_mps * wait, y_m=q.y_m + q.vy_mps * wait,
+                             ahead_s=q.ahead_s + wait) for q in people]
+            cost, info = self._costs(pose, 0.0, 0.0, zz, ctg, moved, goal, rates, final, hf,
+                                     line=np.arange(n + 1) < n)
+            ok = info["hit"][:n] == 0.0
+            xs, ys, yaws = info["x"][:n], info["y"][:n], info["yaw"][:n]
+            # (ended at rest within the horizon: beyond it the prediction says nothing)
+            ok &= np.hypot(xs[:, -1] - xs[:, -2], ys[:, -1] - ys[:, -2]) < 1e-3
+            ok &= self.later_plans_clear(xs, ys, yaws, moved)
+            if not ok.any():
+                return None
+            i = int(np.nonzero(ok)[0][-1])  # (the fastest: the most time to spare)
+            return self._plan_of(pose, zz[i], float(cost[i]), {m: v[i] for m, v in info.items()},
+                                 float(cost[n]), len(zz), (x + dist * c, y + dist * s, yaw),
+                                 straight_m=dist, crossing=True, start_s=wait)
+
+        # The start is timed finer than the plan period (a person's walk has no period the
+        # plans keep step with): set off at the middle of the first run of start times, 0.1 s
+        # apart, that cross (the most spare either way); a middle beyond the plan period is
+        # left to the next plan, which sees the person anew.
+        waits = np.arange(0.0, 2.0 * self.law.commit_s + 1e-9, 0.1)
+        run: list[tuple[float, Plan]] = []
+        for wait in waits:
+            got = crossing(float(wait))
+            if got is not None:
+                run.append((float(wait), got))
+            elif run:
+                break
+        if not run:
+            return True, None
+        wait, plan = run[(len(run) - 1) // 2]
+        return True, (plan if wait < self.law.commit_s else None)
+
     def stage_plan(self, pose: tuple[float, float, float], goal: tuple[float, float, float],
                    ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                    rates: tuple[float, float] = (0.0, 0.0),
                    straight_to: tuple[float, float] | None = None,
                    v0: float = 0.0, turn_to: float | None = None, land: bool = False,
                    anywhere: bool = False, top: float | None = None,
-                   chain: Chain | None = None) -> Plan | None:
+                   chain: Chain | None = None, crossing: bool = False) -> Plan | None:
         """A plan of one stage (Mpepc.stage) for a chair at rest that MPEPC left blocked; or,
         with `straight_to` (the landing of a straight stage under way, or of a stage's turn
         done), the rest of that straight if it still lies ahead on the chair's line and
@@ -1775,7 +1969,8 @@ class Mpepc:
         that predicts a hit; a straight's speed is the fastest clear up to `top` (_one_stage:
         the rest of a straight under way at most the speed it was given, so a door's
         sight-limited speed holds through it and the move is never sped up mid-way; a new
-        straight given none, at most `sight_cap` from where it sets off, `chain` the core's).
+        straight given none, at most `sight_cap` from where it sets off, `chain` the core's;
+        `crossing`: a door's crossing straight under way, rechecked at `top` only, H75).
         None: no stage."""
         x, y, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
@@ -1822,7 +2017,7 @@ class Mpepc:
             goal, hf, rates, v0, True,
             straight_to if straight_to is not None else
             (x + dist * math.cos(psi), y + dist * math.sin(psi)) if turn and dist > 0.0
-            else None, top, chain)
+            else None, top, chain, crossing and not turn)
 
     def _one_stage(self, pose: tuple[float, float, float], rz: tuple[float, float],
                    tgt: tuple[float, float, float], turn: bool, ctg: CostToGo,
@@ -1830,7 +2025,8 @@ class Mpepc:
                    hf: HeadingField | None, rates: tuple[float, float] = (0.0, 0.0),
                    v0: float = 0.0, final: bool = True,
                    then: tuple[float, float] | None = None, top: float | None = None,
-                   chain: Chain | None = None) -> Plan | None:
+                   chain: Chain | None = None, crossing: bool = False,
+                   whole: bool = False) -> Plan | None:
         """One stage as a plan: the law's target `rz` (r, θ; a turn in place: r 0), `tgt` its
         pose, `turn` whether it turns (else a straight of r), `then` where a turn's straight
         lands. Evaluated as MPEPC's candidates are (`_costs`: people, the stop after the plan
@@ -1842,17 +2038,19 @@ class Mpepc:
         core may drive it slower than given: a short straight's peak, the goal's own top speed,
         the monitor's bound; H67: evaluated at the least speed only, stages were driven at up
         to 1.16 m/s). A straight given no `top` sets off at most at `sight_cap` (`chain`: the
-        core's, for its reaction time)."""
+        core's, for its reaction time). `crossing`: a door's crossing under way, evaluated at
+        `top` alone (Plan.crossing); `whole`: only speeds at which the straight ends within the
+        horizon count as clear (H75)."""
         vmin = self.p.v_min_mps
         if top is None and not turn:
-            top = self.sight_cap(pose, ctg, chain)
+            top = self.sight_cap(pose, ctg, chain, v0)
         hi = min(top, self.law.vmax_mps) if top is not None else self.law.vmax_mps
         lo = min(vmin, hi)
         # (a straight shorter than in_place_r_m is predicted standing, its sweep checked by the
         # caller: at the least speed, as before; a row over it would be "turn, then go on")
         short = not turn and rz[0] < self.p.in_place_r_m
-        speeds = np.array([vmin]) if turn or short or hi <= lo \
-            else np.linspace(lo, hi, STAGE_SPEEDS)
+        speeds = np.array([hi]) if crossing and not short else np.array([vmin]) \
+            if turn or short or hi <= lo else np.linspace(lo, hi, STAGE_SPEEDS)
         k = speeds.size
         zz = np.zeros((k + 1, 4))  # (the last row: braking to rest, the stop cost)
         zz[:k, 0], zz[:k, 1], zz[:k, 3] = rz[0], rz[1], speeds
@@ -1860,12 +2058,23 @@ class Mpepc:
         cost, info = self._costs(pose, v0, 0.0, zz, ctg, people, goal, rates, final, hf,
                                  line=line)
         clear = info["hit"][:k] == 0.0
-        if not clear[0]:
+        i0 = 0
+        if whole:  # (`whole`: the speeds at which the straight ends within the horizon, from
+            # the least of them up)
+            ends = np.hypot(info["x"][:k, -1] - info["x"][:k, -2],
+                            info["y"][:k, -1] - info["y"][:k, -2]) < 1e-3
+            if not ends.any():
+                return None
+            i0 = int(np.argmax(ends))
+            clear = clear & ends
+        if not clear[i0]:
             return None
-        i = k - 1 if clear.all() else int(np.argmin(clear)) - 1  # (the last of the clear run)
+        # (the last of the clear run)
+        i = k - 1 if clear[i0:].all() else i0 + int(np.argmin(clear[i0:])) - 1
         plan = self._plan_of(pose, zz[i], float(cost[i]), {n: v[i] for n, v in info.items()},
                              float(cost[k]), len(zz), tgt, final_turn=turn,
-                             straight_m=0.0 if turn else rz[0], then=then)
+                             straight_m=0.0 if turn else rz[0], then=then,
+                             crossing=crossing and not short)
         if short:  # (a straight's last cm, braking: at most the speed it has, never sped up)
             plan = replace(plan, vmax_mps=max(vmin, min(abs(v0), hi)))
         return plan
@@ -2147,7 +2356,7 @@ class Mpepc:
             if rel[0] <= self.p.r_max_m and abs(rel[2]) <= self.p.delta_max_rad:
                 prev = (float(rel[0]), float(rel[1]), float(rel[2]), previous_target[3])
         seeds, has_goal = self.seeds(pose, goal, prev, ctg, heading)
-        top = self.sight_cap(pose, ctg, chain)
+        top = self.sight_cap(pose, ctg, chain, v0)
         z = self.capped(np.concatenate([seeds, self._global]), top)
         cost, info = self._costs(pose, v0, w0, z, ctg, people, goal, rates, final,
                                   heading, chain)

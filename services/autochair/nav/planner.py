@@ -52,6 +52,9 @@ class PlanRequest:
     # Look for a door to line up at on the way to `goal` (PlanResult.lineup): the map has
     # changed since the goal's route was checked (ControlCore: on the first leg only)
     seek_lineup: bool = False
+    # The straight under way (`straight`) is a door's crossing (Plan.crossing): its rest is
+    # rechecked at its own speed only
+    crossing: bool = False
 
 
 @dataclass(frozen=True)
@@ -325,7 +328,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         # A straight stage under way (Mpepc.stage_plan): its rest, rechecked.
         on = mpc.stage_plan(req.pose, req.goal, ctg, hf, req.people, req.rates,
                             straight_to=req.previous[:2], v0=req.v, top=req.previous[3],
-                            chain=req.chain)
+                            chain=req.chain, crossing=req.crossing)
         if on is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, on, given_up=given_up)
     carried: Plan | None = None
@@ -364,6 +367,22 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         return lattice_for(fld, req.goal, ctg, req.pose)
 
     at_rest = abs(req.v) < 0.01 and abs(req.omega) < 0.01
+
+    def door_with_people() -> PlanResult | None:
+        """At rest before or in a door, people about: into it, then across their way only
+        when the whole crossing is clear of them as predicted; else stand, blocked (H75)."""
+        applies, cross = mpc.door_crossing(req.pose, req.goal, ctg, hf, req.people, req.rates,
+                                           req.final, req.chain)
+        if cross is not None:
+            return PlanResult(req.goal_id, req.index, fld, ctg, cross, given_up=given_up)
+        if applies:
+            # (a stand: not the goal's approach, which the core would drive blocked or not;
+            # a door's line-up kept: Plan.hold)
+            return PlanResult(req.goal_id, req.index, fld, ctg, mpc.standing(req.pose),
+                              blocked_by=blocker(fld, ctg, req.pose, req.people),
+                              given_up=given_up)
+        return None
+
     if req.door and mp.stages and abs(req.omega) < 0.01:
         # Just at a door's line-up: straight through it (moving: along its heading, if that
         # is clear; at rest: onto the clearest straight first)
@@ -372,6 +391,10 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
                                 chain=req.chain)
         if door is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, door, given_up=given_up)
+        if at_rest and (held := door_with_people()) is not None:
+            return held
+    elif at_rest and mp.stages and (held := door_with_people()) is not None:
+        return held
     elif at_rest and mp.stages:
         # At rest near a door on the way: onto a straight through it, and through (a goal
         # begun in a room, facing in, at its door: Mpepc.through_door)
