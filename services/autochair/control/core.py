@@ -96,6 +96,7 @@ MAP_SWEEP_SPARE_M = 0.06
 # ahead of the monitor's bound (jerk-limited) rather than being clamped to it (H76)
 MAP_SWEEP_M = 4.0
 MAP_SWEEP_CREEP_MPS = 0.15  # ... down to this speed (slower, the monitor's bound alone leads)
+LAST_STEPS = 1  # the monitor's sweep steps before its forward bound's 0 that v is not planned into
 # A new map that lengthens the way left by more than this re-bases the goal's progress (m)
 REBASE_M = 1.0
 NEW_SIGHT_M2 = 1.0  # ... if the map has seen this much more since (m²)
@@ -1011,7 +1012,7 @@ class ControlCore:
             # any v > 0 still sent (nav_eval --monitor seed 7, behind the table: creeping on at
             # 0.03 m/s, "does not follow"). (Cut from the whole curve instead, the chair
             # crawled near every wall: median time 1.52 -> 1.63.)
-            cap = min(cap, under(left) if left > m.step_m + 1e-6 else 0.0)
+            cap = min(cap, under(left) if left > LAST_STEPS * m.step_m + 1e-6 else 0.0)
         return cap
 
     def _lead_out(self, v: float, w: float, dt: float) -> tuple[float, float]:
