@@ -90,7 +90,7 @@ PLAN_OMEGA_WINDOW_S = 5.0
 HELD_RADPS = 0.02
 # The monitor's forward sweep predicted on the map reads the free extent this much longer than
 # the monitor's own on the laser's points (cell centres lie up to ~half a cell inside an
-# obstacle's surface; laser noise): measured up to 0.06 m (nav_eval --monitor traces)
+# obstacle's surface; laser noise): the 90th percentile in nav_eval --monitor traces, 0.06 m
 MAP_SWEEP_SPARE_M = 0.06
 # ... swept this far ahead: beyond the monitor's 2.5 m, so that the core brakes from cruise
 # ahead of the monitor's bound (jerk-limited) rather than being clamped to it (H76)
@@ -916,8 +916,8 @@ class ControlCore:
                 # chair stands, even if the bound lifts first (cleared then, the core drove on
                 # into the latched PID: "does not follow", the clutter's far side, nav_eval
                 # --monitor seed 7). A chair whose v the core has already braked to 0 (still
-                # coasting, or not yet moving) stops by its own command: it waits for the bound
-                # (blocked), as for a person in the way (ended instead, behind the table, seed 2).
+                # coasting, or not yet moving) stops by its own command: the PID latches nothing,
+                # and the chair waits for the bound (blocked), as for a person in the way.
                 if self._fwd_zero and self._held_fwd is None and self.limiter.v.value > 1e-3:
                     self._held_fwd = self._limit_reason
                 w_des, v_des = (w_des * cap / v_des if cap > 0.0 else 0.0), cap
@@ -1010,7 +1010,7 @@ class ControlCore:
             # Not into the bound's last sweep step: the monitor reads its free extent in
             # steps, and the next scan may read that one as 0, which latches the PID's stop on
             # any v > 0 still sent (nav_eval --monitor seed 7, behind the table: creeping on at
-            # 0.03 m/s, "does not follow"). (Cut from the whole curve instead, the chair
+            # 0.03 m/s, the goal ended so). (Cut from the whole curve instead, the chair
             # crawled near every wall: median time 1.52 -> 1.63.)
             cap = min(cap, under(left) if left > LAST_STEPS * m.step_m + 1e-6 else 0.0)
         return cap
