@@ -83,7 +83,7 @@ def test_the_core_plans_v_under_the_monitors_forward_bound() -> None:
 def test_without_the_cap_the_pid_clamps_and_jolts(monkeypatch: pytest.MonkeyPatch) -> None:
     """Positive control of the test above: without the cap (the old core) the same drive is
     clamped far over the bound and jolts."""
-    monkeypatch.setattr(ControlCore, "_fwd_cap", lambda self, v, w: math.inf)
+    monkeypatch.setattr(ControlCore, "_fwd_cap", lambda self: math.inf)
     r = drive_to_wall(4.5, 10.0, gone_s=4.0)
     assert float(r["jerk"]) > 2.0 and float(r["over"]) > 0.5, r
 
@@ -125,5 +125,5 @@ def test_the_last_sweep_step_before_a_bound_of_0_is_not_driven_into() -> None:
         free = m.stop_margin_m + steps * m.step_m
         bound = stop_speed(free, m.decel_mps2, m.reaction_s, m.stop_margin_m)
         core.on_limit(bound, 1.0, f"free fwd {free:.2f} m", 0.0)
-        caps.append(core._fwd_cap(0.1, 0.0))
+        caps.append(core._fwd_cap())
     assert caps[0] == 0.0 < caps[1], caps

@@ -23,7 +23,6 @@ from dataclasses import dataclass, replace
 
 import msgspec
 import numpy as np
-import numpy.typing as npt
 
 from autochair.geometry import Pose, advance, along_lateral, compose
 from autochair.geometry import wrap_angle as wrap
@@ -47,7 +46,7 @@ from autochair.nav.planner import (
     path_error,
     prepare,
 )
-from autochair.safety.core import SafetyCore, SafetyParams, SafetyTuning, stop_speed
+from autochair.safety.core import SafetyTuning, stop_speed
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
 from .law import Gains, braking_speed, heads_for, park_kuipers
@@ -88,15 +87,7 @@ PLAN_OMEGA_WINDOW_S = 5.0
 # The safety monitor's |ω| bound at or under which a motion it holds stands: the velocity
 # PID's stop_eps, below which a turn left by its limit is a stop (H03)
 HELD_RADPS = 0.02
-# The monitor's forward sweep predicted on the map reads the free extent this much longer than
-# the monitor's own on the laser's points (cell centres lie up to ~half a cell inside an
-# obstacle's surface; laser noise): the 90th percentile in nav_eval --monitor traces, 0.06 m
-MAP_SWEEP_SPARE_M = 0.06
-# ... swept this far ahead: beyond the monitor's 2.5 m, so that the core brakes from cruise
-# ahead of the monitor's bound (jerk-limited) rather than being clamped to it (H76)
-MAP_SWEEP_M = 4.0
-MAP_SWEEP_CREEP_MPS = 0.15  # ... down to this speed (slower, the monitor's bound alone leads)
-LAST_STEPS = 1  # the monitor's sweep steps before its forward bound's 0 that v is not planned into
+LAST_STEPS = 1  # the monitor's sweep steps before its forward bound's 0 not planned into (_fwd_cap)
 # A new map that lengthens the way left by more than this re-bases the goal's progress (m)
 REBASE_M = 1.0
 NEW_SIGHT_M2 = 1.0  # ... if the map has seen this much more since (m²)
@@ -568,10 +559,6 @@ class ControlCore:
         self._fwd_room: tuple[float, float, float] | None = None
         self._held_fwd: str | None = None  # ... the forward bound holds a drive under way
         self._fwd_zero = False  # its forward bound is 0 (why: `_limit_reason`)
-        # The monitor's sweep run on the map (`_map_room`): (tuning, core) and (field,
-        # occupied cells' centres)
-        self._sweeper: tuple[SafetyTuning, SafetyCore] | None = None
-        self._map_pts: tuple[NavField, npt.NDArray[np.float64]] | None = None
         # The safety monitor's tuning (the node's [safety] section): the goal check plans
         # within its forward stop margin while it runs (GoalCheck.monitor)
         self.monitor_tuning = SafetyTuning()
@@ -909,7 +896,7 @@ class ControlCore:
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
-            cap = self._fwd_cap(v_des, w_des) if self.active else math.inf
+            cap = self._fwd_cap() if self.active else math.inf
             if v_des > cap:  # (on the same curve: ω with v, as the limiter slows it)
                 # A bound of 0 met with v still sent is a stop, as a turn's (H73, below): the
                 # PID latches it on any v > 1e-3 its limit bars (H03), so the goal ends once the
@@ -944,76 +931,38 @@ class ControlCore:
             self._ended_t = now  # the zero burst starts once braked to rest
         return v, w
 
-    def _map_room(self, v: float, w: float) -> float:
-        """The way left before the safety monitor's forward bound reaches 0 when the chair
-        drives the arc (v, ω) from where it is measured now, predicted by the monitor's own
-        sweep on the map's cells (inf: no monitor, no map, or clear to MAP_SWEEP_M). The
-        monitor sweeps the arc the chair is measured on, from scans: a turn onto a wall drops
-        its bound at once, and beyond its horizon it says nothing, so a chair cruising at its
-        cap met a bound already falling; clamped by the PID, its jerk peaked at 2.4-3.1 m/s³
-        (H76's residual)."""
-        fld, o = self.field, self.odom
-        if fld is None or o is None or not self.gates.monitor:
-            return math.inf
-        m = self.monitor_tuning
-        if self._sweeper is None or self._sweeper[0] is not m:
-            fp = self.footprint
-            self._sweeper = (m, SafetyCore(SafetyParams.of(m, fp.front_m, fp.rear_m,
-                                                             fp.half_width_m, (0.0, 0.0, 0.0)),
-                                           MAP_SWEEP_M))
-        if self._map_pts is None or self._map_pts[0] is not fld:
-            g = fld.map
-            iy, ix = np.nonzero(g.occupied)
-            self._map_pts = (fld, np.stack((g.origin_x_m + (ix + 0.5) * g.resolution_m,
-                                            g.origin_y_m + (iy + 0.5) * g.resolution_m), 1))
-        sweep = self._sweeper[1]
-        d = self._map_pts[1] - (o.x, o.y)
-        d = d[np.abs(d).max(axis=1) <= sweep.reach_m]
-        c, s = math.cos(o.yaw), math.sin(o.yaw)
-        pts = np.stack((c * d[:, 0] + s * d[:, 1], c * d[:, 1] - s * d[:, 0]), 1)
-        return sweep.free_fwd(pts, v, w) - m.stop_margin_m - MAP_SWEEP_SPARE_M
-
-    def _fwd_cap(self, v_des: float, w_des: float) -> float:
+    def _fwd_cap(self) -> float:
         """The most the limiter's v is steered to so that it stays under the safety monitor's
         forward bound as that falls ahead of the chair: the bound S(d) where the measured
         chair is now is the last limit's free extent less the way driven since (the PID
-        clamps the command to a staircase of these, one step a scan), or less if the
-        monitor's sweep on the map along the arc (v_des, ω_des) reads less (`_map_room`).
-        inf: no graded bound.
+        clamps the command to a staircase of these, one step a scan). inf: no graded bound.
 
         The cap looks ahead by the time v's rate takes to swing to 0 (its rise meanwhile
         taken off too: the limiter starts braking once v would peak over the bound), and by
         the lag of a jerk-limited tracker following the bound down: a target falling at r
         is tracked r²/2J above it, and along the bound r = S'(d)·S(d) ≤ the monitor's decel
         a, so S(d − v·look) leads by enough with look = a/2J (0.25 s)."""
+        if self._fwd_room is None or self.odom is None:
+            return math.inf
+        room, x, y = self._fwd_room
         o, m = self.odom, self.monitor_tuning
+        left = room - math.hypot(o.x - x, o.y - y)
+        # Not into the bound's last sweep step: the monitor reads its free extent in steps,
+        # and the next scan may read that one as 0, which latches the PID's stop on any v > 0
+        # still sent (nav_eval --monitor seed 7, behind the table: creeping on at 0.03 m/s,
+        # the goal ended so). (Cut from the whole curve instead, the chair crawled near every
+        # wall: median time 1.52 -> 1.63.)
+        if left <= LAST_STEPS * m.step_m + 1e-6:
+            return 0.0
         ax, jmax = self.limiter.v, self._v_lim()[1]
         up = max(ax.rate, 0.0)
         rise = up * up / (2.0 * jmax)
         look = (up + 0.5 * m.decel_mps2) / jmax
         # (led, what is sent runs ahead of a rising plan by 2τ·its rate: LeadAxis)
         lead = 2.0 * self._lead[0].tau * up if self._led[0] else 0.0
-
-        def under(left: float) -> float:
-            return max(stop_speed(left - (max(ax.value, 0.0) + rise + lead) * look,
-                                  m.decel_mps2, m.reaction_s, 0.0) - rise - lead, 0.0)
-
-        # The map's sweep only brings the chair down to a creep: slower, the monitor's own
-        # bound leads (the map's cells and its spare read a goal inside the monitor's stop
-        # margin, which the chair reaches at a creep, as out of reach; measured: the store
-        # room's goal was lost)
-        room = self._map_room(v_des, w_des) if v_des > MAP_SWEEP_CREEP_MPS else math.inf
-        cap = max(under(room), MAP_SWEEP_CREEP_MPS) if room < math.inf else math.inf
-        if self._fwd_room is not None and o is not None:
-            room, x, y = self._fwd_room
-            left = room - math.hypot(o.x - x, o.y - y)
-            # Not into the bound's last sweep step: the monitor reads its free extent in
-            # steps, and the next scan may read that one as 0, which latches the PID's stop on
-            # any v > 0 still sent (nav_eval --monitor seed 7, behind the table: creeping on at
-            # 0.03 m/s, the goal ended so). (Cut from the whole curve instead, the chair
-            # crawled near every wall: median time 1.52 -> 1.63.)
-            cap = min(cap, under(left) if left > LAST_STEPS * m.step_m + 1e-6 else 0.0)
-        return cap
+        cap = stop_speed(left - (max(ax.value, 0.0) + rise + lead) * look, m.decel_mps2,
+                         m.reaction_s, 0.0) - rise - lead
+        return max(cap, 0.0)
 
     def _lead_out(self, v: float, w: float, dt: float) -> tuple[float, float]:
         """What is sent for the planned (v, ω): led past the PID's prefilter (LeadAxis),

@@ -303,13 +303,11 @@ def unseen_swing(p: SafetyParams, fov: tuple[float, float], step: float = 0.001
 
 
 class SafetyCore:
-    def __init__(self, params: SafetyParams, horizon_m: float = 0.0) -> None:
-        """`horizon_m`: sweep at least this far (a planner predicting the bounds ahead)."""
+    def __init__(self, params: SafetyParams) -> None:
         self.p = params  # checked when created
         p = params
         lin = p.v_max_fwd_mps * p.reaction_s + p.v_max_fwd_mps ** 2 / (2 * p.decel_mps2)
-        # a little beyond the longest stop
-        self.horizon_m = max(lin + p.stop_margin_m + 0.5, horizon_m)
+        self.horizon_m = lin + p.stop_margin_m + 0.5  # a little beyond the longest stop
         self.horizon_rad = min(math.pi, p.omega_max_radps * p.reaction_s
                                + p.omega_max_radps ** 2 / (2 * p.alpha_radps2)
                                + p.stop_margin_rad + 0.2)
@@ -459,12 +457,6 @@ class SafetyCore:
         return self._unseen_bins[fov]
 
     # --- bounds --------------------------------------------------------------------------------
-    def free_fwd(self, pts: F64, v: float, omega: float) -> float:
-        """The free extent (m) along the forward path that `limit` sweeps at (v, ω) for
-        chair-frame points `pts` (N, 2) (inf: clear over the horizon)."""
-        near = pts[np.hypot(pts[:, 0], pts[:, 1]) <= self.reach_m]
-        return self._free(near, *self._arc(self._kappa(v, omega) if v > 0 else 0.0, 1.0))
-
     def limit(self, pts: F64, v: float, omega: float) -> Limit:
         """Bounds for chair-frame scan points `pts` (N, 2) while moving at (v, ω), from the
         geometry alone (no beam validity, no field of view: see `assess`)."""
