@@ -113,9 +113,9 @@ def test_the_last_sweep_step_before_a_bound_of_0_is_not_driven_into() -> None:
     """The monitor reads its free extent in sweep steps (`step_m`), and the next scan may read
     the last step before its bound of 0 as 0: the PID then latches a stop on any v > 0 still
     sent (H03), though the chair had not yet moved. So the core plans no v on a bound whose
-    way left is one step (nav_eval --monitor seed 7: a turn in place in the clutter read
-    0.12 then 0.10 m free, v just begun, "does not follow"; behind the table and at office
-    B's desk, creeping on, the same). Positive control: three steps left, it creeps on."""
+    way left is one step (nav_eval --monitor seed 7: behind the table, creeping on at
+    0.03 m/s, the goal ended at the PID's latch). Positive control: three steps left, it
+    creeps on."""
     m = SafetyTuning()
     caps = []
     for steps in (1, 3):
