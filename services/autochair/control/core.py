@@ -1243,12 +1243,15 @@ class ControlCore:
         if self._waits is None:
             self._waits = now
             self._count("monitor_holds")
-        why = self._limit_reason
-        self._last_blocked = (f"the safety monitor holds the chair: {why}", now)
+        self._last_blocked = (self._monitor_holds(), now)
         if now - self._waits >= self.cfg.blocked_abort_s:
             self._stopped(ABORTED, f"the safety monitor held the chair for "
-                                   f"{now - self._waits:.0f} s ({why}); give the goal again",
-                          now)
+                                   f"{now - self._waits:.0f} s ({self._limit_reason}); "
+                                   "give the goal again", now)
+
+    def _monitor_holds(self) -> str:
+        """What a chair the monitor holds before it moved shows (blocked: `_hold_stand`)."""
+        return f"the safety monitor holds the chair: {self._limit_reason}"
 
     @staticmethod
     def _seen_m2(fld: NavField | None) -> float:
@@ -1681,7 +1684,7 @@ class ControlCore:
             eta = self.eta(dist, wrap(self.waypoints[-1].yaw_rad - o.yaw))
         state, reason = self.state, self.reason
         if self._waits is not None and self.active and state != BLOCKED:
-            state, reason = BLOCKED, f"the safety monitor holds the chair: {self._limit_reason}"
+            state, reason = BLOCKED, self._monitor_holds()
         return Status(self.goal_id, state, max(self.index - self.lineups, 0),
                       len(self.waypoints) - self.lineups, dist, eta, reason)
 

@@ -521,6 +521,13 @@ def spread(yaw: float, offs: F64, spare: float) -> F64:
     return psi
 
 
+def rests_within(info: dict[str, F64], n: int) -> npt.NDArray[np.bool_]:
+    """Of the first `n` rollouts in `_costs`' `info`, those that end at rest within the
+    horizon (their last step moves < 1 mm): beyond it the prediction says nothing."""
+    return np.asarray(np.hypot(info["x"][:n, -1] - info["x"][:n, -2],
+                               info["y"][:n, -1] - info["y"][:n, -2]) < 1e-3)
+
+
 class Mpepc:
     def __init__(self, field: NavField, law: LawParams, params: MpepcParams | None = None) -> None:
         self.field, self.law = field, law
@@ -1921,10 +1928,9 @@ class Mpepc:
                              ahead_s=q.ahead_s + wait) for q in people]
             cost, info = self._costs(pose, 0.0, 0.0, zz, ctg, moved, goal, rates, final, hf,
                                      line=np.arange(n + 1) < n)
-            ok = info["hit"][:n] == 0.0
-            xs, ys, yaws = info["x"][:n], info["y"][:n], info["yaw"][:n]
             # (ended at rest within the horizon: beyond it the prediction says nothing)
-            ok &= np.hypot(xs[:, -1] - xs[:, -2], ys[:, -1] - ys[:, -2]) < 1e-3
+            ok = (info["hit"][:n] == 0.0) & rests_within(info, n)
+            xs, ys, yaws = info["x"][:n], info["y"][:n], info["yaw"][:n]
             ok &= self.later_plans_clear(xs, ys, yaws, moved)
             if not ok.any():
                 return None
@@ -2049,8 +2055,12 @@ class Mpepc:
         # (a straight shorter than in_place_r_m is predicted standing, its sweep checked by the
         # caller: at the least speed, as before; a row over it would be "turn, then go on")
         short = not turn and rz[0] < self.p.in_place_r_m
-        speeds = np.array([hi]) if crossing and not short else np.array([vmin]) \
-            if turn or short or hi <= lo else np.linspace(lo, hi, STAGE_SPEEDS)
+        if crossing and not short:
+            speeds = np.array([hi])
+        elif turn or short or hi <= lo:
+            speeds = np.array([vmin])
+        else:
+            speeds = np.linspace(lo, hi, STAGE_SPEEDS)
         k = speeds.size
         zz = np.zeros((k + 1, 4))  # (the last row: braking to rest, the stop cost)
         zz[:k, 0], zz[:k, 1], zz[:k, 3] = rz[0], rz[1], speeds
@@ -2061,8 +2071,7 @@ class Mpepc:
         i0 = 0
         if whole:  # (`whole`: the speeds at which the straight ends within the horizon, from
             # the least of them up)
-            ends = np.hypot(info["x"][:k, -1] - info["x"][:k, -2],
-                            info["y"][:k, -1] - info["y"][:k, -2]) < 1e-3
+            ends = rests_within(info, k)
             if not ends.any():
                 return None
             i0 = int(np.argmax(ends))
