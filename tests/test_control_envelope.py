@@ -127,3 +127,28 @@ def test_the_last_sweep_step_before_a_bound_of_0_is_not_driven_into() -> None:
         core.on_limit(bound, 1.0, f"free fwd {free:.2f} m", 0.0)
         caps.append(core._fwd_cap())
     assert caps[0] == 0.0 < caps[1], caps
+
+
+def test_a_goal_within_the_stop_margin_is_met_where_the_bound_ends_it() -> None:
+    """A goal 0.08 m (padded) short of a wall, inside the monitor's 0.10 m stop margin: the
+    straight final creeps under the forward bound and stands where it comes to 0, within the
+    5 cm tolerance, and arrives; the PID never clamps a command (0 over the bound). The old
+    core drove the straight final uncapped: through the bound's 0 at speed, the PID latched
+    its stop and the chair coasted into the margin (nav_eval --monitor: the dead end)."""
+    goal = 3.0
+    r = drive_to_wall(goal + FRONT_M + 0.08, goal)
+    assert r["state"] == "arrived", r
+    assert r["clamped"] == 0, r
+
+
+def test_a_goal_deeper_in_the_stop_margin_waits_as_blocked_then_ends_naming_the_monitor(
+        ) -> None:
+    """A goal 0.03 m short of a wall: the bound's last step leaves the chair standing 8 cm
+    short, out of tolerance. It waits as blocked by the monitor, as for a person in front,
+    and the goal ends after `blocked_abort_s` naming it. (Without the last step counted as
+    the monitor's hold, it waited unexplained for "no progress", 15 s.)"""
+    goal = 3.0
+    r = drive_to_wall(goal + FRONT_M + 0.03, goal)
+    assert r["state"] == "aborted" and "safety monitor held the chair for 12 s" in str(
+        r["reason"]), r
+    assert r["clamped"] == 0, r

@@ -714,7 +714,7 @@ class ControlCore:
         self._fwd_room = None if v_fwd >= m.v_max_fwd_mps or self.odom is None else (
             max(v_fwd, 0.0) * m.reaction_s + v_fwd * v_fwd / (2.0 * m.decel_mps2),
             self.odom.x, self.odom.y)
-        if omega_max > HELD_RADPS and not self._fwd_zero:
+        if omega_max > HELD_RADPS and not self._fwd_zero and self._fwd_cap() > 0.0:
             self._waits = None
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
@@ -886,27 +886,30 @@ class ControlCore:
             # The PID has latched its stop (above): nothing more is planned, and the goal ends
             # once the chair stands (_hold_stand); driven on, it ended 2 s later, "does not follow"
             self._move, v_des, w_des = None, 0.0, 0.0
+        # Every v sent stays under the monitor's forward bound (_fwd_cap): the law's, a move's
+        # (the straight final, a landing, a door's straight) and the lead's. A goal within the
+        # monitor's stop margin is then met where its bound comes to 0, standing, within the
+        # tolerance or short of it. Moves were driven uncapped: through the bound's 0 at up to
+        # 0.66 m/s, the PID latched its stop and the chair coasted into the margin (nav_eval
+        # --monitor: the dead end, the clutter's far corner).
+        cap = self._fwd_cap() if self.active else math.inf
+        if self.active and self._fwd_zero and self._held_fwd is None \
+                and self.limiter.v.value > 1e-3:
+            # A bound of 0 met with v still sent is a stop, as a turn's (H73): the PID latches
+            # it on any v > 1e-3 its limit bars (H03), so the goal ends once the chair stands,
+            # even if the bound lifts first (cleared then, the core drove on into the latched
+            # PID: "does not follow", the clutter's far side, nav_eval --monitor seed 7). A
+            # chair whose v the core has already braked to 0 (still coasting, or not yet
+            # moving) stops by its own command: the PID latches nothing, and the chair waits
+            # for the bound (blocked), as for a person in the way.
+            self._held_fwd = self._limit_reason
         if self._move is not None and self.active:
-            # (not capped by the forward bound: the goal's last moves, a door's straight stage
-            # and turns in place are short and slow, and each ends at rest where it was
-            # checked to; capped, a single scan's bound of 0 cut the landing of L's corner
-            # short for good, and the chair stood 1 cm off, "no progress": nav_eval seed 1)
-            v, w = self.limiter.move(*self._move, dt, vmax=min(self.vmax, self._move_vmax),
+            v, w = self.limiter.move(*self._move, dt, vmax=min(self.vmax, self._move_vmax, cap),
                                      v_lim=self._v_lim())
             if self._land_left is not None:
                 self._land_left -= v * dt
         else:
-            cap = self._fwd_cap() if self.active else math.inf
             if v_des > cap:  # (on the same curve: ω with v, as the limiter slows it)
-                # A bound of 0 met with v still sent is a stop, as a turn's (H73, below): the
-                # PID latches it on any v > 1e-3 its limit bars (H03), so the goal ends once the
-                # chair stands, even if the bound lifts first (cleared then, the core drove on
-                # into the latched PID: "does not follow", the clutter's far side, nav_eval
-                # --monitor seed 7). A chair whose v the core has already braked to 0 (still
-                # coasting, or not yet moving) stops by its own command: the PID latches nothing,
-                # and the chair waits for the bound (blocked), as for a person in the way.
-                if self._fwd_zero and self._held_fwd is None and self.limiter.v.value > 1e-3:
-                    self._held_fwd = self._limit_reason
                 w_des, v_des = (w_des * cap / v_des if cap > 0.0 else 0.0), cap
             # (led v within the lead's limits also once its move is over or given up: someone
             # stepped in on the straight final and the law brakes it, or the final turn's stop)
@@ -914,7 +917,7 @@ class ControlCore:
         if self._plan_chain is not None and dt > 0.0:
             self._plan_chain[0].push(dt, v)
             self._plan_chain[1].push(dt, w)
-        v, w = self._lead_out(v, w, dt)
+        v, w = self._lead_out(v, w, dt, cap)
         if self.active and v < 1e-3 and abs(w) <= HELD_RADPS and self.odom is not None \
                 and self._stands(self.odom):
             self._hold_stand(now)
@@ -964,9 +967,11 @@ class ControlCore:
                          m.reaction_s, 0.0) - rise - lead
         return max(cap, 0.0)
 
-    def _lead_out(self, v: float, w: float, dt: float) -> tuple[float, float]:
+    def _lead_out(self, v: float, w: float, dt: float, cap: float) -> tuple[float, float]:
         """What is sent for the planned (v, ω): led past the PID's prefilter (LeadAxis),
-        within the goal's speed and the turn-rate bound, and v never below 0 (forward only): the
+        within the goal's speed, the monitor's forward bound (`cap`: a lead catching up on what
+        the prefilter held drove a chair standing at the bound's last step on into the stop
+        margin) and the turn-rate bound, and v never below 0 (forward only): the
         PID would clamp a reverse command to the safety monitor's 0 and stop the chair. What a clamp
         changes is real motion, which the predictor sees (it is fed what is sent)."""
         lim = self.limiter.lim
@@ -982,7 +987,9 @@ class ControlCore:
                 self._led[i] = False
             out.append(c)
         cv, cw = out
-        vm = min(lim.v_max_mps, self.vmax)
+        # (the lead's excess only: the planned v itself brakes onto a falling cap within the
+        # jerk bound, and cut to it at once, a bound of 0 stepped the command to 0)
+        vm = min(lim.v_max_mps, self.vmax, max(cap, v))
         # (forward only, whatever the planned v's sign: a move begun on an axis still braking,
         # the straight final handed over as a door's straight stage stopped, undershot to
         # −0.02 m/s, and the monitor's reverse bound of 0 made that a safety stop, nav_eval
@@ -1226,19 +1233,21 @@ class ControlCore:
 
     def _hold_stand(self, now: float) -> None:
         """The chair stands, commanded and measured, during a goal: under the monitor's |ω|
-        bound of ~0 or its forward bound of 0 (`on_limit`). A motion under way it brought to a
-        stand is a safety stop: the goal ends (H73, H76). A chair it holds before it moved
-        waits as blocked, saying why, and goes on once the bound lifts, as for a person in the
-        way: the start the goal asked for, shown, not a restart. Held for `blocked_abort_s`,
-        the goal ends. The old core showed "driving" at a stand and went on by itself up to
-        `no_progress_s` later."""
+        bound of ~0 or its forward bound of 0 (`on_limit`; or its last step, `_fwd_cap`). A
+        motion under way it brought to a stand is a safety stop: the goal ends (H73, H76). A
+        chair it holds before it moved waits as blocked, saying why, and goes on once the bound
+        lifts, as for a person in the way: the start the goal asked for, shown, not a restart.
+        Held for `blocked_abort_s`, the goal ends. The old core showed "driving" at a stand
+        and went on by itself up to `no_progress_s` later."""
         held = self._held or self._held_fwd
         if held is not None:
             self._stopped(ABORTED, f"the safety monitor stopped the chair ({held}); "
                                    "give the goal again to go on", now)
             return
+        # (its forward bound's last step counts as its 0, LAST_STEPS: standing there, short of
+        # a goal within the stop margin, the chair waited for "no progress", 15 s, unexplained)
         if (not self._omega_bounds or self._omega_bounds[-1][1] > HELD_RADPS) \
-                and not self._fwd_zero:
+                and not self._fwd_zero and self._fwd_cap() > 0.0:
             return
         if self._waits is None:
             self._waits = now
