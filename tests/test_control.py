@@ -1271,3 +1271,60 @@ def test_the_cores_own_final_approach_is_driven_no_faster_than_the_plans_sight_r
 
     assert peak(math.inf) > 1.0
     assert 0.25 < peak(0.3) <= 0.3 + 1e-9
+
+
+def _to_lineup(monitor: bool) -> tuple[ControlCore, list[tuple[float, float]]]:
+    """The core 0.15 m from a door's line-up pose (MPEPC's target, the goal beyond the door),
+    facing 42° off its heading and creeping on at 0.09 m/s, as nav_eval --monitor seed 7's
+    "door: back to room A" came to it; `monitor`: the safety monitor's limit is in force (its
+    bound the cap: clear). A chair that follows at once; (v, ω) sent until the line-up is
+    passed (3 s at most)."""
+    from autochair.nav.mpepc import Plan
+    from autochair.nav.planner import PlanResult
+
+    core = fresh_core(INSTANT)
+    core.inline_planning = False
+    pose = [5.69, 0.94, math.radians(138.0)]
+    lineup = Pose2D(5.55, 1.01, math.pi)
+    core.on_odom(OdomSample(pose[0], pose[1], pose[2], 0.09, 0.0, 0.0))
+    if monitor:
+        core.on_limit(1.2, 1.0, "clear", 0.0)
+    assert core.set_goal(GoalRequest(waypoints=[lineup, Pose2D(1.0, 0.0, math.pi)]), 0.0).ok
+    core.lineups = 1  # (as the route check inserts it before the door)
+    core.limiter.v.reset(0.09)
+    z = egocentric(pose[0], pose[1], pose[2], lineup.x_m, lineup.y_m, lineup.yaw_rad)
+    plan = Plan((*z, 1.2), (lineup.x_m, lineup.y_m, lineup.yaw_rad), 1.2, 0.0, 0.1, 1.0, 0.1,
+                np.zeros((1, 3)), True, math.nan, 0.0, 1)
+    sent: list[tuple[float, float]] = []
+    t = 0.0
+    while t < 3.0 and core.index == 0:
+        core.on_plan(PlanResult(core.goal_id, core.index, core.field, None, plan), t)  # type: ignore[arg-type]
+        for _ in range(25):
+            if monitor:
+                core.on_limit(1.2, 1.0, "clear", t)
+            v, w = core.step(t) or (0.0, 0.0)
+            sent.append((v, w))
+            pose[2] = wrap(pose[2] + w * 0.02)
+            pose[0] += v * math.cos(pose[2]) * 0.02
+            pose[1] += v * math.sin(pose[2]) * 0.02
+            core.on_odom(OdomSample(pose[0], pose[1], pose[2], v, w, t))
+            t += 0.02
+    return core, sent
+
+
+def test_a_lineup_within_reach_is_turned_onto_not_steered_onto_by_an_s() -> None:
+    """H76 (nav_eval --monitor seed 7, back to room A): 0.15 m from a door's line-up pose,
+    42° off its heading, the law's way onto it is an S at its ω floor: it turns away first
+    (ω −0.5 rad/s at 0.06 m/s), then back. The safety monitor sweeps the measured arc, which
+    the flip swings from one side to the other; a wall on the side turned to first dropped its
+    free extent 0.82 -> 0.08 m within 0.3 s with v still sent, the PID latched its stop and
+    the goal ended. With the monitor the core turns in place onto the line-up's heading (v
+    braked, ω one-signed) and the line-up is reached there. Positive control: without the
+    monitor the law's S is driven as before (ω of both signs while moving over 0.05 m/s)."""
+    core, sent = _to_lineup(monitor=True)
+    assert core.index == 1 and core.active  # (the line-up passed: on to its door)
+    assert min(w for _, w in sent) > -1e-9  # (never turned away from its heading)
+    assert all(v <= 0.09 + 1e-9 for v, _ in sent)
+    _, sent = _to_lineup(monitor=False)
+    turning = [w for v, w in sent if v > 0.05]
+    assert min(turning) < -0.1 and max(turning) > 0.1

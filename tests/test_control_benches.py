@@ -204,6 +204,21 @@ def test_a_creep_near_an_obstacle_stops_short_of_the_monitors_last_step(
     assert not old["arrived"] and "safety monitor stopped" in old["reason"], old
 
 
+def test_a_lineup_within_reach_is_turned_onto_with_the_monitor(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """nav_eval --monitor seed 7, back to room A (H76): 0.15 m from the door's line-up, 42°
+    off its heading, the chair turns in place onto it (`ControlCore._lineup_turns`) and
+    arrives. Positive control: steered onto it by the law's S, the pivot's ω flipped sign at
+    0.06 m/s, the monitor's sweep of the measured arc swung onto the wall (free extent 0.82 ->
+    0.08 m in 0.3 s) with v still sent, the PID latched its stop and the goal ended, naming
+    the monitor."""
+    r = _monitored("door: back to room A", 7)
+    assert r["arrived"] and r["collisions"] == 0 and r["monitor"]["estops"] == 0, r
+    monkeypatch.setattr(ControlCore, "_lineup_turns", lambda *_: False)
+    old = _monitored("door: back to room A", 7)
+    assert not old["arrived"] and "safety monitor stopped" in old["reason"], old
+
+
 def test_a_door_a_person_paces_beyond_is_crossed_clear_of_them_with_the_monitor() -> None:
     """H75 (nav_eval --monitor, seed 1): a person paces at 1 m/s from room B's far wall out
     across its door's exit and back, forever. The old code stood in the door (or spun at its

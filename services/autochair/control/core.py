@@ -586,6 +586,7 @@ class ControlCore:
         # in a door frame met the jamb in that sweep; planner's PlanRequest.door). Until a
         # stage takes the chair through, it brakes; `_door_rest`: a plan was asked for at rest.
         self._door = self._door_rest = False
+        self._lineup_turn: int | None = None  # the line-up whose heading is turned onto in place
         self.final = False  # MPEPC took the goal itself: the law's own final approach
         self.people: list[Person] = []
         # Goals in `map` (nav/frames.py): the requested waypoints, re-expressed in `odom` on
@@ -804,6 +805,7 @@ class ControlCore:
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
         self.aligning = self.straight = self.final = False
         self._door = self._door_rest = False
+        self._lineup_turn = None
         self._land_left = None
         self.ctg, self._ctg_field, self._ctg_index, self.plan = ctg, check.fld, 0, None
         self._lineup_field = check.fld
@@ -1545,7 +1547,7 @@ class ControlCore:
             return 0.0, 0.0
         turn = p.z[0] < IN_PLACE_R_M and abs(wrap(tyaw - o.yaw)) >= 2 * ALIGNED_RAD
         r = math.hypot(tx - o.x, ty - o.y)
-        if turn or r < self.tol_m * self.cfg.capture_fraction:
+        if turn or r < self.tol_m * self.cfg.capture_fraction or self._lineup_turns(p, o, r):
             self._move = (None, wrap(tyaw - o.yaw))  # time-optimal in-place turn
             return 0.0, 0.0
         if p.z[0] < IN_PLACE_R_M and along_lateral((o.x, o.y, o.yaw), tx, ty)[0] <= 0.0 \
@@ -1578,6 +1580,38 @@ class ControlCore:
             if out.v_mps > cap:
                 return cap, out.omega_radps * cap / out.v_mps
         return out.v_mps, out.omega_radps
+
+    def _lineup_turns(self, p: Plan, o: OdomSample, r: float) -> bool:
+        """With the safety monitor: whether the chair turns in place onto the heading of a
+        door's line-up pose, MPEPC's target, instead of steering onto it by the law. So when
+        it is within the line-up's reach (`LINEUP_M`: there only the heading is missing,
+        `_desired`), can still stop within it braking now (not a line-up passed at speed), the
+        law would first turn away from that heading (an S), and the turn sweeps clear of the
+        map. That close the law's S is a pivot at its ω floor (|κ| ~ 1/r: 8 /m at 0.15 m,
+        v = 0.5 rad/s / |κ| = 0.06 m/s) whose ω changes sign within 0.4 s. The monitor sweeps
+        the measured arc (|κ| up to 3 /m once over 0.05 m/s), so the flip swings its sweep
+        from one side of the chair to the other: at a wall on the side turned to first its
+        free extent fell 0.82 -> 0.08 m in 0.3 s with v still sent, the PID latched its stop
+        (H03) and the goal ended (nav_eval --monitor seed 7, back to room A; H76). Once begun
+        the turn goes on while MPEPC keeps the line-up as its target within reach. A law
+        turning towards the heading pivots without a flip and is left as it was; without the
+        monitor the S is driven as before."""
+        i = self.index
+        if not (self.gates.monitor and p.is_goal and i < self.lineups and r <= LINEUP_M):
+            self._lineup_turn = None
+            return False
+        if self._lineup_turn == i:
+            return True
+        e = wrap(p.target[2] - o.yaw)
+        out = park_kuipers(o.x, o.y, o.yaw, *p.target, self.gains, min(p.vmax_mps, self.vmax),
+                           omega_floor=self.cfg.omega_floor_radps)
+        lv = self.limiter.v
+        if out.omega_radps * e < 0.0 \
+                and lv.value <= braking_speed(LINEUP_M - r, lv.amax, lv.jmax) \
+                and self._room_to_turn(o, e):
+            self._lineup_turn = i
+            return True
+        return False
 
     def _plan_stale(self, now: float) -> bool:
         """The newest plan is older than three planning periods (a starved planning thread):
