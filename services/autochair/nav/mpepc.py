@@ -71,6 +71,11 @@ MONITOR_SPARE_M = 0.06
 # map draws people where they stand and walk (session 21: nothing clears those cells); the
 # monitor sees them, but MPEPC's own people checks are what keeps the chair off them
 PERSON_CELLS_M = 0.3
+# ... and only down to this speed: slower, the monitor's bound, read over its 2.5 m horizon,
+# leads the core's own cap (control/core.py _fwd_cap) in time (the jolts were all from cruise,
+# at 0.8-1.2 m/s, or a turn at speed). Down to v_min (0.15 m/s) the chair crept up to goals in
+# corners and lost tight ones (nav_eval --monitor seed 2: 3 of 35)
+MONITOR_FLOOR_MPS = 0.4
 
 
 @dataclass(frozen=True)
@@ -2503,10 +2508,10 @@ class Mpepc:
             # the stop after the plan period), else the plan is left as it was.
             ahead = self.monitor_top(pose, v0, w0, best, people, monitor)
             n_c = math.floor(self.law.commit_s / self.p.dt_s + 1e-9) + 1  # (with the step after)
-            if float(best["v"][:n_c].max(initial=abs(v0))) > ahead:
+            if float(best["v"][:n_c].max(initial=abs(v0))) > max(ahead, MONITOR_FLOOR_MPS):
                 # (v capped on the law's curve, not vmax lowered: that also scales the law's
                 # slowdown onto its target, and the chair crawled up to door line-ups)
-                ahead = max(ahead, self.p.v_min_mps)
+                ahead = max(ahead, MONITOR_FLOOR_MPS)
                 c4, inf4 = self._costs(pose, v0, w0, best_z[None, :], ctg, people, goal, rates,
                                        final, heading, chain, vcap=ahead)
                 evals += 1
