@@ -1085,8 +1085,7 @@ class ControlCore:
                            self.plan is not None and self.plan.turn_first, self._door,
                            self.index == self.lineups and self.field is not None
                            and fld is not self._lineup_field,
-                           self.plan is not None and self.plan.crossing,
-                           self.monitor_tuning if self.gates.monitor else None)
+                           self.plan is not None and self.plan.crossing)
 
     def _standing_omega(self, now: float) -> float:
         """The safety monitor's standing |ω| bound (PLAN_OMEGA_WINDOW_S): the largest it
@@ -1491,8 +1490,6 @@ class ControlCore:
             self._move = (along, None)
             return 0.0, 0.0
         v = min(v, out.v_mps, cfg.approach_rate_1ps * r)
-        if self.plan is not None:  # (the safety monitor's bound MPEPC anticipated: H76)
-            v = min(v, self.plan.monitor_mps)
         return v, out.kappa_1pm * v
 
     def _turn_swing(self) -> float:
@@ -1554,10 +1551,6 @@ class ControlCore:
             return 0.0, 0.0
         out = park_kuipers(o.x, o.y, o.yaw, tx, ty, tyaw, self.gains, min(p.vmax_mps, self.vmax),
                            omega_floor=self.cfg.omega_floor_radps)
-        if out.v_mps > p.monitor_mps:  # (the safety monitor's bound MPEPC anticipated, on the
-            # same curve, as it predicted: Mpepc._law, H76)
-            out = replace(out, v_mps=p.monitor_mps,
-                          omega_radps=out.omega_radps * p.monitor_mps / out.v_mps)
         # Never faster than a stop on the goal at the limiter's full braking allows, heading
         # for it: the plan that hands the goal over may come late (a loaded CPU: 0.37 s, and
         # a forward-only chair overshot a goal 6 cm it could not come back to). Heading for

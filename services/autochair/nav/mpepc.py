@@ -42,7 +42,6 @@ from scipy.stats import qmc
 from autochair.control.law import Gains, heads_for
 from autochair.control.limits import AxisState, ComfortLimiter, SCurveAxis
 from autochair.geometry import along_lateral
-from autochair.safety.core import SafetyCore, SafetyParams, SafetyTuning, stop_speed
 
 from .field import (
     BATCH_POINTS,
@@ -62,20 +61,6 @@ from .lattice import HeadingField
 F64 = npt.NDArray[np.float64]
 ALIGNED_RAD = 0.05  # an in-place turn is done within this heading error (then it may go)
 LIMITER_LOOKAHEAD_S = ComfortLimiter().lookahead_s  # ControlConfig.law does not pass it
-# The safety monitor's forward bound predicted on the map (Mpepc.monitor_top): the map's cells
-# read the free extent this much longer than the monitor does on the laser's points (cell
-# centres lie up to half a cell inside a surface; laser noise): the 90th percentile of map
-# minus monitor free extent in nav_eval --monitor traces (session 30, map-sweep-s30.md)
-MONITOR_SPARE_M = 0.06
-# ... on cells not within a person's radius plus this of where MPEPC predicts them: the laser's
-# map draws people where they stand and walk (session 21: nothing clears those cells); the
-# monitor sees them, but MPEPC's own people checks are what keeps the chair off them
-PERSON_CELLS_M = 0.3
-# ... and only down to this speed: slower, the monitor's bound, read over its 2.5 m horizon,
-# leads the core's own cap (control/core.py _fwd_cap) in time (the jolts were all from cruise,
-# at 0.8-1.2 m/s, or a turn at speed). Down to v_min (0.15 m/s) the chair crept up to goals in
-# corners and lost tight ones (nav_eval --monitor seed 2: 3 of 35)
-MONITOR_FLOOR_MPS = 0.4
 
 
 @dataclass(frozen=True)
@@ -433,10 +418,6 @@ class Plan:
     # candidate's vmax, the goal's own approach (row 0) too, was at most this, so the core's
     # own final approach drives no faster (control/core.py _desired)
     sight_mps: float = math.inf
-    # The safety monitor's bound anticipated along the plan's own prediction (Mpepc.monitor_top;
-    # inf: none binds): the law's v capped to it on the same curve, as predicted (Mpepc._law;
-    # control/core.py _follow_plan, and the core's own final approach, _desired)
-    monitor_mps: float = math.inf
     # A door's crossing straight (Mpepc.door_crossing): the rest of it under way is rechecked
     # at the speed it was given only (stage_plan's `crossing`), not from the least speed up:
     # crossing a person's way, slower is not safer (a crawl is still in it when they come).
@@ -559,10 +540,6 @@ class Mpepc:
         self._rng = np.random.default_rng(p.seed)
         self._free: tuple[Chain, dict[float, tuple[F64, F64]]] | None = None
         self._at_pose: dict[tuple[bytes, tuple[Any, ...]], float] = {}
-        # The monitor's sweep for its tuning on this chair, and the map's occupied cells'
-        # centres (Mpepc.monitor_top)
-        self._sweep: tuple[SafetyTuning, SafetyCore] | None = None
-        self._cells: F64 | None = None
 
     def bounds(self) -> tuple[F64, F64]:
         p = self.p
@@ -631,8 +608,7 @@ class Mpepc:
     def simulate(self, pose: tuple[float, float, float], v0: float, w0: float,
                  z: F64, a0: float = 0.0, q0: float = 0.0,
                  goal: tuple[float, float, float] | None = None, last: bool = True,
-                 chain: Chain | None = None, line: npt.NDArray[np.bool_] | None = None,
-                 vcap: float = math.inf
+                 chain: Chain | None = None, line: npt.NDArray[np.bool_] | None = None
                  ) -> tuple[F64, F64, F64, F64, F64, F64, tuple[float, float, float] | None]:
         """Predicted (x, y, yaw, v, ω), each (N, T), of candidates z (N, 4), from the limiter's
         state (v0, a0; ω0, ω̇0); and (3, N, B) poses of the motion committed to until
@@ -642,7 +618,7 @@ class Mpepc:
         itself, if it is the `last` waypoint, are driven on the core's final approach.
         With the core's `chain`, the committed sweeps are the body's poses as that chain
         passes the committed motion's and the stop's commands on (chain_sweep). `line`: the
-        candidates that are a stage's straight (law_step's); `vcap`: _law's."""
+        candidates that are a stage's straight (law_step's)."""
         g, dt = self.law, self.p.dt_s
         n = z.shape[0]
         in_place = z[:, 0] < self.p.in_place_r_m
@@ -697,8 +673,7 @@ class Mpepc:
             yaw_was = ww[n:].copy() if j_b < 0 and spin is not None else None
             xx, yy, ww = self.law_step(xx, yy, ww, both, tgt2, vmax2, turning2, arrived2, final2,
                                        dts, jerk_from=0 if self.p.v_jerk else n,
-                                       law_upto=None if j_b < 0 else n, cap=cap, line=line2,
-                                       vcap=vcap)
+                                       law_upto=None if j_b < 0 else n, cap=cap, line=line2)
             if yaw_was is not None and spin is not None:
                 ww[n:] = self.spin_step(spin, yaw_was, ww[n:], both[:, n:], tgt, turning2[n:],
                                         span / n_c)
@@ -724,7 +699,7 @@ class Mpepc:
         sure = np.empty((3, n, 0))
         if j_b < 0:  # (the committed motion outlasts the prediction)
             sure = self.committed(*side, tgt, vmax, turning2[n:].copy(), arrived2[n:].copy(),
-                                  on_final, span, m, kept, cmds, spin, cap, line, vcap)
+                                  on_final, span, m, kept, cmds, spin, cap, line)
         elif own:  # (the stop goes on alone where it outlasts the prediction)
             sure = np.concatenate([np.stack(kept, -1), np.stack(stop, -1) if stopped
                                    else self.braking(*side, j_b, stop, cmds)], -1)
@@ -740,7 +715,7 @@ class Mpepc:
         turning, arrived = turning2[:n].copy(), arrived2[:n].copy()
         for step_dt, k in sched[m:]:
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, on_final,
-                                      step_dt, self.p.v_jerk, cap=cap, line=line, vcap=vcap)
+                                      step_dt, self.p.v_jerk, cap=cap, line=line)
             if k >= 0:
                 out[0, :, k], out[1, :, k], out[2, :, k] = x, y, yaw
                 out[3, :, k], out[4, :, k] = st[0], st[2]
@@ -751,7 +726,7 @@ class Mpepc:
                   final: npt.NDArray[np.bool_] | None, span_s: float, start: int = 0,
                   kept: list[F64] | None = None, cmds: list[F64] | None = None,
                   spin: Spin | None = None, cap: tuple[float, float, float] | None = None,
-                  line: npt.NDArray[np.bool_] | None = None, vcap: float = math.inf) -> F64:
+                  line: npt.NDArray[np.bool_] | None = None) -> F64:
         """(3, N, B) poses of what a plan commits the chair to: its first `span_s` as the
         core's limiter drives it (v's jerk on, steps of `exact_dt_s`), then braking to rest from
         there (from its step `start` on, the poses kept before it in `kept`: simulate runs the
@@ -770,7 +745,7 @@ class Mpepc:
         for k in range(start, n):
             yaw_was = yaw.copy()
             x, y, yaw = self.law_step(x, y, yaw, st, tgt, vmax, turning, arrived, final,
-                                      span_s / n, True, cap=cap, line=line, vcap=vcap)
+                                      span_s / n, True, cap=cap, line=line)
             if spin is not None:
                 yaw = self.spin_step(spin, yaw_was, yaw, st, tgt, turning, span_s / n)
             if cmds is not None:
@@ -903,8 +878,7 @@ class Mpepc:
                  final: npt.NDArray[np.bool_] | None, dt: float | F64, v_jerk: bool = False,
                  jerk_from: int | None = None, law_upto: int | None = None,
                  cap: tuple[float, float, float] | None = None,
-                 line: npt.NDArray[np.bool_] | None = None, vcap: float = math.inf
-                 ) -> tuple[F64, F64, F64]:
+                 line: npt.NDArray[np.bool_] | None = None) -> tuple[F64, F64, F64]:
         """The 50 Hz loop over dt (per candidate if an array): the law (or the in-place turn)
         towards the targets, then the limiter; `turning` and `arrived` are updated in place.
         `final`: the candidates on the core's final approach (None: none). `jerk_from`: v's
@@ -913,11 +887,11 @@ class Mpepc:
         out, nor their `turning` and `arrived`: simulate's stops, side by side). `cap`: the
         last waypoint, towards which the core caps v (_law; None: not the last). `line`: the
         candidates that are a stage's straight, which the core drives by its time-optimal move
-        onto the target's point without steering (_law; None: none). `vcap`: _law's."""
+        onto the target's point without steering (_law; None: none)."""
         k = x.size if law_upto is None else law_upto
         vd, wd = self._law(x[:k], y[:k], yaw[:k], st[:, :k], tgt[:k], vmax[:k], turning[:k],
                            arrived[:k], None if final is None else final[:k], cap,
-                           None if line is None else line[:k], vcap)
+                           None if line is None else line[:k])
         if k < x.size:  # (the law's v and ω with vmax 0, as below: 0)
             rest = np.zeros(x.size - k)
             vd, wd = np.concatenate([vd, rest]), np.concatenate([wd, rest])
@@ -926,10 +900,8 @@ class Mpepc:
     def _law(self, x: F64, y: F64, yaw: F64, st: F64, tgt: F64, vmax: F64,
              turning: npt.NDArray[np.bool_], arrived: npt.NDArray[np.bool_],
              final: npt.NDArray[np.bool_] | None, cap: tuple[float, float, float] | None = None,
-             line: npt.NDArray[np.bool_] | None = None, vcap: float = math.inf
-             ) -> tuple[F64, F64]:
-        """law_step's desired (v, ω), before the limiter. `vcap`: v at most this, on the same
-        curve (the safety monitor's bound anticipated: Plan.monitor_mps, as the core caps it)."""
+             line: npt.NDArray[np.bool_] | None = None) -> tuple[F64, F64]:
+        """law_step's desired (v, ω), before the limiter."""
         g = self.law
         tx, ty, tyaw = tgt[:, 0], tgt[:, 1], tgt[:, 2]
         dx, dy = tx - x, ty - y
@@ -988,8 +960,6 @@ class Mpepc:
         if final is not None:  # (control/core.py _desired: its braking curve)
             vd = np.where(final, np.minimum.reduce(
                 [vd, stop_within(r, g.brake_fraction), g.approach_rate_1ps * r]), vd)
-        if vcap < math.inf:
-            vd = np.minimum(vd, vcap)
         wd = kappa * vd if line is None else np.where(line, 0.0, kappa * vd)
         if captured.any():
             wa = np.sign(e) * np.minimum(np.minimum(g.omega_max_radps, np.sqrt(
@@ -1055,11 +1025,10 @@ class Mpepc:
                  ctg: CostToGo, people: list[Person], a0: float = 0.0, q0: float = 0.0,
                  goal: tuple[float, float, float] | None = None, last: bool = True,
                  hf: HeadingField | None = None, chain: Chain | None = None,
-                 line: npt.NDArray[np.bool_] | None = None, vcap: float = math.inf
-                 ) -> tuple[F64, dict[str, F64]]:
+                 line: npt.NDArray[np.bool_] | None = None) -> tuple[F64, dict[str, F64]]:
         p, dt, fld = self.p, self.p.dt_s, self.field
         xs, ys, yaws, vs, ws, brake, origin = self.simulate(pose, v0, w0, z, a0, q0, goal, last,
-                                                            chain, line, vcap)
+                                                            chain, line)
         t = np.asarray((np.arange(self.steps) + 1) * dt, dtype=np.float64)
         d0 = self.pose_clearance(pose)
         # A chair already within a margin (a noisy live map, a chair nudged to a wall, a cell
@@ -1133,7 +1102,7 @@ class Mpepc:
                       "stop_hit": stop_hit.astype(np.float64),
                       "escape": (np.full(len(z), touch is not None) & ~hit.any(1)).astype(
                           np.float64),
-                      "x": xs, "y": ys, "yaw": yaws, "v": vs, "w": ws}
+                      "x": xs, "y": ys, "yaw": yaws}
 
     def stop_clearance(self, pose: tuple[float, float, float], v0: float, w0: float,
                        sweep: F64, need: float, between: npt.NDArray[np.bool_] | None = None,
@@ -2377,8 +2346,7 @@ class Mpepc:
              previous_target: tuple[float, float, float, float] | None = None,
              rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
              heading: HeadingField | None = None, goal_turn: bool = True,
-             chain: Chain | None = None, on_line: bool = False,
-             monitor: SafetyTuning | None = None) -> Plan:
+             chain: Chain | None = None, on_line: bool = False) -> Plan:
         """The best z from the chair at `pose` (v0, ω0: the command it is tracking; `rates`:
         the limiter's dv/dt and dω/dt; `final`: `goal` is the last waypoint, which the core
         approaches on its braking curve once it is the target; an intermediate one it passes).
@@ -2388,9 +2356,7 @@ class Mpepc:
         `goal_turn`, the core's turn onto the goal's yaw keeps `contact_m`
         (goal_turn_clearance). `chain`: the core's drive chain, through which the committed
         sweeps are checked (chain_sweep). `on_line`: the core drives its straight final onto
-        the goal (no steering), which row 0, the law's approach, does not predict. `monitor`:
-        the safety monitor's tuning where it runs: the plan's speed is kept under the bound
-        it will read along the plan's own prediction (monitor_top)."""
+        the goal (no steering), which row 0, the law's approach, does not predict."""
         people = people or []
         lo, hi = self.bounds()
         prev = None
@@ -2500,120 +2466,10 @@ class Mpepc:
                     best_z, best_c, best = (z[0] if is_goal else zz[0]).copy(), float(c3[0]), {
                         k: v[0] for k, v in inf3.items()}
                     goal_clear = float(inf3["clearance"][0]) if is_goal else goal_clear
-        ahead = math.inf
-        if monitor is not None and not final_turn:
-            # The safety monitor's forward bound, as it will read it along this plan's own
-            # prediction (H76): over it the PID clamps the chair, a jolt; the plan's speed is
-            # kept under it instead, the slower motion checked as every candidate is (people,
-            # the stop after the plan period), else the plan is left as it was.
-            ahead = self.monitor_top(pose, v0, w0, best, people, monitor)
-            n_c = math.floor(self.law.commit_s / self.p.dt_s + 1e-9) + 1  # (with the step after)
-            if float(best["v"][:n_c].max(initial=abs(v0))) > max(ahead, MONITOR_FLOOR_MPS):
-                # (v capped on the law's curve, not vmax lowered: that also scales the law's
-                # slowdown onto its target, and the chair crawled up to door line-ups)
-                ahead = max(ahead, MONITOR_FLOOR_MPS)
-                c4, inf4 = self._costs(pose, v0, w0, best_z[None, :], ctg, people, goal, rates,
-                                       final, heading, chain, vcap=ahead)
-                evals += 1
-                row = {k: v[0] for k, v in inf4.items()}
-                if float(row["hit"]) == 0.0 and (float(row["clearance"]) >= self.p.contact_m
-                                                 or bool(row["escape"])):
-                    best_c, best = float(c4[0]), row
-                    if is_goal:
-                        goal_clear = min(goal_clear, float(row["clearance"]))
-                else:
-                    ahead = math.inf
-            else:
-                ahead = math.inf
         return self._plan_of(pose, best_z, best_c, best, float(cost[int(has_goal)]), evals,
                              is_goal=is_goal, goal_clearance_m=goal_clear, final_turn=final_turn,
                              goal_withheld=withheld and not is_goal and not final_turn,
-                             goal_stop_clear=goal_stop_clear, sight_mps=top, monitor_mps=ahead)
-
-    def monitor_sweep(self, m: SafetyTuning) -> SafetyCore:
-        """The safety monitor's sweep with tuning `m` on this chair (cached)."""
-        if self._sweep is None or self._sweep[0] != m:
-            fp = self.field.footprint
-            self._sweep = (m, SafetyCore(SafetyParams.of(m, fp.front_m, fp.rear_m,
-                                                         fp.half_width_m, (0.0, 0.0, 0.0))))
-        return self._sweep[1]
-
-    def monitor_top(self, pose: tuple[float, float, float], v0: float, w0: float,
-                    row: dict[str, F64], people: list[Person], m: SafetyTuning) -> float:
-        """The fastest the chair may drive over the plan period along the prediction `row`
-        (an entry of `_costs`' info; from `pose` at the limiter's v0, ω0) so that, braking at
-        the comfort limits, it comes under the forward bound the safety monitor (tuning `m`)
-        will read at each pose where the prediction drives over it (inf: none does).
-
-        The monitor sweeps its padded footprint along the arc the chair is measured on, up to
-        its horizon (2.5 m), from scans: a chair cruising at its cap meets the bound already
-        falling, a turn onto a wall drops it at once, and the core, which learns the bound
-        only when it comes, was clamped by the PID: jerk peaks of 2.4–3.1 m/s³ (H76). Here
-        its own sweep (`SafetyCore.free_fwd`) runs at each pose of the plan's prediction on
-        the arc driven there (v, ω over the neighbouring steps: the drive chain smooths the
-        commanded ω), on the map's occupied cells away from people (PERSON_CELLS_M), its free
-        extent less MONITOR_SPARE_M and the core's lag following a falling bound (a/2J of
-        the way at speed). Only the plan's own path: not the present arc, whose far end the
-        plan may turn away from (session 30: braking for that stopped the chair in a
-        person's way)."""
-        g, p = self.law, self.p
-        sweep = self.monitor_sweep(m)
-        x = np.concatenate(([pose[0]], row["x"]))
-        y = np.concatenate(([pose[1]], row["y"]))
-        yaw = np.concatenate(([pose[2]], row["yaw"]))
-        v = np.concatenate(([v0], row["v"]))
-        w = np.concatenate(([w0], row["w"]))
-        s = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))))
-        a_e, j_e = g.a_mps2, g.jerk_mps3
-        # the plan period's poses, from the start to a step after it (the next plan's effect)
-        n_c = math.floor(g.commit_s / p.dt_s + 1e-9) + 2
-        # The poses whose bound can reach back to the plan period's at those limits
-        upto = float(s[n_c - 1]) + stop_m(float(np.abs(v).max()), a_e, j_e)
-        k = int(np.searchsorted(s, upto, side="right"))
-        cells = self._cells
-        if cells is None:
-            gm = self.field.map
-            iy, ix = np.nonzero(gm.occupied)
-            cells = self._cells = np.stack(gm.centre(ix, iy), 1)
-        lo = np.array([x[:k].min(), y[:k].min()]) - sweep.reach_m
-        hi = np.array([x[:k].max(), y[:k].max()]) + sweep.reach_m
-        pts = cells[((cells >= lo) & (cells <= hi)).all(1)]
-        if people and pts.size:
-            taus = np.arange(0.0, p.horizon_s + 1e-9, 0.5)
-            keep = np.ones(len(pts), dtype=np.bool_)
-            for q in people:
-                at = self.walk_points(q, taus).reshape(-1, 2)
-                near = np.hypot(pts[:, None, 0] - at[None, :, 0], pts[:, None, 1] - at[None, :, 1])
-                keep &= near.min(1) > q.radius_m + PERSON_CELLS_M
-            pts = pts[keep]
-        if pts.size == 0:
-            return math.inf
-        look = 0.5 * m.decel_mps2 / g.jerk_mps3
-        bound = np.full(k, math.inf)
-        for i in range(k):
-            c, sn = math.cos(yaw[i]), math.sin(yaw[i])
-            d = pts - (x[i], y[i])
-            local = np.stack((c * d[:, 0] + sn * d[:, 1], c * d[:, 1] - sn * d[:, 0]), 1)
-            j = slice(max(i - 1, 0), i + 2)  # (the arc the chair drives: the chain smooths ω)
-            free = sweep.free_fwd(local, float(v[j].mean()), float(w[j].mean()))
-            if free < math.inf:
-                bound[i] = stop_speed(free - MONITOR_SPARE_M - float(v[i]) * look, m.decel_mps2,
-                                      m.reaction_s, m.stop_margin_m)
-        # Only where the plan itself drives over the bound (elsewhere it slows by itself: onto
-        # its target, in its curves, on the core's final approach; braking for every bound it
-        # passes under, the chair crept up to goals in corners): braking from the plan
-        # period's poses through each such pose at its bound
-        over = np.flatnonzero(v[:k] > bound)
-        if over.size == 0:
-            return math.inf
-        ends = np.array([stop_m(float(bound[j]), a_e, j_e) for j in over])
-        top = math.inf
-        for c in range(min(n_c, k)):
-            later = over >= c
-            if later.any():
-                d = s[over[later]] - s[c] + ends[later]
-                top = min(top, float(braking_speed(d, a_e, j_e).min()))
-        return top
+                             goal_stop_clear=goal_stop_clear, sight_mps=top)
 
     def capped(self, z: F64, top: float) -> F64:
         """Candidates z (N, 4) with vmax at most `top` (sight_cap; the core drives a plan at
@@ -2631,10 +2487,9 @@ class Mpepc:
                ctg: CostToGo, people: list[Person], goal: tuple[float, float, float],
                rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
                heading: HeadingField | None = None, chain: Chain | None = None,
-               line: npt.NDArray[np.bool_] | None = None, vcap: float = math.inf
-               ) -> tuple[F64, dict[str, F64]]:
+               line: npt.NDArray[np.bool_] | None = None) -> tuple[F64, dict[str, F64]]:
         cost, info = self.evaluate(pose, v0, w0, z, ctg, people, *rates, goal, final, heading,
-                                   chain, line, vcap)
+                                   chain, line)
         # Final-heading term: the turn still to make where the prediction ends. Away from the
         # goal, to face down −∇φ; within goal_blend_m, to the goal's yaw (the law curves onto
         # it). Within half that (no room to curve: the chair is 1.2 m long) a forward-only

@@ -55,9 +55,6 @@ class PlanRequest:
     # The straight under way (`straight`) is a door's crossing (Plan.crossing): its rest is
     # rechecked at its own speed only
     crossing: bool = False
-    # The safety monitor's tuning where it runs (None: it does not): MPEPC keeps its plans'
-    # speed under the bound it will read along them (Mpepc.monitor_top, H76)
-    monitor: SafetyTuning | None = None
 
 
 @dataclass(frozen=True)
@@ -407,8 +404,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         if door is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, door, given_up=given_up)
     plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
-                    req.rates, req.final, hf, chain=req.chain, on_line=req.straight_final,
-                    monitor=req.monitor)
+                    req.rates, req.final, hf, chain=req.chain, on_line=req.straight_final)
     if carried is not None and (stuck(plan) or not (
             plan.is_goal or plan.final_turn or plan.progress_m >= blocked_progress_m)):
         # Mpepc.turn_first's turn under way, the half-turned chair's own plan blocked or
@@ -430,8 +426,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
             if staged is not None:
                 return PlanResult(req.goal_id, req.index, fld, ctg, staged, given_up=given_up)
         plan = mpc.plan(req.pose, req.v, req.omega, req.goal, ctg, req.people, req.previous,
-                        req.rates, req.final, hf, goal_turn=False, chain=req.chain,
-                        monitor=req.monitor)
+                        req.rates, req.final, hf, goal_turn=False, chain=req.chain)
     blocked = blocker(fld, ctg, req.pose, req.people) if stuck(plan) else ""
     if at_rest and req.final and not req.approaching and not plan.is_goal \
             and not plan.final_turn \
@@ -454,8 +449,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         alt = give_up(fld, ctg, req.pose, req.goal, mp.contact_m)
         if alt is not None:
             plan2 = mpc.plan(req.pose, req.v, req.omega, req.goal, alt[0], req.people,
-                             req.previous, req.rates, req.final, hf, chain=req.chain,
-                             monitor=req.monitor)
+                             req.previous, req.rates, req.final, hf, chain=req.chain)
             if not stuck(plan2):
                 return PlanResult(req.goal_id, req.index, fld, alt[0], plan2, given_up=alt[1])
     if blocked and at_rest:

@@ -457,13 +457,6 @@ class SafetyCore:
         return self._unseen_bins[fov]
 
     # --- bounds --------------------------------------------------------------------------------
-    def free_fwd(self, pts: F64, v: float, omega: float) -> float:
-        """The free extent (m) along the forward path that `limit` sweeps at (v, ω) for
-        chair-frame points `pts` (N, 2) (inf: clear over the horizon): a planner predicting
-        the bound the monitor will read (nav/mpepc.py Mpepc.monitor_top)."""
-        near = pts[np.hypot(pts[:, 0], pts[:, 1]) <= self.reach_m]
-        return self._free(near, *self._arc(self._kappa(v, omega) if v > 0 else 0.0, 1.0))
-
     def limit(self, pts: F64, v: float, omega: float) -> Limit:
         """Bounds for chair-frame scan points `pts` (N, 2) while moving at (v, ω), from the
         geometry alone (no beam validity, no field of view: see `assess`)."""
