@@ -969,7 +969,8 @@ class ControlCore:
                          m.reaction_s, 0.0) - rise - lead
         return max(cap, 0.0)
 
-    def _lead_out(self, v: float, w: float, dt: float, cap: float) -> tuple[float, float]:
+    def _lead_out(self, v: float, w: float, dt: float, cap: float = math.inf
+                  ) -> tuple[float, float]:
         """What is sent for the planned (v, ω): led past the PID's prefilter (LeadAxis),
         within the goal's speed, the monitor's forward bound (`cap`: a lead catching up on what
         the prefilter held drove a chair standing at the bound's last step on into the stop
