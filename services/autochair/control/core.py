@@ -715,12 +715,12 @@ class ControlCore:
         self._fwd_room = None if v_fwd >= m.v_max_fwd_mps or self.odom is None else (
             max(v_fwd, 0.0) * m.reaction_s + v_fwd * v_fwd / (2.0 * m.decel_mps2),
             self.odom.x, self.odom.y)
-        if omega_max > HELD_RADPS and not self._fwd_zero and self._fwd_cap() > 0.0:
-            self._waits = None
         bounds = self._omega_bounds  # (MPEPC plans with the standing one: PLAN_OMEGA_WINDOW_S)
         bounds.append((now, omega_max))
         while bounds[0][0] < now - PLAN_OMEGA_WINDOW_S:
             bounds.popleft()
+        if not self._monitor_bars():
+            self._waits = None
         self.gates.limit_t = now
         self.gates.limit_stop = reason if says_stop(v_fwd, omega_max) else None
         if v_fwd == 0.0 or omega_max == 0.0:
@@ -1247,10 +1247,7 @@ class ControlCore:
             self._stopped(ABORTED, f"the safety monitor stopped the chair ({held}); "
                                    "give the goal again to go on", now)
             return
-        # (its forward bound's last step counts as its 0, LAST_STEPS: standing there, short of
-        # a goal within the stop margin, the chair waited for "no progress", 15 s, unexplained)
-        if (not self._omega_bounds or self._omega_bounds[-1][1] > HELD_RADPS) \
-                and not self._fwd_zero and self._fwd_cap() > 0.0:
+        if not self._monitor_bars():
             return
         if self._waits is None:
             self._waits = now
@@ -1260,6 +1257,14 @@ class ControlCore:
             self._stopped(ABORTED, f"the safety monitor held the chair for "
                                    f"{now - self._waits:.0f} s ({self._limit_reason}); "
                                    "give the goal again", now)
+
+    def _monitor_bars(self) -> bool:
+        """The monitor's latest limit bars the chair's motion: its |ω| bound ~0, its forward
+        bound 0, or that bound's last step, which the core plans no v into (`_fwd_cap`;
+        standing there, short of a goal within the stop margin, the chair waited for "no
+        progress", 15 s, unexplained)."""
+        return (bool(self._omega_bounds) and self._omega_bounds[-1][1] <= HELD_RADPS) \
+            or self._fwd_zero or self._fwd_cap() == 0.0
 
     def _monitor_holds(self) -> str:
         """What a chair the monitor holds before it moved shows (blocked: `_hold_stand`)."""
