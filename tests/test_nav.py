@@ -351,6 +351,38 @@ def test_mpepcs_own_way_through_a_door_from_close_by_is_sight_limited() -> None:
     assert m.plan((-0.5, 1.0, 0.0), 0.0, 0.0, goal, ctg).vmax_mps > 1.0
 
 
+def test_a_doors_straight_keeps_the_monitors_padding_clear_by_the_lasers_noise() -> None:
+    """H79: the safety monitor pads the footprint by 0.05 m (MPEPC's contact_m) and its laser
+    reads with σ 0.01 m, so a door's straight whose bare body passes a jamb 0.065 m clear had
+    a scan read the jamb's end inside the padded sweep, an e-stop at 0.45 m/s, in 0–20 % of
+    crossings (0.055 m: 20–80 %; docs/experiments/scripts/h79_cross.py). A chair reaching the
+    0.9 m door's line-up moving, 3.5 cm off its centre line, is no longer sent straight along
+    its heading (old code: a 1.8 m straight at 0.065 m): no door straight, the core brakes
+    at the line-up; at rest there it turns onto a straight nearer the door's centre first.
+    Positive control: on the centre line the moving chair's straight is driven."""
+    fld = two_rooms()
+    goal = (6.5, 0.0, 0.0)
+    need = MpepcParams().contact_m + 0.03
+
+    def lined(dy: float, v: float) -> Plan | None:
+        pose = (2.6, 1.0 + dy, 0.0)
+        return compute(PlanRequest(1, 0, pose, v, 0.0, goal, fld, None, None, LAW,
+                                   door=True)).plan
+
+    def sweep(p: Plan) -> float:
+        x, y, yaw = p.path[0]
+        return fld.straight_clearance((x, y, yaw), np.arange(0.0, p.straight_m, 0.01))
+
+    centred = lined(0.0, 0.3)
+    assert centred is not None and centred.straight_m > 1.5 and sweep(centred) >= need
+    off = lined(0.035, 0.3)
+    assert off is None or off.straight_m == 0.0
+    resting = lined(0.035, 0.0)  # turned first (a stage's turn), then its straight
+    assert resting is not None and resting.final_turn and resting.target[2] < 0.0
+    turned = (2.6, 1.035, resting.target[2])
+    assert fld.straight_clearance(turned, np.arange(0.0, 1.8, 0.01)) >= need
+
+
 def test_a_chair_in_a_door_crosses_a_pacing_persons_way_only_when_all_of_it_is_clear() -> None:
     """H75 (nav_eval door_person: a person pacing at 1 m/s from room B's far wall out across
     its door's exit and back). A chair at rest in the door, its front 5 cm short of the far
