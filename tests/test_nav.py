@@ -357,9 +357,10 @@ def test_a_doors_straight_keeps_the_monitors_padding_clear_by_the_lasers_noise()
     a scan read the jamb's end inside the padded sweep, an e-stop at 0.45 m/s, in 0–20 % of
     crossings (0.055 m: 20–80 %; docs/experiments/scripts/h79_cross.py). A chair reaching the
     0.9 m door's line-up moving, 3.5 cm off its centre line, is no longer sent straight along
-    its heading (old code: a 1.8 m straight at 0.065 m): no door straight, the core brakes
-    at the line-up; at rest there it turns onto a straight nearer the door's centre first.
-    Positive control: on the centre line the moving chair's straight is driven."""
+    its heading (old code: a 1.9 m straight at 0.50 m/s, 0.065 m clear): no door straight,
+    the core brakes at the line-up; at rest there, as before, it turns onto the clearest
+    straight first. Positive control: on the centre line the moving chair's straight is
+    driven."""
     fld = two_rooms()
     goal = (6.5, 0.0, 0.0)
     need = MpepcParams().contact_m + 0.03

@@ -1,6 +1,9 @@
 """H79: per crossing of the 0.9 m door at v along a straight at heading th (deg) and lateral
-offset off (m, at the wall x=4), the chance that at least one scan reads an imminent collision
-(the monitor's e-stop), against the straight's bare clearance to the jambs (true geometry)."""
+offset off (m, at the wall x=4), the chance that a scan reads the forward way's bound 0 (a stop:
+the PID latches it) and that one reads an imminent collision (the monitor's e-stop), against
+the straight's bare clearance to the jambs (true geometry). From the repo root:
+PYTHONPATH=services:schemas:. python docs/experiments/scripts/h79_cross.py REPS SEED V HEADINGS OFFSETS
+e.g. `20 5 0.45 1,3 -0.035,-0.025,0.02`."""
 import math, sys, numpy as np
 from autochair.runtime.config import ChairGeometry
 from autochair.safety.core import SafetyCore, SafetyParams, scan_points
@@ -35,7 +38,7 @@ for thd in [float(a) for a in sys.argv[4].split(",")]:
         clr = clearance(th, off, s_all)
         if clr <= 0.0:
             continue
-        hit = 0; scans = 0
+        hit = zero = 0; scans = 0
         for rep in range(reps):
             phase = rng.uniform(0, step)
             for d in np.arange(-1.6 + phase, 1.0, step):
@@ -44,7 +47,9 @@ for thd in [float(a) for a in sys.argv[4].split(",")]:
                 r = np.where((raw < urg.dmin_mm) | (raw > urg.dmax_mm), np.nan, raw * 1e-3)
                 P = scan_points(r, (urg.amin - urg.afrt) * inc, inc, urg.dmin_mm * 1e-3, urg.dmax_mm * 1e-3, ch.laser_mount)
                 scans += 1
-                if sc.limit(P, v, 0.0).imminent:
-                    hit += 1
+                L = sc.limit(P, v, 0.0)
+                if L.v_fwd == 0.0:
+                    zero += 1
+                    hit += L.imminent
                     break
-        print(f"heading {thd:3.1f} deg offset {off*100:+3.0f} cm: bare clearance {clr:.3f} m, crossings e-stopped {hit}/{reps}", flush=True)
+        print(f"heading {thd:3.1f} deg offset {off*100:+3.0f} cm: bare clearance {clr:.3f} m, crossings stopped (bound 0) {zero}/{reps}, e-stopped {hit}/{reps}", flush=True)

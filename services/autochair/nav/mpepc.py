@@ -439,12 +439,15 @@ GOAL_DROP_M = 0.02
 # A chair within a margin already may read this much closer (deeper) than it stands at any
 # point of its outline (Mpepc.escapes: the map's noise, not a motion; H57).
 TOUCH_M = 0.005
-# A door's straight keeps the bare footprint this much more than `contact_m` clear (H79): the
-# safety monitor pads the footprint by 0.05 m (as contact_m) and its laser reads ranges with
-# σ 0.01 m, so a straight under 3σ more passes a jamb's end that a scan may read inside the
-# padded sweep, an e-stop at speed. Crossings of the 0.9 m door at 0.45 m/s, headings 0–3°
-# (docs/experiments/scripts/h79_cross.py), e-stopped at a bare clearance of 0.055 m in 20–80 %,
-# 0.065 m 0–20 %, 0.070–0.075 m 2 of 240, 0.08 m none.
+# A door's straight taken moving (a chair reaching its line-up: through_door's `lined`) keeps
+# the bare footprint this much more than `contact_m` clear, else the chair brakes there and
+# takes the clearest straight from rest (H79): the safety monitor pads the footprint by 0.05 m
+# (as contact_m) and its laser reads ranges with σ 0.01 m, so a straight under 3σ more passes a
+# jamb's end that a scan may read inside the padded sweep: a stop, or at speed an e-stop.
+# Crossings of the 0.9 m door at 0.45 m/s, headings 0–3° (docs/experiments/scripts/
+# h79_cross.py), e-stopped at a bare clearance of 0.055 m in 20–80 %, 0.065 m 6 %,
+# 0.070–0.075 m 2 of 320, 0.08 m none of 380. (From rest the map's clearest straight is taken:
+# on the laser's map, whose jambs the noise grows, that can read ~0.07 m, H79's residual.)
 DOOR_NOISE_M = 0.03
 # How fast a footprint reading can fall as the outline moves (per m): the bilinear reading of
 # a distance field, each partial derivative within ±1 (NavField.clearance_at).
@@ -1765,9 +1768,10 @@ class Mpepc:
                                        np.broadcast_to(psi[:, None], (psi.size, ds.size)))
         reach = ds[None, :] <= (along + spare_m + p.final_overshoot_m)[:, None]
         clear = np.where(reach, line, math.inf).min(1)
-        ok = (clear >= p.contact_m + DOOR_NOISE_M) & (lateral <= 0.1) & (along > 0.0)
-        best_i = int(np.argmax(np.where(ok, clear, -math.inf)))
         moving = abs(v0) >= 0.01
+        need = p.contact_m + (DOOR_NOISE_M if moving else 0.0)  # (at rest: the clearest)
+        ok = (clear >= need) & (lateral <= 0.1) & (along > 0.0)
+        best_i = int(np.argmax(np.where(ok, clear, -math.inf)))
         if ok[0] and (not lined or moving or turned or abs(float(wrap(np.array(
                 psi[best_i] - yaw)))) <= math.radians(p.door_turn_step_deg)):
             d = float(along[0])  # on a clear straight through: drive it
@@ -1899,8 +1903,7 @@ class Mpepc:
                                                    chain) < math.inf:
                 d_in = past
             if d_in is None or fld.straight_clearance(pose, np.arange(
-                    0.0, d_in + 0.01 + p.final_overshoot_m + 0.005, 0.01)) \
-                    < p.contact_m + DOOR_NOISE_M:
+                    0.0, d_in + 0.01 + p.final_overshoot_m + 0.005, 0.01)) < p.contact_m:
                 return False, None  # (not a clear straight in: through_door's, MPEPC's)
             inside = self._one_stage(pose, (d_in, 0.0), (x + d_in * c, y + d_in * s, yaw),
                                      False, ctg, people, goal, hf, rates, final=final, top=top,
@@ -1921,7 +1924,7 @@ class Mpepc:
             return True, None
         dist = float(ds[int(np.argmax(away))])
         line = fld.straight_clearance(pose, np.arange(0.0, dist + spare + 0.005, 0.01))
-        if line < p.contact_m + DOOR_NOISE_M:
+        if line < p.contact_m:
             return False, None  # (not a clear straight out: MPEPC's)
         speeds = np.linspace(min(p.v_min_mps, self.law.vmax_mps), self.law.vmax_mps,
                              STAGE_SPEEDS)
