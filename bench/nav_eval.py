@@ -334,6 +334,7 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
     mount = laser_mount()
     seen: set[int] = set()  # (sight_only: the people the laser has seen so far)
     ctrl_every = max(1, round(1.0 / (cfg.rate_hz * DT)))
+    status_every = max(1, round(1.0 / (cfg.status_rate_hz * DT)))
     rows: list[tuple[float, ...]] = []
     clear: list[float] = []
     to_people: list[float] = []  # least distance to a person's disc (inf: no one)
@@ -374,6 +375,8 @@ def run_case(world: World, fld: NavField, start: Pose, goal: Pose, cfg: ControlC
             planning.tick(t)
             states.add(core.state)
             out = core.step(t)
+        if k % status_every == 0:  # (the control node reads the PID's status at its 5 Hz)
+            core.gates.pid_inhibit = rig.core.inhibit(t)
         rig.act(t, st.v, st.omega, out)
         if on_tick is not None:
             on_tick(t, core, model)

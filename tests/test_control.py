@@ -446,6 +446,36 @@ def test_a_chair_that_does_not_follow_names_what_the_pid_said() -> None:
         "stale)" in core.reason, core.reason
 
 
+def test_a_stop_the_pid_latched_for_the_monitor_ends_the_goal_once_the_chair_stands() -> None:
+    """H73's residual: a turn bound of ~0 for one scan latches the PID's safety stop (it hears
+    the limit first); lifted by the next scan before the chair stood, the core took it for a
+    slow-down and went on commanding, and the goal ended 2 s later, "does not follow". The PID
+    says it has latched (PidStatus.inhibit, read by the node into gates.pid_inhibit): once the
+    chair stands the goal ends at once, naming the monitor. Positive control: the same word
+    left over from before the goal (the PID never said it obeyed this goal's stream) ends it
+    only as "does not follow", after follow_timeout_s."""
+    latched = "stopped (safety stop): waiting for a command begun after the stop"
+
+    def run(obeyed: bool) -> tuple[ControlCore, float]:
+        core = fresh_core(ControlConfig(follow_timeout_s=2.0, lead=False))
+        assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
+        core.on_limit(1.2, 1.0, "free fwd 3.00 m rev inf m turn 0.00 rad", 0.0)
+        core.gates.pid_inhibit = "" if obeyed else latched
+        t = 0.0
+        while core.active and t < 10:
+            core.step(t)
+            core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))
+            core.gates.pid_inhibit = "" if obeyed and t < 0.3 else latched
+            t += 0.02
+        return core, t
+
+    core, t = run(True)
+    assert core.state == "aborted" and t < 1.0, (core.reason, t)
+    assert core.reason.startswith("the safety monitor stopped the chair"), core.reason
+    core, t = run(False)
+    assert "does not follow" in core.reason and t > 2.0, (core.reason, t)
+
+
 def test_a_chair_that_does_not_follow_names_the_monitors_block() -> None:
     """The monitor bars forward motion (the chair within its stop margin of something ahead),
     the PID stops the stream: the abort says what the monitor saw, not only a guess. (Its

@@ -87,6 +87,9 @@ PLAN_OMEGA_WINDOW_S = 5.0
 # The safety monitor's |ω| bound at or under which a motion it holds stands: the velocity
 # PID's stop_eps, below which a turn left by its limit is a stop (H03)
 HELD_RADPS = 0.02
+# What the velocity PID's status (PidStatus.inhibit) begins with once it has latched a stop for
+# the safety monitor's limit (pid/core.py: `stop("safety stop")`, `inhibit`)
+PID_SAFETY_STOP = "stopped (safety stop)"
 LAST_STEPS = 1  # the monitor's sweep steps before its forward bound's 0 not planned into (_fwd_cap)
 # A new map that lengthens the way left by more than this re-bases the goal's progress (m)
 REBASE_M = 1.0
@@ -558,6 +561,7 @@ class ControlCore:
         # None while the bound is its cap (nothing bounds v within the goal's speed)
         self._fwd_room: tuple[float, float, float] | None = None
         self._held_fwd: str | None = None  # ... the forward bound holds a drive under way
+        self._pid_obeyed = False  # the PID said it obeys (gates.pid_inhibit "") in this goal
         self._fwd_zero = False  # its forward bound is 0 (why: `_limit_reason`)
         # The safety monitor's tuning (the node's [safety] section): the goal check plans
         # within its forward stop margin while it runs (GoalCheck.monitor)
@@ -812,6 +816,7 @@ class ControlCore:
         self.given_up = None
         self._plan_t, self._blocked_since, self._held, self._waits = -math.inf, None, None, None
         self._held_fwd = None
+        self._pid_obeyed = False
         self._last_blocked = ("", -math.inf)
         self.state, self.reason = PLANNING, ""
         self._still_since, self._best_left, self._best_t = None, math.inf, now
@@ -1287,12 +1292,24 @@ class ControlCore:
         """Abort a goal the chair does not follow, or that makes no progress."""
         cfg = self.cfg
         moving_cmd = abs(self.limiter.v.value) > 0.05 or abs(self.limiter.w.value) > 0.05
+        g = self.gates
+        self._pid_obeyed |= not g.pid_inhibit
+        if moving_cmd and self._stands(o) and self._pid_obeyed \
+                and g.pid_inhibit.startswith(PID_SAFETY_STOP):
+            # The PID latched its safety stop in this goal (it obeyed before) and the chair
+            # stands: the monitor's stop, said now. Inferred from the bound alone, a turn bound
+            # of ~0 for one scan that lifted before the chair stood was a slow-down; the core
+            # went on commanding the latched PID, "does not follow" 2 s later (H73's residual,
+            # found with the per-direction turn bound: docs/experiments/turn-bound-s32.md).
+            self._stopped(ABORTED, f"the safety monitor stopped the chair "
+                                   f"({self._limit_reason or 'the velocity PID: safety stop'}); "
+                                   "give the goal again to go on", now)
+            return
         if not (moving_cmd and self._stands(o)):
             self._still_since = None
         elif self._still_since is None:
             self._still_since = now
         elif now - self._still_since > cfg.follow_timeout_s:
-            g = self.gates
             why = g.why_not(now) or (f"the velocity PID: {g.pid_inhibit}" if g.pid_inhibit
                                      else "a safety stop, a stopped drive chain or a blocked "
                                           "wheel?")
