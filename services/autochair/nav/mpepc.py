@@ -445,8 +445,8 @@ TOUCH_M = 0.005
 # (as contact_m) and its laser reads ranges with σ 0.01 m, so a straight under 3σ more passes a
 # jamb's end that a scan may read inside the padded sweep: a stop, or at speed an e-stop.
 # Crossings of the 0.9 m door at 0.45 m/s, headings 0–3° (docs/experiments/scripts/
-# h79_cross.py), e-stopped at a bare clearance of 0.055 m in 20–80 %, 0.065 m 6 %,
-# 0.070–0.075 m 2 of 320, 0.08 m none of 380. (From rest the map's clearest straight is taken:
+# h79_cross.py), e-stopped at a bare clearance of 0.055 m in 20–80 %, 0.065 m 5 %,
+# 0.069–0.075 m 2 of 520, 0.08 m none of 440. (From rest the map's clearest straight is taken:
 # on the laser's map, whose jambs the noise grows, that can read ~0.07 m, H79's residual.)
 DOOR_NOISE_M = 0.03
 # How fast a footprint reading can fall as the outline moves (per m): the bilinear reading of
