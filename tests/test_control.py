@@ -459,19 +459,22 @@ def test_a_stop_the_pid_latched_for_the_monitor_ends_the_goal_once_the_chair_sta
     def run(obeyed: bool) -> tuple[ControlCore, float]:
         core = fresh_core(ControlConfig(follow_timeout_s=2.0, lead=False))
         assert core.set_goal(GoalRequest(waypoints=[Pose2D(5, 0, 0)]), 0.0).ok
-        core.on_limit(1.2, 1.0, "free fwd 3.00 m rev inf m turn 0.00 rad", 0.0)
         core.gates.pid_inhibit = "" if obeyed else latched
-        t = 0.0
+        t, k = 0.0, 0
         while core.active and t < 10:
             core.step(t)
             core.on_odom(OdomSample(0, 0, 0, 0.0, 0, t))
-            core.gates.pid_inhibit = "" if obeyed and t < 0.3 else latched
-            t += 0.02
+            core.gates.pid_inhibit = "" if obeyed and k < 15 else latched
+            if k == 13:  # one scan bars the turn, the next lifts it
+                core.on_limit(1.2, 0.0, "free fwd 3.00 m rev inf m turn 0.00 rad", t)
+                core.on_limit(1.2, 1.0, "clear", t + 0.01)
+            t, k = t + 0.02, k + 1
         return core, t
 
     core, t = run(True)
     assert core.state == "aborted" and t < 1.0, (core.reason, t)
-    assert core.reason.startswith("the safety monitor stopped the chair"), core.reason
+    assert core.reason.startswith("the safety monitor stopped the chair (free fwd 3.00 m rev "
+                                  "inf m turn 0.00 rad)"), core.reason
     core, t = run(False)
     assert "does not follow" in core.reason and t > 2.0, (core.reason, t)
 

@@ -11,6 +11,7 @@ from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore,
 from autochair.nav import field as nav_field
 from autochair.nav.field import Footprint, GridMap, NavField, bilinear, place
 from autochair.nav.mpepc import (
+    DOOR_NOISE_M,
     TOUCH_M,
     LawParams,
     Mpepc,
@@ -363,7 +364,7 @@ def test_a_doors_straight_keeps_the_monitors_padding_clear_by_the_lasers_noise()
     driven."""
     fld = two_rooms()
     goal = (6.5, 0.0, 0.0)
-    need = MpepcParams().contact_m + 0.03
+    need = MpepcParams().contact_m + DOOR_NOISE_M
 
     def lined(dy: float, v: float) -> Plan | None:
         pose = (2.6, 1.0 + dy, 0.0)

@@ -727,7 +727,7 @@ class ControlCore:
             self._waits = None
         self.gates.limit_t = now
         self.gates.limit_stop = reason if says_stop(v_fwd, omega_max) else None
-        if v_fwd == 0.0 or omega_max == 0.0:
+        if v_fwd == 0.0 or omega_max <= HELD_RADPS:  # (a turn left that slow: a stop, H03)
             self.gates.limit_block = (reason or "no reason given", now)
 
     def set_goal(self, req: GoalRequest, now: float) -> GoalReply:
@@ -1301,8 +1301,9 @@ class ControlCore:
             # of ~0 for one scan that lifted before the chair stood was a slow-down; the core
             # went on commanding the latched PID, "does not follow" 2 s later (H73's residual,
             # found with the per-direction turn bound: docs/experiments/turn-bound-s32.md).
-            self._stopped(ABORTED, f"the safety monitor stopped the chair "
-                                   f"({self._limit_reason or 'the velocity PID: safety stop'}); "
+            block, t = g.limit_block  # (what barred it: the latest limit may have lifted)
+            why = block if now - t <= cfg.follow_timeout_s else "the velocity PID: safety stop"
+            self._stopped(ABORTED, f"the safety monitor stopped the chair ({why}); "
                                    "give the goal again to go on", now)
             return
         if not (moving_cmd and self._stands(o)):
