@@ -10,6 +10,7 @@ import pytest
 
 from autochair.pid.core import (
     PID,
+    SAFETY_STOPPED,
     Caps,
     Command,
     Feedforward,
@@ -198,6 +199,8 @@ def test_teleop_reverses_within_the_attended_bound_autonomy_not_at_all() -> None
     core.set_limit(1.0, 0.4, 1.0, 0.0)  # no rear sensor: autonomy may not reverse
     assert drive(core, -0.3, 0.0, 0.0) is Verdict.OK
     assert core.desired(0.0, 0) is None and "safety stop" in core.inhibit(0.0)
+    # (what the control service ends its goal on: control/core.py _watch_progress)
+    assert core.inhibit(0.0).startswith(SAFETY_STOPPED)
     core.set_limit(0.0, 0.4, 0.0, 0.0)
     assert core.inhibit(0.0) == "the safety monitor says stop"
     core.set_owner("teleop", ns(0.01))

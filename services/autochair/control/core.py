@@ -46,6 +46,7 @@ from autochair.nav.planner import (
     path_error,
     prepare,
 )
+from autochair.pid.core import SAFETY_STOPPED
 from autochair.safety.core import SafetyTuning, stop_speed
 from autochair_msgs import GoalReply, GoalRequest, Pose2D, says_stop
 
@@ -87,9 +88,6 @@ PLAN_OMEGA_WINDOW_S = 5.0
 # The safety monitor's |ω| bound at or under which a motion it holds stands: the velocity
 # PID's stop_eps, below which a turn left by its limit is a stop (H03)
 HELD_RADPS = 0.02
-# What the velocity PID's status (PidStatus.inhibit) begins with once it has latched a stop for
-# the safety monitor's limit (pid/core.py: `stop("safety stop")`, `inhibit`)
-PID_SAFETY_STOP = "stopped (safety stop)"
 LAST_STEPS = 1  # the monitor's sweep steps before its forward bound's 0 not planned into (_fwd_cap)
 # A new map that lengthens the way left by more than this re-bases the goal's progress (m)
 REBASE_M = 1.0
@@ -1295,7 +1293,7 @@ class ControlCore:
         g = self.gates
         self._pid_obeyed |= not g.pid_inhibit
         if moving_cmd and self._stands(o) and self._pid_obeyed \
-                and g.pid_inhibit.startswith(PID_SAFETY_STOP):
+                and g.pid_inhibit.startswith(SAFETY_STOPPED):
             # The PID latched its safety stop in this goal (it obeyed before) and the chair
             # stands: the monitor's stop, said now. Inferred from the bound alone, a turn bound
             # of ~0 for one scan that lifted before the chair stood was a slow-down; the core

@@ -27,6 +27,10 @@ from autochair_msgs.keys import DRIVE_RATE_HZ
 
 NEUTRAL_V = 2.5
 VOLTS_PER_EFFORT = 1.5  # thesis eq. 5.17: V = 1.5·C + 2.5
+# The stop latched for a command the safety monitor's limit bars, as `inhibit` (PidStatus)
+# begins while it holds: the control service ends its goal on it (control/core.py)
+SAFETY_STOP = "safety stop"
+SAFETY_STOPPED = f"stopped ({SAFETY_STOP})"
 
 
 @dataclass
@@ -460,7 +464,7 @@ class VelocityPidCore:
                 return same_arc(v0, omega0, v, omega)
             limit, why = (0.0, 0.0, 0.0, 0.0), "no fresh safety limit"
         else:
-            why = "safety stop"
+            why = SAFETY_STOP
         fwd, rev, w, rev_auto = limit
         rev = rev if self.owner == "teleop" else rev_auto  # unattended: only what is sensed
         lv, lw = same_arc(v0, omega0, min(max(v, -rev), fwd), min(max(omega, -w), w))
