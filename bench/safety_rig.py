@@ -2,7 +2,8 @@
 navigation. Every scan period the simulated laser sweeps the world from the chair's true pose
 and motion (the lidar simulator's `ray_scan`, its noise), the monitor's pure core judges the
 scan with the odometry's motion as the safety service does, and its limit goes to the velocity
-PID, which requires it, and to the control core, as the control node passes it on; an imminent
+PID, which requires it, and to the control core, as the control node passes it on (and the
+scan's points, placed by odometry, as the control node has them); an imminent
 collision latches the e-stop (`estop_on_imminent`), which both hear.
 """
 
@@ -19,7 +20,7 @@ from autochair.safety.core import EStopAction, SafetyCore, SafetyParams, Scan
 from autochair.safety.monitor import Monitor
 from autochair.safety.node import SafetyConfig
 from autochair.sim.lidar.node import LidarSimConfig
-from autochair.sim.lidar.scanner import UrgParams, ray_scan
+from autochair.sim.lidar.scanner import UrgParams, beam_rays, ray_scan
 from autochair.sim.world import World
 
 
@@ -66,6 +67,11 @@ class SafetyRig:
         scan = Scan(r, (u.amin - u.afrt) * self.inc, self.inc, u.dmin_mm * 1e-3,
                     u.dmax_mm * 1e-3)
         v = self.monitor.on_scan(scan, t)
+        if (o := control.odom) is not None:
+            # (each beam placed by odometry at its own time in the sweep, as the control
+            # node's ScanPeople places them)
+            bx, by, ba = beam_rays(u, (o.x, o.y, o.yaw), self.mount, odom)
+            control.on_scan(t, np.column_stack((bx + r * np.cos(ba), by + r * np.sin(ba))))
         lim = v.published
         self.scans += 1
         want_v, want_w = pid._desired if pid.obeying else (0.0, 0.0)

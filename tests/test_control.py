@@ -1345,6 +1345,30 @@ def _to_lineup(monitor: bool) -> tuple[ControlCore, list[tuple[float, float]]]:
     return core, sent
 
 
+def test_a_doors_line_up_is_planned_with_the_lasers_points_of_the_last_second() -> None:
+    """H79: at a door's line-up the plan request carries the laser's points of the scans
+    within SCAN_WINDOW_S (Mpepc.through_door ranks the door's straights by them); one scan
+    samples a jamb's end a beam apart, the scans from the way up fill it in. Older scans are
+    left out, and away from a line-up none is sent (positive control: the same core before
+    its line-up)."""
+    from autochair.control.core import SCAN_WINDOW_S
+
+    core = fresh_core(INSTANT)
+    core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(2.0, 0.0, 0.0)]), 0.0).ok
+    core.on_scan(0.0, np.ones((3, 2)))
+    req = core.plan_request(0.0)
+    assert req is not None and not req.door and req.scan is None
+    core, _ = _to_lineup(monitor=True)
+    t = core.odom.t if core.odom is not None else 0.0
+    core.on_scan(t - SCAN_WINDOW_S - 0.1, np.full((5, 2), 9.0))
+    core.on_scan(t - 0.5, np.ones((3, 2)))
+    core.on_scan(t - 0.1, np.ones((4, 2)))
+    req = core.plan_request(t)
+    assert req is not None and req.door
+    assert req.scan is not None and req.scan.shape == (7, 2) and (req.scan == 1.0).all()
+
+
 def test_a_lineup_within_reach_is_turned_onto_not_steered_onto_by_an_s() -> None:
     """H76 (nav_eval --monitor seed 7, back to room A): 0.15 m from a door's line-up pose,
     42° off its heading, the law's way onto it is an S at its ω floor: it turns away first

@@ -9,7 +9,7 @@ import pytest
 
 from autochair.control.core import ABORTED, BLOCKED, ControlConfig, ControlCore, OdomSample
 from autochair.nav import field as nav_field
-from autochair.nav.field import Footprint, GridMap, NavField, bilinear, place
+from autochair.nav.field import F64, Footprint, GridMap, NavField, bilinear, place
 from autochair.nav.mpepc import (
     DOOR_NOISE_M,
     TOUCH_M,
@@ -18,6 +18,7 @@ from autochair.nav.mpepc import (
     MpepcParams,
     Person,
     Plan,
+    straight_clearance,
     wall_turn,
 )
 from autochair.nav.planner import PlanRequest, blocker, compute, free_field
@@ -1093,3 +1094,39 @@ def test_a_coarsened_grid_is_occupied_if_any_cell_is_and_unknown_if_all_are() ->
             want = blocks.all(axis=(1, 3)) if every else blocks.any(axis=(1, 3))
             assert merged is not None and np.array_equal(merged, want)
             assert 0 < want.sum() < want.size  # (neither all nor none: the test can fail)
+
+
+def test_a_doors_straight_from_rest_is_chosen_by_the_lasers_points_not_a_grown_map() -> None:
+    """H79: lined up at rest, the chair turned onto the straight through the door that its map
+    ranked clearest. The live map's jambs are grown by the laser's noise (up to 5 cm off the
+    truth, unevenly), and on it the chair turned onto a straight that passed a jamb 0.069 m
+    clear where one 2° round passed 0.094 (nav_eval --map scans seed 7); the safety monitor,
+    padding the body by 5 cm, read the jamb through σ 0.01 m noise there (an e-stop mid-door
+    in ~1 % of crossings at 0.07 m, docs/experiments/scripts/h79_cross.py). Now the straights
+    clear on the map are ranked by the laser's points. Here the true door is 0.50..1.45, the
+    map grows its lower jamb by a cell (0.55), and the chair stands 1.5° off the door's axis:
+    by the map (the same request without the points: the old choice) it turns onto a
+    straight ~2 cm less clear of the true jambs than the best; by the points, onto the best."""
+    grown = [[-1, -2, 9, -2], [-1, 2, 9, 2], [-1, -2, -1, 2], [9, -2, 9, 2],
+             [4, -2, 4, 0.55], [4, 1.45, 4, 2]]
+    fld = NavField(GridMap.from_shapes(np.array(grown, dtype=float), np.zeros((0, 3))), FP)
+    along = np.arange(-2.0, 2.0 + 1e-9, 0.005)
+    truth = np.concatenate([  # (the walls as the laser sees them, noise-free)
+        np.column_stack((np.full(along.size, 4.0), along))[(along <= 0.50) | (along >= 1.45)],
+        np.column_stack((along + 2.0, np.full(along.size, -2.0))),
+        np.column_stack((along + 2.0, np.full(along.size, 2.0)))])
+    pose = (2.6, 0.975, math.radians(-1.5))
+
+    def true_clearance(yaw: F64) -> F64:  # (of the straight to the door's far side)
+        return straight_clearance(truth, pose[:2], yaw, np.full(yaw.shape, 1.95), FP)
+
+    def chosen(scan: F64 | None) -> float:
+        """The true clearance of the straight the chair turns onto (or drives)."""
+        p = compute(PlanRequest(1, 0, pose, 0.0, 0.0, (6.5, 0.0, 0.0), fld, None, None, LAW,
+                                door=True, scan=scan)).plan
+        assert p is not None and (p.final_turn or p.straight_m > 0.0)
+        return float(true_clearance(np.array([p.target[2]]))[0])
+
+    best = float(true_clearance(np.radians(np.arange(-5.0, 5.0, 0.05))).max())
+    assert chosen(None) < best - 0.015  # (the map's pick: old code, and without points)
+    assert chosen(truth) > best - 0.005

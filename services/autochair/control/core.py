@@ -26,7 +26,7 @@ import numpy as np
 
 from autochair.geometry import Pose, advance, along_lateral, compose
 from autochair.geometry import wrap_angle as wrap
-from autochair.nav.field import CostToGo, Footprint, GridMap, NavField
+from autochair.nav.field import F64, CostToGo, Footprint, GridMap, NavField
 from autochair.nav.frames import MapFrame
 from autochair.nav.mpepc import (
     ALIGNED_RAD,
@@ -65,6 +65,10 @@ FINAL_MOVE_M, FINAL_LINE = MpepcParams().final_move_m, MpepcParams().final_line
 # The most a sample is moved on by its age (_predicted): older is stale odometry anyway (the
 # node's [stale] odometry_s, 0.3 s), and a wrong stamp must not throw the pose far.
 MAX_ODOM_AGE_S = 0.3
+# A door's straight is chosen by the laser's points of the scans within this (H79,
+# Mpepc.through_door): one scan samples a jamb's end a beam apart (1–2 cm there), the scans
+# taken as the chair comes up to the line-up from other poses fill it in
+SCAN_WINDOW_S = 1.0
 # Planning latency (ControlCore.plan_request): the time from a plan's request to its taking
 # effect, measured on each plan (an EWMA of this weight), is driven ahead by at most this.
 LATENCY_WEIGHT = 0.3
@@ -591,6 +595,7 @@ class ControlCore:
         self._lineup_turn: int | None = None  # the line-up whose heading is turned onto in place
         self.final = False  # MPEPC took the goal itself: the law's own final approach
         self.people: list[Person] = []
+        self.scans: deque[tuple[float, F64]] = deque()  # (when, the laser's points: on_scan)
         # Goals in `map` (nav/frames.py): the requested waypoints, re-expressed in `odom` on
         # every step with localization's newest correction; None for goals in `odom`.
         self.frames = MapFrame()
@@ -1098,7 +1103,20 @@ class ControlCore:
                            self.plan is not None and self.plan.turn_first, self._door,
                            self.index == self.lineups and self.field is not None
                            and fld is not self._lineup_field,
-                           self.plan is not None and self.plan.crossing)
+                           self.plan is not None and self.plan.crossing,
+                           self._door_scan(now))
+
+    def on_scan(self, now: float, points: F64) -> None:
+        """The laser's points of a scan (odom, (M, 2); NaN rows: no return), placed by
+        odometry beam by beam: a door's straight is chosen by them (H79)."""
+        self.scans.append((now, points))
+        while self.scans and self.scans[0][0] < now - SCAN_WINDOW_S:
+            self.scans.popleft()
+
+    def _door_scan(self, now: float) -> F64 | None:
+        """At a door's line-up, the points of the scans within SCAN_WINDOW_S; else None."""
+        got = [q for t, q in self.scans if t >= now - SCAN_WINDOW_S]
+        return np.concatenate(got) if self._door and got else None
 
     def _standing_omega(self, now: float) -> float:
         """The safety monitor's standing |ω| bound (PLAN_OMEGA_WINDOW_S): the largest it

@@ -141,6 +141,8 @@ class ControlNode:
         with self.held():
             self.core.people = [Person(q.x_m, q.y_m, q.vx_mps, q.vy_mps, q.radius_m)
                                 for q in found]
+            if self.people.points is not None:  # (a door's straight is chosen by them, H79)
+                self.core.on_scan(time.monotonic(), self.people.points)
         self.people_pub.put(People(stamp_ns=msg.stamp_ns, frame_id="odom", people=found))
 
     def on_estop(self, msg: EStopState) -> None:

@@ -50,6 +50,7 @@ from .field import (
     NARROW_M,
     Contact,
     CostToGo,
+    Footprint,
     NavField,
     heading_through,
     passages,
@@ -449,6 +450,10 @@ TOUCH_M = 0.005
 # 0.069–0.075 m 2 of 520, 0.08 m none of 440. (From rest the map's clearest straight is taken:
 # on the laser's map, whose jambs the noise grows, that can read ~0.07 m, H79's residual.)
 DOOR_NOISE_M = 0.03
+# Lined up at a door at rest, the chair turns onto the straight through it that keeps clearest
+# of the laser's points unless its own keeps within this of it (Mpepc.through_door, H79): a
+# scan's nearest point reads a few mm either way from one scan to the next.
+DOOR_GAIN_M = 0.01
 # How fast a footprint reading can fall as the outline moves (per m): the bilinear reading of
 # a distance field, each partial derivative within ±1 (NavField.clearance_at).
 SLOPE = math.sqrt(2.0)
@@ -536,6 +541,26 @@ def rests_within(info: dict[str, F64], n: int) -> npt.NDArray[np.bool_]:
     horizon (their last step moves < 1 mm): beyond it the prediction says nothing."""
     return np.asarray(np.hypot(info["x"][:n, -1] - info["x"][:n, -2],
                                info["y"][:n, -1] - info["y"][:n, -2]) < 1e-3)
+
+
+def straight_clearance(pts: F64, at: tuple[float, float], psi: F64, ends: F64,
+                       fp: Footprint) -> F64:
+    """(N,): the least distance from points `pts` (M, 2; NaN rows skipped) to the bare
+    footprint swept straight from `at` along each heading psi[n] for ends[n] m: a box from
+    `rear_m` behind the start to `front_m` past the end, `half_width_m` either side (negative
+    depth not told: a point inside reads 0; one farther than 0.2 m from every sweep may read
+    inf)."""
+    q = pts[np.isfinite(pts).all(1)] - np.asarray(at)
+    # (a point farther than this from `at` is over 0.2 m from every sweep: not a door's jamb)
+    reach = float(ends.max(initial=0.0)) + fp.reach_m + 0.2
+    q = q[np.hypot(q[:, 0], q[:, 1]) <= reach]
+    if q.shape[0] == 0:
+        return np.full(psi.shape, math.inf)
+    c, s = np.cos(psi)[:, None], np.sin(psi)[:, None]
+    lx = c * q[None, :, 0] + s * q[None, :, 1]  # (N, M) along each heading
+    ly = np.abs(c * q[None, :, 1] - s * q[None, :, 0])
+    ex = np.maximum(np.maximum(lx - (ends[:, None] + fp.front_m), -fp.rear_m - lx), 0.0)
+    return np.asarray(np.hypot(ex, np.maximum(ly - fp.half_width_m, 0.0)).min(1))
 
 
 class Mpepc:
@@ -1712,8 +1737,8 @@ class Mpepc:
                      ctg: CostToGo, hf: HeadingField | None, people: list[Person],
                      rates: tuple[float, float] = (0.0, 0.0), final: bool = True,
                      turned: bool = False, spare_deg: float = 2.0, spare_m: float = 0.01,
-                     lined: bool = False, v0: float = 0.0, chain: Chain | None = None
-                     ) -> Plan | None:
+                     lined: bool = False, v0: float = 0.0, chain: Chain | None = None,
+                     scan: F64 | None = None) -> Plan | None:
         """For a chair at rest within `door_ahead_m` of a door on its way (NavField
         .passage_ahead), the goal beyond it, that faces away from the way through the door by
         more than `door_away_rad` or has just turned a stage (`turned`; else None: MPEPC's own
@@ -1746,7 +1771,15 @@ class Mpepc:
         `v_min_mps` (a chair already at the door's line creeps through at the least speed).
         That bounds how fast it meets someone stepping out; it does not stop it before them
         once it is in the door (no speed short of a crawl does: they are unseen till there).
-        The rest of the straight keeps that speed as its top (stage_plan's `top`)."""
+        The rest of the straight keeps that speed as its top (stage_plan's `top`).
+
+        `scan` (N, 2): the laser's latest points where the chair plans. Lined up at rest, the
+        straights clear on the map are ranked by their clearance to those points, finer than
+        the map's cells (H79): the live map's jambs, grown by the laser's noise, read up to 5
+        cm off the truth, and the straight it ranked clearest passed 0.069 m from a jamb where
+        one 2° round passed 0.094 (nav_eval --map scans seed 7, "into room B facing down");
+        the safety monitor, padding the body by contact_m, reads the jamb through that noise.
+        The chair turns onto the scan's clearest unless its own is within DOOR_GAIN_M of it."""
         p, fld = self.p, self.field
         x, y, yaw = pose
         found = fld.passage_ahead(ctg, x, y, p.door_ahead_m)
@@ -1758,22 +1791,34 @@ class Mpepc:
         way = heading_through(path, k)  # (path ends at j)
         if not (turned or lined) and abs(float(wrap(np.array(way - yaw)))) <= p.door_away_rad:
             return None
-        psi = np.concatenate([[yaw], way + np.radians(np.arange(-30.0, 30.0 + 1e-9,
-                                                                p.door_turn_step_deg))])
+        moving = abs(v0) >= 0.01
+        ranked = scan is not None and lined and not moving
+        steps = np.arange(-30.0, 30.0 + 1e-9, p.door_turn_step_deg)
+        if ranked:  # (finer where the scan can tell them apart)
+            steps = np.union1d(steps, np.arange(-3.0, 3.0 + 1e-9, 0.25))
+        psi = np.concatenate([[yaw], way + np.radians(steps)])
         c, s = np.cos(psi), np.sin(psi)
         along = (path[j, 0] - x) * c + (path[j, 1] - y) * s  # (N,) the straight's length
         lateral = np.abs((path[k, 1] - y) * c - (path[k, 0] - x) * s)
-        ds = np.arange(0.0, float(along.max()) + spare_m + p.final_overshoot_m + 0.005, 0.01)
+        ends = along + spare_m + p.final_overshoot_m
+        ds = np.arange(0.0, float(ends.max()) + 0.005, 0.01)
         line = fld.footprint_clearance(x + ds * c[:, None], y + ds * s[:, None],
                                        np.broadcast_to(psi[:, None], (psi.size, ds.size)))
-        reach = ds[None, :] <= (along + spare_m + p.final_overshoot_m)[:, None]
-        clear = np.where(reach, line, math.inf).min(1)
-        moving = abs(v0) >= 0.01
+        clear = np.where(ds[None, :] <= ends[:, None], line, math.inf).min(1)
         need = p.contact_m + (DOOR_NOISE_M if moving else 0.0)  # (at rest: the clearest)
         ok = (clear >= need) & (lateral <= 0.1) & (along > 0.0)
-        best_i = int(np.argmax(np.where(ok, clear, -math.inf)))
-        if ok[0] and (not lined or moving or turned or abs(float(wrap(np.array(
-                psi[best_i] - yaw)))) <= math.radians(p.door_turn_step_deg)):
+        if ranked and ok.any():
+            assert scan is not None
+            rank = np.full(psi.shape, -math.inf)
+            rank[ok] = straight_clearance(scan, (x, y), psi[ok], ends[ok], fld.footprint)
+            keep = rank[0] >= rank.max() - DOOR_GAIN_M
+        else:
+            rank = clear
+        best_i = int(np.argmax(np.where(ok, rank, -math.inf)))
+        if not (ranked and ok.any()):
+            keep = abs(float(wrap(np.array(psi[best_i] - yaw)))) \
+                <= math.radians(p.door_turn_step_deg)
+        if ok[0] and (not lined or moving or turned or keep):
             d = float(along[0])  # on a clear straight through: drive it
             far = self.door_far(path, k)
             far_m = float((path[far, 0] - x) * c[0] + (path[far, 1] - y) * s[0])

@@ -16,7 +16,7 @@ import numpy as np
 from autochair.safety.core import SafetyTuning
 
 from . import lattice
-from .field import CostToGo, Footprint, GridMap, NavField
+from .field import F64, CostToGo, Footprint, GridMap, NavField
 from .lattice import HeadingField
 from .mpepc import Chain, LawParams, Mpepc, MpepcParams, Person, Plan
 
@@ -55,6 +55,9 @@ class PlanRequest:
     # The straight under way (`straight`) is a door's crossing (Plan.crossing): its rest is
     # rechecked at its own speed only
     crossing: bool = False
+    # The laser's latest points (odom, (M, 2)), fresh: a door's straight lined up at rest is
+    # ranked by them (Mpepc.through_door's `scan`, H79); None: by the map alone
+    scan: F64 | None = None
 
 
 @dataclass(frozen=True)
@@ -388,7 +391,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
         # is clear; at rest: onto the clearest straight first)
         door = mpc.through_door(req.pose, req.goal, ctg, hf, req.people, req.rates, req.final,
                                 turned=req.then is not None, lined=True, v0=req.v,
-                                chain=req.chain)
+                                chain=req.chain, scan=req.scan)
         if door is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, door, given_up=given_up)
         if at_rest and (held := door_with_people()) is not None:

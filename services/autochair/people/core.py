@@ -337,6 +337,7 @@ class ScanPeople:
     tracker: PeopleTracker = field(default_factory=PeopleTracker)
     odom: OdomBuffer = field(default_factory=lambda: OdomBuffer(keep=200))
     max_dt_s: float = 0.1  # no odometry this close to the scan: skipped
+    points: F64 | None = None  # the newest placed scan's points (odom, (M, 2); NaN: no return)
 
     def on_odom(self, msg: Odometry) -> None:
         self.odom.add(msg)
@@ -356,6 +357,7 @@ class ScanPeople:
         lx, ly, lyaw = sweep_poses(first, last, self.mount, len(ranges))
         pts = scan_points(np.asarray(ranges, dtype=np.float64), angle_min, angle_inc,
                           range_min, range_max, (lx, ly, lyaw))
+        self.points = pts
         mid = len(ranges) // 2
         angle = lyaw + angle_min + angle_inc * np.arange(len(ranges))  # (lyaw: unwrapped)
         return self.tracker.update(pts, (float(lx[mid]), float(ly[mid])),

@@ -198,17 +198,12 @@ class UrgDevice:
         return scip.encode_scan(req, remaining, stamp, vals)
 
 
-def ray_scan(world: World, params: UrgParams, pose: tuple[float, float, float],
-             mount: tuple[float, float, float], noise_std_m: float,
-             rng: np.random.Generator,
-             twist: tuple[float, float] = (0.0, 0.0)) -> npt.NDArray[np.int64]:
-    """Raw URG values (mm or error codes) for steps AMIN..AMAX seen from chair `pose` (x, y,
-    yaw in world) with the laser at `mount` (x, y, yaw in the chair frame).
-
-    `pose` is the chair's at the end of the sweep, moving at `twist` (v m/s, ω rad/s): the
-    laser turns once a period and takes step k at k/ARES of it, so each beam is cast from
-    where the chair was then (constant twist over the sweep), as a real laser on a moving
-    chair skews its scan."""
+def beam_rays(params: UrgParams, pose: tuple[float, float, float],
+              mount: tuple[float, float, float], twist: tuple[float, float] = (0.0, 0.0)
+              ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64],
+                         npt.NDArray[np.float64]]:
+    """Each beam's origin (x, y) and bearing in the world for steps AMIN..AMAX, the chair at
+    `pose` at the end of the sweep moving at `twist` (see ray_scan)."""
     x, y, yaw = pose
     mx, my, myaw = mount
     steps = np.arange(params.amin, params.amax + 1)
@@ -220,9 +215,22 @@ def ray_scan(world: World, params: UrgParams, pose: tuple[float, float, float],
         cy = y + v / omega * (math.cos(yaw) - np.cos(th))
     else:
         cx, cy = x - v * age * math.cos(yaw), y - v * age * math.sin(yaw)
-    lx = cx + mx * np.cos(th) - my * np.sin(th)
-    ly = cy + mx * np.sin(th) + my * np.cos(th)
-    angles = params.step_angles() + th + myaw
+    return (cx + mx * np.cos(th) - my * np.sin(th), cy + mx * np.sin(th) + my * np.cos(th),
+            params.step_angles() + th + myaw)
+
+
+def ray_scan(world: World, params: UrgParams, pose: tuple[float, float, float],
+             mount: tuple[float, float, float], noise_std_m: float,
+             rng: np.random.Generator,
+             twist: tuple[float, float] = (0.0, 0.0)) -> npt.NDArray[np.int64]:
+    """Raw URG values (mm or error codes) for steps AMIN..AMAX seen from chair `pose` (x, y,
+    yaw in world) with the laser at `mount` (x, y, yaw in the chair frame).
+
+    `pose` is the chair's at the end of the sweep, moving at `twist` (v m/s, ω rad/s): the
+    laser turns once a period and takes step k at k/ARES of it, so each beam is cast from
+    where the chair was then (constant twist over the sweep), as a real laser on a moving
+    chair skews its scan."""
+    lx, ly, angles = beam_rays(params, pose, mount, twist)
     r = raycast(world, lx, ly, angles, params.dmax_mm / 1000.0)
     if noise_std_m > 0:
         r = r + rng.normal(0.0, noise_std_m, r.shape)
