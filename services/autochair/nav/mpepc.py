@@ -447,8 +447,8 @@ TOUCH_M = 0.005
 # jamb's end that a scan may read inside the padded sweep: a stop, or at speed an e-stop.
 # Crossings of the 0.9 m door at 0.45 m/s, headings 0–3° (docs/experiments/scripts/
 # h79_cross.py), e-stopped at a bare clearance of 0.055 m in 20–80 %, 0.065 m 5 %,
-# 0.069–0.075 m 2 of 520, 0.08 m none of 440. (From rest the map's clearest straight is taken:
-# on the laser's map, whose jambs the noise grows, that can read ~0.07 m, H79's residual.)
+# 0.069–0.075 m 2 of 520, 0.08 m none of 440. (From rest the straight clearest of the laser's
+# points is taken, DOOR_GAIN_M: the live map's jambs, grown by the noise, can leave none at this.)
 DOOR_NOISE_M = 0.03
 # Lined up at a door at rest, the chair turns onto the straight through it that keeps clearest
 # of the laser's points unless its own keeps within this of it (Mpepc.through_door, H79): a
@@ -1773,7 +1773,8 @@ class Mpepc:
         once it is in the door (no speed short of a crawl does: they are unseen till there).
         The rest of the straight keeps that speed as its top (stage_plan's `top`).
 
-        `scan` (N, 2): the laser's latest points where the chair plans. Lined up at rest, the
+        `scan` (M, 2): the laser's points of the last scans (ControlCore.SCAN_WINDOW_S), in
+        the frame the chair plans in; NaN rows: no return. Lined up at rest, the
         straights clear on the map are ranked by their clearance to those points, finer than
         the map's cells (H79): the live map's jambs, grown by the laser's noise, read up to 5
         cm off the truth, and the straight it ranked clearest passed 0.069 m from a jamb where
@@ -1807,17 +1808,15 @@ class Mpepc:
         clear = np.where(ds[None, :] <= ends[:, None], line, math.inf).min(1)
         need = p.contact_m + (DOOR_NOISE_M if moving else 0.0)  # (at rest: the clearest)
         ok = (clear >= need) & (lateral <= 0.1) & (along > 0.0)
-        if ranked and ok.any():
+        by_scan = scan is not None and ranked and bool(ok.any())
+        rank = clear
+        if by_scan:
             assert scan is not None
             rank = np.full(psi.shape, -math.inf)
             rank[ok] = straight_clearance(scan, (x, y), psi[ok], ends[ok], fld.footprint)
-            keep = rank[0] >= rank.max() - DOOR_GAIN_M
-        else:
-            rank = clear
         best_i = int(np.argmax(np.where(ok, rank, -math.inf)))
-        if not (ranked and ok.any()):
-            keep = abs(float(wrap(np.array(psi[best_i] - yaw)))) \
-                <= math.radians(p.door_turn_step_deg)
+        keep = rank[0] >= rank[best_i] - DOOR_GAIN_M if by_scan else abs(float(wrap(
+            np.array(psi[best_i] - yaw)))) <= math.radians(p.door_turn_step_deg)
         if ok[0] and (not lined or moving or turned or keep):
             d = float(along[0])  # on a clear straight through: drive it
             far = self.door_far(path, k)

@@ -55,8 +55,8 @@ class PlanRequest:
     # The straight under way (`straight`) is a door's crossing (Plan.crossing): its rest is
     # rechecked at its own speed only
     crossing: bool = False
-    # The laser's latest points (odom, (M, 2)), fresh: a door's straight lined up at rest is
-    # ranked by them (Mpepc.through_door's `scan`, H79); None: by the map alone
+    # At a door's line-up, the laser's points of the last scans (odom, (M, 2)): the door's
+    # straight from rest is ranked by them (Mpepc.through_door's `scan`, H79); None: by the map
     scan: F64 | None = None
 
 
