@@ -18,7 +18,7 @@ from autochair.nav.mpepc import (
     MpepcParams,
     Person,
     Plan,
-    straight_clearance,
+    points_clearance,
     wall_turn,
 )
 from autochair.nav.planner import PlanRequest, blocker, compute, free_field
@@ -1118,7 +1118,7 @@ def test_a_doors_straight_from_rest_is_chosen_by_the_lasers_points_not_a_grown_m
     pose = (2.6, 0.975, math.radians(-1.5))
 
     def true_clearance(yaw: F64) -> F64:  # (of the straight to the door's far side)
-        return straight_clearance(truth, pose[:2], yaw, np.full(yaw.shape, 1.95), FP)
+        return points_clearance(truth, pose[:2], yaw, np.full(yaw.shape, 1.95), FP)
 
     def chosen(scan: F64 | None) -> float:
         """The true clearance of the straight the chair turns onto (or drives)."""

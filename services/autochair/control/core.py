@@ -1115,8 +1115,10 @@ class ControlCore:
 
     def _door_scan(self, now: float) -> F64 | None:
         """At a door's line-up, the points of the scans within SCAN_WINDOW_S; else None."""
+        if not self._door:
+            return None
         got = [q for t, q in self.scans if t >= now - SCAN_WINDOW_S]
-        return np.concatenate(got) if self._door and got else None
+        return np.concatenate(got) if got else None
 
     def _standing_omega(self, now: float) -> float:
         """The safety monitor's standing |ω| bound (PLAN_OMEGA_WINDOW_S): the largest it

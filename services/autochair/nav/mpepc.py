@@ -543,7 +543,7 @@ def rests_within(info: dict[str, F64], n: int) -> npt.NDArray[np.bool_]:
                                info["y"][:n, -1] - info["y"][:n, -2]) < 1e-3)
 
 
-def straight_clearance(pts: F64, at: tuple[float, float], psi: F64, ends: F64,
+def points_clearance(pts: F64, at: tuple[float, float], psi: F64, ends: F64,
                        fp: Footprint) -> F64:
     """(N,): the least distance from points `pts` (M, 2; NaN rows skipped) to the bare
     footprint swept straight from `at` along each heading psi[n] for ends[n] m: a box from
@@ -1808,12 +1808,12 @@ class Mpepc:
         clear = np.where(ds[None, :] <= ends[:, None], line, math.inf).min(1)
         need = p.contact_m + (DOOR_NOISE_M if moving else 0.0)  # (at rest: the clearest)
         ok = (clear >= need) & (lateral <= 0.1) & (along > 0.0)
-        by_scan = scan is not None and ranked and bool(ok.any())
+        by_scan = ranked and bool(ok.any())
         rank = clear
         if by_scan:
             assert scan is not None
             rank = np.full(psi.shape, -math.inf)
-            rank[ok] = straight_clearance(scan, (x, y), psi[ok], ends[ok], fld.footprint)
+            rank[ok] = points_clearance(scan, (x, y), psi[ok], ends[ok], fld.footprint)
         best_i = int(np.argmax(np.where(ok, rank, -math.inf)))
         keep = rank[0] >= rank[best_i] - DOOR_GAIN_M if by_scan else abs(float(wrap(
             np.array(psi[best_i] - yaw)))) <= math.radians(p.door_turn_step_deg)
