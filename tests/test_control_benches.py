@@ -161,6 +161,23 @@ def _monitored(name: str, seed: int, sight_only: bool = False) -> dict[str, Any]
                        monitor=SafetyRig(0), sight_only=sight_only)
 
 
+def test_a_straight_braked_in_a_door_frame_is_not_taken_for_a_held_turn() -> None:
+    """H73's rule narrowed (nav_eval --monitor seed 1, `door_person` "through to room B"): the
+    chair, driving into the door on a straight (ω 0), braked by its own plan, blocked by the
+    person pacing beyond; the monitor's turn bound in the frame read ~0 meanwhile. The core
+    counted any motion under way as held by that bound and ended the goal at the stand, "the
+    safety monitor stopped the chair (free fwd inf m rev inf m turn 0.04 rad)", though nothing
+    had been stopped (the PID latched nothing; old code, traced). Only a turning command is
+    held now (a held turn still ends the goal: test_control_moves.py::
+    test_a_turn_the_monitor_stops_ends_the_goal_and_does_not_go_on_by_itself): the chair waits
+    for the person and crosses, clear of them (0.135 m; 0.135–0.19 in the other door_person
+    arrivals)."""
+    r = _monitored("door person: through to room B", 1, sight_only=True)
+    assert r["arrived"], r["reason"]
+    assert r["collisions"] == 0 and r["monitor"]["estops"] == 0
+    assert r["person_clearance_m"] >= 0.1
+
+
 def test_a_person_crossing_does_not_walk_into_the_monitored_chair() -> None:
     """H65 (nav_eval --monitor --seed 2, "person: to the side"): a person crosses the corridor
     at 0.8 m/s, walking on regardless of the chair. With MPEPC's rollouts turning faster than

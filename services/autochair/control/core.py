@@ -697,17 +697,8 @@ class ControlCore:
         the footprint, obstacles): the limiter then keeps the path and slows v with ω. (MPEPC
         drives forward only, so the monitor's reverse bound needs no handling here.)"""
         self.limiter.cap_omega(omega_max)  # (the PID clamps the command to it anyway)
-        # A motion under way that the bound brings to a stand (a turn in place, or a curve
-        # the limiter slows with it) is a safety stop, as the PID's is (H03): the goal ends
-        # once the chair stands, commanded and measured (step). Capped here, the PID saw no
-        # stop, and the held turn went on by itself once the bound lifted (H73). Lifted before
-        # the chair stands, it was a slow-down; a chair not yet moving (measured: a command
-        # just begun is still in the drive chain's dead time) waits for it.
         if omega_max > HELD_RADPS:
-            self._held = None
-        elif self.active and self._held is None and self.odom is not None \
-                and not self._stands(self.odom):
-            self._held = reason or "no reason given"
+            self._held = None  # (lifted before the chair stands: a slow-down, _note_held)
         self._limit_reason = reason or "no reason given"
         # The forward bound is a braking curve over the free extent ahead, v_b = S(d); the PID
         # clamps v to it. Reached from above, the clamp steps the chair's acceleration: nav_eval
@@ -726,6 +717,7 @@ class ControlCore:
         bounds.append((now, omega_max))
         while bounds[0][0] < now - PLAN_OMEGA_WINDOW_S:
             bounds.popleft()
+        self._note_held()
         if not self._monitor_bars():
             self._waits = None
         self.gates.limit_t = now
@@ -934,6 +926,7 @@ class ControlCore:
         else:
             self._waits = None
         self._history.append((dt, v, w))
+        self._note_held()
         if dt > 0.0:
             self._chain[0].push(dt, v)
             self._chain[1].push(dt, w)
@@ -1301,6 +1294,23 @@ class ControlCore:
             return 0.0
         u = fld.map.unknown
         return float(u.size - np.count_nonzero(u)) * fld.map.resolution_m ** 2
+
+    def _note_held(self) -> None:
+        """A turn under way that the monitor's |ω| bound of ~0 brings to a stand (a turn in
+        place, or a curve the limiter slows with it) is a safety stop, as the PID's is (H03):
+        the goal ends once the chair stands, commanded and measured (_hold_stand). Capped by
+        the core alone, the PID saw no stop, and the held turn went on by itself once the
+        bound lifted (H73). Only a turning command is held: a straight (ω 0) is not slowed by
+        a turn bound (the PID keeps its v, same_arc), and one braked by the core's own plan in
+        a door frame, where that bound is ~0, ended as a safety stop though nothing had been
+        stopped (nav_eval --monitor seed 1, `door_person` through, blocked by the person). A
+        chair not yet moving (a command just begun is still in the drive chain's dead time)
+        waits for the bound."""
+        if self._held is None and self.active and self.odom is not None \
+                and self._omega_bounds and self._omega_bounds[-1][1] <= HELD_RADPS \
+                and not self._stands(self.odom) and bool(self._history) \
+                and abs(self._history[-1][2]) > 1e-3:
+            self._held = self._limit_reason
 
     def _stands(self, o: OdomSample) -> bool:
         """The measured chair at rest (`rest_mps` on both axes)."""
