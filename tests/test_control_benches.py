@@ -139,11 +139,14 @@ def test_a_door_is_driven_straight_from_its_line_up_and_the_monitor_reads_it_cle
     assert max(speed) <= first.vmax_mps + 0.02
 
 
-def _monitored(name: str, seed: int, sight_only: bool = False) -> dict[str, Any]:
+def _monitored(name: str, seed: int, sight_only: bool = False, scans: bool = False
+               ) -> dict[str, Any]:
     """nav_eval's case `name` with the safety monitor, MPEPC's sampler at `seed` (`sight_only`:
-    people known once seen, as nav_eval's door_person cases)."""
+    people known once seen, as nav_eval's door_person cases; `scans`: on the map the laser
+    makes, `--map scans`)."""
     from bench import nav_eval as ne
     from bench.safety_rig import SafetyRig
+    from bench.scan_map import ScanMap
 
     from autochair.nav import planner
     from autochair.nav.field import Footprint
@@ -157,8 +160,10 @@ def _monitored(name: str, seed: int, sight_only: bool = False) -> dict[str, Any]
     planner._planners.clear()  # (a fresh planner and sampler, as nav_eval's)
     planner._lattices.clear()
     cfg = load_section(ControlConfig, "control", None, [])  # (as nav_eval's)
-    return ne.run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=seed),
-                       monitor=SafetyRig(0), sight_only=sight_only)
+    grown = ScanMap(ne.build(wname, fp)[0], ne.laser_mount(), 0) if scans else None
+    return ne.run_case(world, fld, start, goal, cfg, fp, MpepcParams(seed=seed), 0.0, grown,
+                       ne.DRIVEN.get(name) if scans else None, monitor=SafetyRig(0),
+                       sight_only=sight_only)
 
 
 def test_a_straight_braked_in_a_door_frame_is_not_taken_for_a_held_turn() -> None:
@@ -253,3 +258,17 @@ def test_a_door_a_person_paces_beyond_is_crossed_clear_of_them_with_the_monitor(
     assert r["arrived"], r["reason"]
     assert r["collisions"] == 0 and r["monitor"]["estops"] == 0
     assert r["person_clearance_m"] >= 0.15
+
+
+def test_a_chair_standing_in_a_door_is_not_crept_into_a_pacing_persons_lane() -> None:
+    """H75's gap (laser map, seed 7, "from before the door"): the chair, blocked by the person
+    pacing beyond, braked to a stand with its front 0.17 m past the door's wall. The person's
+    trail in the live map had closed the door's exit, so the way from there turned back and the
+    crossing rule did not apply; MPEPC's own plans crept the chair 14 cm on into the person's
+    lane, and standing there, blocked, it was walked into (1 contact; with H73's held rule
+    narrowed to turning commands, before this fix). Standing in a door with someone about, only
+    the crossing rule moves it: it stands, blocked, and the goal ends."""
+    r = _monitored("door person: from before the door", 7, sight_only=True, scans=True)
+    assert r["collisions"] == 0 and r["monitor"]["estops"] == 0
+    assert r["person_clearance_m"] >= 0.1
+

@@ -421,6 +421,45 @@ def test_a_chair_in_a_door_crosses_a_pacing_persons_way_only_when_all_of_it_is_c
         assert held.plan is not None and held.plan.vmax_mps == 0.0 and held.plan.hold
 
 
+def test_a_chair_standing_in_a_door_whose_way_turns_back_stands_for_a_person_about() -> None:
+    """H75's gap (laser map, seed 7, "from before the door"): a walker's trail in the live map
+    closed the door's exit, so the way from a chair standing in the door turned back (no
+    passage ahead: the crossing rule did not apply), and MPEPC's plans crept the chair on, in
+    place of turning (old code: vmax 0.15, traced 14 cm at 0.13 m/s), into the lane of the
+    person pacing beyond; blocked there, it was walked into. Standing in a door (`in_passage`,
+    whichever way the way runs) with someone about, only the crossing rule moves the chair:
+    else it stands, blocked by them. Controls: with the exit open, the same stand crosses
+    (the rule's, not a blanket stop); no one about: MPEPC plans as before."""
+    segs = [[-1, -2, 9, -2], [-1, 2, 9, 2], [-1, -2, -1, 2], [9, -2, 9, 2],
+            [4, -2, 4, -1.55], [4, -0.65, 4, 0.55], [4, 1.45, 4, 2]]  # (a second door below)
+    trail = [[4.35, 0.5, 4.35, 1.5]]  # (across the upper door's exit)
+    goal, pose = (6.5, 0.0, 0.0), (3.17, 1.0, 0.0)
+    person = Person(4.5, -0.5, 0.0, -1.0)
+
+    def plan(walls: list[list[float]], people: list[Person]):  # type: ignore[no-untyped-def]
+        fld = NavField(GridMap.from_shapes(np.array(walls, dtype=float), np.zeros((0, 3))), FP)
+        return compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, None, None, LAW, people))
+
+    closed = plan(segs + trail, [person])
+    assert NavField(GridMap.from_shapes(np.array(segs + trail, dtype=float), np.zeros((0, 3))),
+                    FP).in_passage(pose)
+    assert closed.blocked_by.startswith("blocked by a person")
+    assert closed.plan is not None and closed.plan.vmax_mps == 0.0
+    opened = plan(segs, [person])
+    assert not opened.blocked_by and opened.plan is not None and opened.plan.crossing
+    alone = plan(segs + trail, [])
+    assert alone.plan is not None and alone.plan.vmax_mps > 0.0 and not alone.blocked_by
+
+
+def test_in_passage_reads_a_door_across_the_body_not_a_wall_beside_it() -> None:
+    fld = two_rooms()
+    assert fld.in_passage((3.17, 1.0, 0.0))  # (its front in the 0.9 m door)
+    assert fld.in_passage((4.2, 1.0, 0.0))  # (its rear in it)
+    assert not fld.in_passage((2.5, 1.0, 0.0))  # (a door's line-up: the front 0.55 m short)
+    assert not fld.in_passage((2.0, 1.6, 0.0))  # (beside room A's wall, 0.4 m off)
+    assert not hall_with_pillar().in_passage((4.0, 0.25, 0.0))  # (1.5 m: no door)
+
+
 def test_survival_is_limited_by_the_tightest_point() -> None:
     fld = corridor_with_wall()
     ctg = fld.cost_to_go(6.0, 2.0)

@@ -919,6 +919,30 @@ class NavField:
             return None
         return (path[:j + 1], k, j) if walked_to(path, k) <= within_m else None
 
+    def in_passage(self, pose: tuple[float, float, float], narrow_m: float = NARROW_M) -> bool:
+        """Whether the chair's body at `pose` stands in a narrow passage (a door): at some
+        point of its centre line, from the rear to the front, obstacles (or the map's edge) lie
+        within `narrow_m` on both sides across it, as `passage_ahead`'s clearance under
+        `narrow_m` reads a door, whichever way the way runs (H75: a walker's trail in the live
+        map can close a door's exit, and the way from a chair standing in it then turns back:
+        no passage lies ahead of it)."""
+        x, y, yaw = pose
+        fp, gm = self.footprint, self.map
+        c, s = math.cos(yaw), math.sin(yaw)
+        along = np.arange(-fp.rear_m, fp.front_m + 1e-9, gm.resolution_m)
+        across = np.arange(gm.resolution_m / 2, narrow_m + 1e-9, gm.resolution_m / 2)
+        walled = np.ones(along.size, dtype=np.bool_)
+        h, w = gm.occupied.shape
+        for side in (1.0, -1.0):
+            px = x + along[:, None] * c - side * across[None, :] * s
+            py = y + along[:, None] * s + side * across[None, :] * c
+            ix = np.floor((px - gm.origin_x_m) / gm.resolution_m).astype(np.intp)
+            iy = np.floor((py - gm.origin_y_m) / gm.resolution_m).astype(np.intp)
+            off = (ix < 0) | (ix >= w) | (iy < 0) | (iy >= h)
+            hit = off | gm.occupied[np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1)]
+            walled &= hit.any(1)
+        return bool(walled.any())
+
     def start_cost(self, ctg: CostToGo, x: float, y: float, search_m: float = 0.3) -> float:
         """Cost-to-go from the chair at (x, y): φ there if the axle stands on a reachable
         cell, else the least φ + distance over reachable cells within `search_m` (the chair may

@@ -1850,6 +1850,21 @@ class Mpepc:
                     self.pose_clearance(pose), np.array([pose], dtype=np.float64), False, 0.0,
                     0.0, 0, hold=True)
 
+    def people_about(self, pose: tuple[float, float, float], people: list[Person]) -> bool:
+        """Whether anyone comes, wherever MPEPC predicts them over the horizon (`walk_points`),
+        within their reach (r + speed·react_s) plus the chair's length of its body at `pose`:
+        a creep from there could carry it into their way (H75)."""
+        horizon = np.asarray(np.arange(self.steps + 1) * self.p.dt_s, dtype=np.float64)
+        fp = self.field.footprint
+        bx, by = place_xy(self.field.outline, pose[0], pose[1], pose[2])
+        for q in people:
+            w = self.walk_points(q, horizon).reshape(-1, 2)
+            reach = q.radius_m + math.hypot(q.vx_mps, q.vy_mps) * self.p.react_s
+            d = np.hypot(bx.reshape(-1, 1) - w[None, :, 0], by.reshape(-1, 1) - w[None, :, 1])
+            if float(d.min()) < reach + fp.front_m + fp.rear_m:
+                return True
+        return False
+
     def later_plans_clear(self, xs: F64, ys: F64, yaws: F64, people: list[Person]
                           ) -> npt.NDArray[np.bool_]:
         """(N,): whether every later plan along the predicted motions (N, T) finds the rest

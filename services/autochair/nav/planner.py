@@ -373,12 +373,18 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
 
     def door_with_people() -> PlanResult | None:
         """At rest before or in a door, people about: into it, then across their way only
-        when the whole crossing is clear of them as predicted; else stand, blocked (H75)."""
+        when the whole crossing is clear of them as predicted; else stand, blocked (H75).
+        Standing in a door the crossing rule does not take (no way through it ahead: on the
+        live map a walker's trail can close its exit, and the way turns back), with someone
+        about: stand. MPEPC's own plans crept such a chair 14 cm on into the lane of a person
+        pacing beyond, and it stood there, blocked, till they walked into it (laser map,
+        seed 7, "from before the door" with H73's held rule narrowed to turning commands)."""
         applies, cross = mpc.door_crossing(req.pose, req.goal, ctg, hf, req.people, req.rates,
                                            req.final, req.chain)
         if cross is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, cross, given_up=given_up)
-        if applies:
+        if applies or (req.people and fld.in_passage(req.pose)
+                       and mpc.people_about(req.pose, req.people)):
             # (a stand: not the goal's approach, which the core would drive blocked or not;
             # a door's line-up kept: Plan.hold)
             return PlanResult(req.goal_id, req.index, fld, ctg, mpc.standing(req.pose),
