@@ -430,9 +430,10 @@ def test_a_chair_standing_in_a_door_whose_way_turns_back_stands_for_a_person_abo
     whichever way the way runs) with someone about, only the crossing rule moves the chair:
     else it stands, blocked by them. Controls: with the exit open, the same stand crosses
     (the rule's, not a blanket stop); no one about: MPEPC plans as before."""
-    segs = [[-1, -2, 9, -2], [-1, 2, 9, 2], [-1, -2, -1, 2], [9, -2, 9, 2],
-            [4, -2, 4, -1.55], [4, -0.65, 4, 0.55], [4, 1.45, 4, 2]]  # (a second door below)
-    trail = [[4.35, 0.5, 4.35, 1.5]]  # (across the upper door's exit)
+    segs: list[list[float]] = [[-1, -2, 9, -2], [-1, 2, 9, 2], [-1, -2, -1, 2], [9, -2, 9, 2],
+                               [4, -2, 4, -1.55], [4, -0.65, 4, 0.55],  # (a second door below)
+                               [4, 1.45, 4, 2]]
+    trail: list[list[float]] = [[4.35, 0.5, 4.35, 1.5]]  # (across the upper door's exit)
     goal, pose = (6.5, 0.0, 0.0), (3.17, 1.0, 0.0)
     person = Person(4.5, -0.5, 0.0, -1.0)
 
