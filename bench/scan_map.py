@@ -8,7 +8,8 @@ Each piece is the live one, called as its service calls it:
 - the ingest's conversion (lidar/core.py ScanDecoder: angles, beam timing, NaN for error
   codes);
 - the mapping service's integration (mapping/core.py place_scan, then
-  OccupancyMapper.integrate): placed by odometry (keys.ODOM_SLOW, 50 Hz, interpolated at the
+  OccupancyMapper.integrate, the people's returns left out as the control service reports
+  them, keys.PEOPLE): placed by odometry (keys.ODOM_SLOW, 50 Hz, interpolated at the
   scan's stamp and last beam), the [chair] laser mount, the MoveGate, the [mapping] grid and
   log odds;
 - published once a second (`publish_period_s`) as the message the control service reads
@@ -25,7 +26,7 @@ import numpy as np
 
 from autochair.geometry import Pose
 from autochair.lidar.core import LaserParams, ScanDecoder
-from autochair.mapping.core import OdomBuffer, place_scan
+from autochair.mapping.core import PEOPLE_MARGIN_M, OdomBuffer, place_scan
 from autochair.mapping.node import MappingConfig
 from autochair.nav.field import GridMap
 from autochair.protocol import scip
@@ -143,5 +144,9 @@ class ScanMap:
         placed = place_scan(self.odom, self.gate, stamp, ranges.size, dec.time_increment_s,
                             self.mount, ns(self.cfg.max_odom_dt_s))
         if not isinstance(placed, str):
+            # (the people as the control service reports them, here where they truly are,
+            # mid-sweep: a tracker's first reports come a few scans after it first sees them)
+            state = self.world.people_state(t_end - self.period_s / 2)
+            people = np.column_stack([state[:, :2], state[:, 4] + PEOPLE_MARGIN_M])
             self.mapper.integrate(ranges, dec.angle_min, dec.angle_inc, placed.laser,
-                                  placed.beams)
+                                  placed.beams, people)

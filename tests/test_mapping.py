@@ -10,17 +10,19 @@ import scipy.ndimage as ndi
 
 from autochair.geometry import compose
 from autochair.mapping.core import (
+    PEOPLE_MARGIN_M,
     GridSpec,
     NoReturn,
     OccupancyMapper,
     OdomBuffer,
     VoxelCloud,
+    people_discs,
     scan_points,
 )
 from autochair.runtime.config import ChairGeometry
 from autochair.sim.lidar.scanner import UrgParams, ray_scan
-from autochair.sim.world import World, load_world, parse_world, raycast
-from autochair_msgs import Odometry
+from autochair.sim.world import DEFAULT_WORLD, World, load_world, parse_world, raycast
+from autochair_msgs import Odometry, People, TrackedPerson
 
 MOUNT = ChairGeometry().laser_mount  # (0.8636, 0.2032, 0.0), the [chair] default
 POSES = [(0.0, 0.0, 0.0), (2.5, 0.3, 0.4), (5.0, -0.2, 0.0), (7.5, 0.0, -0.5),
@@ -264,3 +266,42 @@ def test_a_blinded_laser_clears_nothing() -> None:
     for _ in range(2):
         m.integrate(scan, AMIN, INC, laser)
     assert m.logodds.reshape(-1)[box] < 0.62
+
+
+def test_a_tracked_walkers_returns_are_not_mapped_and_leave_no_trail() -> None:
+    """nav_eval's door_person world: someone pacing across room B's door, seen through it
+    from room A by a chair driving up to it (a scan mapped every 0.1 s). Their returns left a
+    trail across the door's exit (on the laser's map, nav_eval seed 7: 6 cells there as the
+    chair stood in the door; the way from it then turned back, H75). The returns within the
+    people the control service tracks (keys.PEOPLE, `people_discs`) are theirs, not the
+    map's: no trail; without them (the old map) one; the walls are mapped alike."""
+    world = load_world(DEFAULT_WORLD.parent / "door_person.world")
+    walls = World(world.segments, world.circles)
+    stray_cells, wall_cells = {}, {}
+    for tracked in (False, True):
+        m = OccupancyMapper(GridSpec(0.05, 12.0, 6.0, -2.0, -3.0))
+        for k in range(10):
+            t = 1.0 + 0.1 * k
+            laser = compose((min(2.6 + 0.37 * t, 3.17), 1.0, 0.0), MOUNT)
+            x, y, vx, vy, r = world.people_state(t)[0]
+            report = People(stamp_ns=round(t * 1e9), frame_id="odom", people=[TrackedPerson(
+                track_id=1, x_m=x, y_m=y, vx_mps=vx, vy_mps=vy, radius_m=r)])
+            m.integrate(laser_scan(world.at(t), laser), AMIN, INC, laser,
+                        people=people_discs(report, round(t * 1e9), "odom") if tracked
+                        else None)
+        pts = m.cell_centres(m.occupied(0.62))
+        far = walls.distance_to(pts)
+        stray_cells[tracked], wall_cells[tracked] = int((far > 0.1).sum()), int((far <= 0.1).sum())
+    assert stray_cells[False] >= 5  # (the old map: the walker's trail)
+    assert stray_cells[True] == 0
+    assert wall_cells[True] == wall_cells[False] > 50
+
+
+def test_people_discs_are_moved_to_the_scan_or_not_used() -> None:
+    report = People(stamp_ns=1_000_000_000, frame_id="odom", people=[TrackedPerson(
+        track_id=1, x_m=1.0, y_m=2.0, vx_mps=1.0, vy_mps=0.0, radius_m=0.25)])
+    d = people_discs(report, 1_200_000_000, "odom")
+    assert d is not None and d[0] == pytest.approx([1.2, 2.0, 0.25 + PEOPLE_MARGIN_M + 0.2])
+    assert people_discs(report, 1_200_000_000, "map") is None  # (another frame)
+    assert people_discs(report, 1_600_000_000, "odom") is None  # (too old: all mapped)
+    assert people_discs(None, 0, "odom") is None

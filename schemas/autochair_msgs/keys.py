@@ -113,7 +113,8 @@ GOAL_GET = Topic("autochair/goal/get", Empty, None, False,
 NAV_PLAN = Topic("autochair/nav/plan", NavPlan, 2, True,
                  "MPEPC plan: target, predicted path, footprint, people (control)")
 PEOPLE = Topic("autochair/people", People, 10, True,
-               "People tracked in the scans, in odom, with their velocity (control), for MPEPC")
+               "People tracked in the scans, in odom, with their velocity (control), for MPEPC "
+               "and mapping (their returns are not the map's)")
 
 # --- lidar and map -------------------------------------------------------------------------
 SCAN = Topic("autochair/lidar/scan", LaserScan, 10, True, "Checked laser scans (lidar ingest)")

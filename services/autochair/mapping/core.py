@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from autochair.geometry import Pose, compose, sweep_poses, wrap_angle
-from autochair_msgs import OccupancyGrid, Odometry, PointCloud
+from autochair_msgs import OccupancyGrid, Odometry, People, PointCloud
 
 F64 = npt.NDArray[np.float64]
 
@@ -27,6 +27,31 @@ def scan_points(ranges: F64, angle_min: float, angle_inc: float, pose: Pose) -> 
     ok = np.isfinite(ranges)
     r = ranges[ok]
     return np.stack([pose[0] + r * np.cos(a[ok]), pose[1] + r * np.sin(a[ok])], axis=1)
+
+
+# A tracked person's returns lie within their reported radius of the track (the tracker puts a
+# person's centre half the arc it sees behind its nearest point, and reports at least 0.25 m):
+# this much more, and as far as they may have walked off their predicted line since the report.
+PEOPLE_MARGIN_M = 0.15
+PEOPLE_MAX_AGE_S = 0.5  # an older report is not used: every return is then the map's
+
+
+def people_discs(report: People | None, stamp_ns: int, frame_id: str,
+                 max_age_s: float = PEOPLE_MAX_AGE_S, margin_m: float = PEOPLE_MARGIN_M
+                 ) -> F64 | None:
+    """(K, 3) discs (x, y, r) of the people in `report` moved on at their velocity to the scan
+    at `stamp_ns` (either way: the report may be of a later scan), r their radius plus
+    `margin_m` and speed × that time; for `OccupancyMapper.integrate`. None when there is
+    no report, or it is in another frame or more than `max_age_s` from the scan: the map then
+    takes in every return (a trail, never a hole)."""
+    if report is None or not report.people or report.frame_id != frame_id:
+        return None
+    dt = (stamp_ns - report.stamp_ns) / 1e9
+    if abs(dt) > max_age_s:
+        return None
+    return np.array([(q.x_m + q.vx_mps * dt, q.y_m + q.vy_mps * dt,
+                      q.radius_m + margin_m + math.hypot(q.vx_mps, q.vy_mps) * abs(dt))
+                     for q in report.people], dtype=np.float64)
 
 
 @dataclass
@@ -111,15 +136,27 @@ class OccupancyMapper:
         return iy[inside]
 
     def integrate(self, ranges: F64, angle_min: float, angle_inc: float, pose: Pose,
-                  beam_poses: tuple[F64, F64, F64] | None = None) -> int:
+                  beam_poses: tuple[F64, F64, F64] | None = None,
+                  people: F64 | None = None) -> int:
         """Add one scan seen from laser `pose` (grid frame); returns the number of beams used.
         `beam_poses`: the laser's x, y, yaw for each beam instead (a sweep taken moving).
-        Beams with no return (non-finite) clear as `no_return` says, if it is set."""
+        Beams with no return (non-finite) clear as `no_return` says, if it is set.
+        `people`: discs (K, 3: x, y, radius; grid frame) of the people tracked: a return
+        within one is theirs, not the map's; its beam clears up to it, and marks nothing
+        (else someone pacing leaves a trail of hits faster than beams through it clear them:
+        on the laser's map a person pacing across a door's exit closed it, H75)."""
         n = ranges.size
         lx, ly, lyaw = beam_poses if beam_poses is not None else (
             np.full(n, pose[0]), np.full(n, pose[1]), np.full(n, pose[2]))
         a = angle_min + angle_inc * np.arange(n) + lyaw
         ok = np.isfinite(ranges) & (ranges > 0) & (ranges <= self.max_range_m)
+        theirs = np.zeros(n, dtype=np.bool_)
+        if people is not None and len(people) and ok.any():
+            with np.errstate(invalid="ignore"):
+                ex, ey = lx + ranges * np.cos(a), ly + ranges * np.sin(a)
+                theirs = ok & (np.hypot(ex[:, None] - people[None, :, 0],
+                                        ey[:, None] - people[None, :, 1])
+                               <= people[None, :, 2]).any(1)
         nr = self.no_return
         blank = np.flatnonzero(~np.isfinite(ranges)) if nr is not None and n \
             and ok.mean() >= nr.min_valid else np.zeros(0, dtype=np.intp)
@@ -148,8 +185,9 @@ class OccupancyMapper:
         free = np.concatenate([free_nr, self._inside(x[m:], y[m:])]) if m else \
             self._inside(x, y)
         k = ok.sum()
-        hits = np.unique(self._inside(ox[-k:] + r[-k:] * cos[-k:],
-                                      oy[-k:] + r[-k:] * sin[-k:])) if k else free[:0]
+        mine = ~theirs[ok]  # (the returns' beams, in `r`'s order: the last k)
+        hits = np.unique(self._inside((ox[-k:] + r[-k:] * cos[-k:])[mine],
+                                      (oy[-k:] + r[-k:] * sin[-k:])[mine])) if k else free[:0]
         # Each cell once, and none hit by this scan: the cells whose own sample is the one
         # that wrote them last (no sort of the many samples, no pass over the whole grid); a
         # cell a return crosses is that return's (written after the no-return beams).

@@ -3,7 +3,8 @@ scans (keys.SCAN) placed by odometry (keys.ODOM_SLOW, interpolated) and the chai
 of the [chair] section (`node.chair`). A chair→laser transform on keys.TF_STATIC that
 disagrees with it is counted (`tf_mount_mismatch`) and reported, not followed: the mount is
 defined once. Scans are integrated one per 10 cm or 0.1 rad driven, once a second parked
-(`MoveGate`)."""
+(`MoveGate`). The returns of the people the control service tracks (keys.PEOPLE) are left out
+of the grid (`people_discs`): they are not the map's, and pacing they left trails in it."""
 
 from __future__ import annotations
 
@@ -18,7 +19,14 @@ import numpy as np
 from autochair.geometry import Pose, quaternion_yaw
 from autochair.runtime.node import Node, service_main
 from autochair.safety.keepout import load_keepout, paint
-from autochair_msgs import FrameTransform, LaserScan, LocalizedPose, OccupancyGrid, keys
+from autochair_msgs import (
+    FrameTransform,
+    LaserScan,
+    LocalizedPose,
+    OccupancyGrid,
+    People,
+    keys,
+)
 
 from .core import (
     ODOM_RING,
@@ -28,6 +36,7 @@ from .core import (
     OccupancyMapper,
     OdomBuffer,
     VoxelCloud,
+    people_discs,
     place_scan,
     scan_points,
 )
@@ -93,6 +102,10 @@ class MappingService:
         self.keepout = load_keepout("mapping", cfg.keepout_map)
         self.unplaced = ""
         self.cloud_pub = node.publisher(keys.MAP_CLOUD)
+        self.people: People | None = None  # the control service's newest (keys.PEOPLE)
+
+    def on_people(self, msg: People) -> None:
+        self.people = msg
 
     def on_tf(self, msg: FrameTransform) -> None:
         if msg.child_frame_id != self.cfg.laser_frame:
@@ -120,7 +133,8 @@ class MappingService:
             health.count(placed)
             return
         self.mapper.integrate(r, scan.angle_min_rad, scan.angle_increment_rad, placed.laser,
-                              placed.beams)
+                              placed.beams,
+                              people_discs(self.people, scan.stamp_ns, cfg.frame_id))
         self.cloud.add(scan_points(r, scan.angle_min_rad, scan.angle_increment_rad,
                                    placed.laser), self.node.chair.laser_z_m)
         health.count("scans_mapped")
@@ -161,6 +175,7 @@ class MappingService:
 def start(node: Node, cfg: MappingConfig) -> None:
     svc = MappingService(node, cfg)
     node.subscribe(keys.TF_STATIC, svc.on_tf)
+    node.subscribe(keys.PEOPLE, svc.on_people)  # (their returns are not the map's)
     if svc.keepout is not None:
         node.subscribe(keys.TF, svc.on_correction)
         node.subscribe(keys.LOC_POSE, svc.on_loc)
