@@ -453,8 +453,13 @@ def test_a_chair_standing_in_a_door_whose_way_turns_back_stands_for_a_person_abo
 
 
 def test_in_passage_reads_a_door_across_the_body_not_a_wall_beside_it() -> None:
+    """The door's wall is a cell thick, as the laser's map draws a jamb: a chair standing in
+    it askew (nav_eval --map scans, door_person: 4.6° and 7°) is in it too; read at the same
+    point of the body on both sides, one cell at a time, it was not."""
     fld = two_rooms()
     assert fld.in_passage((3.17, 1.0, 0.0))  # (its front in the 0.9 m door)
+    for askew in (-7.0, -4.6, 6.0):
+        assert fld.in_passage((3.13, 1.06, math.radians(askew)))
     assert fld.in_passage((4.2, 1.0, 0.0))  # (its rear in it)
     assert not fld.in_passage((2.5, 1.0, 0.0))  # (a door's line-up: the front 0.55 m short)
     assert not fld.in_passage((2.0, 1.6, 0.0))  # (beside room A's wall, 0.4 m off)

@@ -925,22 +925,23 @@ class NavField:
         within `narrow_m` on both sides across it, as `passage_ahead`'s clearance under
         `narrow_m` reads a door, whichever way the way runs (H75: a walker's trail in the live
         map can close a door's exit, and the way from a chair standing in it then turns back:
-        no passage lies ahead of it)."""
+        no passage lies ahead of it). Read every half cell, each point within half a cell of
+        an obstacle (on the laser's map a jamb is a cell thick: read by cells alone, a line 5°
+        off the door's axis passed it), the two sides up to a quarter of `narrow_m` apart
+        along the body (lines across a chair standing askew in a door meet the two jambs of a
+        thin wall at different points of it: ±14° at 0.6 m)."""
         x, y, yaw = pose
-        fp, gm = self.footprint, self.map
+        fp, half = self.footprint, self.map.resolution_m / 2
         c, s = math.cos(yaw), math.sin(yaw)
-        along = np.arange(-fp.rear_m, fp.front_m + 1e-9, gm.resolution_m)
-        across = np.arange(gm.resolution_m / 2, narrow_m + 1e-9, gm.resolution_m / 2)
+        along = np.arange(-fp.rear_m, fp.front_m + 1e-9, half)
+        across = np.arange(half, narrow_m + 1e-9, half)
+        window = 2 * math.ceil(narrow_m / 4 / half) + 1
         walled = np.ones(along.size, dtype=np.bool_)
-        h, w = gm.occupied.shape
         for side in (1.0, -1.0):
             px = x + along[:, None] * c - side * across[None, :] * s
             py = y + along[:, None] * s + side * across[None, :] * c
-            ix = np.floor((px - gm.origin_x_m) / gm.resolution_m).astype(np.intp)
-            iy = np.floor((py - gm.origin_y_m) / gm.resolution_m).astype(np.intp)
-            off = (ix < 0) | (ix >= w) | (iy < 0) | (iy >= h)
-            hit = off | gm.occupied[np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1)]
-            walled &= hit.any(1)
+            walled &= ndi.maximum_filter1d((self.clearance_xy(px, py) <= half).any(1),
+                                           window, mode="constant")
         return bool(walled.any())
 
     def start_cost(self, ctg: CostToGo, x: float, y: float, search_m: float = 0.3) -> float:
