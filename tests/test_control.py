@@ -1385,3 +1385,25 @@ def test_a_lineup_within_reach_is_turned_onto_not_steered_onto_by_an_s() -> None
     _, sent = _to_lineup(monitor=False)
     turning = [w for v, w in sent if v > 0.05]
     assert min(turning) < -0.1 and max(turning) > 0.1
+
+
+def test_a_stand_read_in_a_door_stays_in_it_till_the_chair_moves() -> None:
+    """H75: standing with the laser in a door's plane, the beams along the wall's line cleared
+    the jambs off the live map within ~10 s (nav_eval --map scans, door_person); the door's
+    stand rule then read no door, and MPEPC turned the chair in the frame, 4.8 cm from the
+    jamb, with the person 1.5 m off. Once a plan at rest reads the chair in a door
+    (PlanResult.in_door), the core says so in every request while it stands there (within 2 cm
+    and 1°), whatever the map; moved on, no longer."""
+    core = fresh_core(INSTANT)
+    core.on_odom(OdomSample(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert core.set_goal(GoalRequest(waypoints=[Pose2D(3.0, 0.0, 0.0)]), 0.0).ok
+    req = core.plan_request(0.0)
+    assert req is not None and not req.in_door
+    res = compute(req)
+    assert not res.in_door  # (free floor)
+    core.on_plan(dataclasses.replace(res, in_door=True), 0.1)
+    req = core.plan_request(0.6)
+    assert req is not None and req.in_door
+    core.on_odom(OdomSample(0.05, 0.0, 0.0, 0.0, 0.0, 0.7))
+    req = core.plan_request(1.2)
+    assert req is not None and not req.in_door

@@ -437,9 +437,11 @@ def test_a_chair_standing_in_a_door_whose_way_turns_back_stands_for_a_person_abo
     goal, pose = (6.5, 0.0, 0.0), (3.17, 1.0, 0.0)
     person = Person(4.5, -0.5, 0.0, -1.0)
 
-    def plan(walls: list[list[float]], people: list[Person]):  # type: ignore[no-untyped-def]
+    def plan(walls: list[list[float]], people: list[Person],  # type: ignore[no-untyped-def]
+             in_door: bool = False):
         fld = NavField(GridMap.from_shapes(np.array(walls, dtype=float), np.zeros((0, 3))), FP)
-        return compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, None, None, LAW, people))
+        return compute(PlanRequest(1, 0, pose, 0.0, 0.0, goal, fld, None, None, LAW, people,
+                                   in_door=in_door))
 
     closed = plan(segs + trail, [person])
     assert NavField(GridMap.from_shapes(np.array(segs + trail, dtype=float), np.zeros((0, 3))),
@@ -450,6 +452,13 @@ def test_a_chair_standing_in_a_door_whose_way_turns_back_stands_for_a_person_abo
     assert not opened.blocked_by and opened.plan is not None and opened.plan.crossing
     alone = plan(segs + trail, [])
     assert alone.plan is not None and alone.plan.vmax_mps > 0.0 and not alone.blocked_by
+    # The upper door's jambs lost off the map (the laser in its plane cleared them), but the
+    # chair was read standing in it and has not moved since (PlanRequest.in_door): it stands
+    lost = [w for w in segs + trail if w not in ([4, -0.65, 4, 0.55], [4, 1.45, 4, 2])]
+    assert plan(lost, [person]).plan.vmax_mps > 0.0  # (read on the map alone: no door)
+    kept = plan(lost, [person], in_door=True)
+    assert kept.in_door and kept.blocked_by.startswith("blocked by a person")
+    assert kept.plan is not None and kept.plan.vmax_mps == 0.0
 
 
 def test_in_passage_reads_a_door_across_the_body_not_a_wall_beside_it() -> None:

@@ -592,6 +592,9 @@ class ControlCore:
         # in a door frame met the jamb in that sweep; planner's PlanRequest.door). Until a
         # stage takes the chair through, it brakes; `_door_rest`: a plan was asked for at rest.
         self._door = self._door_rest = False
+        # Where the resting chair was read standing in a door (PlanResult.in_door): while it
+        # stays there it still is (PlanRequest.in_door)
+        self._door_stand: tuple[float, float, float] | None = None
         self._lineup_turn: int | None = None  # the line-up whose heading is turned onto in place
         self.final = False  # MPEPC took the goal itself: the law's own final approach
         self.people: list[Person] = []
@@ -804,6 +807,7 @@ class ControlCore:
         self.vmax = req.vmax_mps or self.cfg.vmax_mps
         self.aligning = self.straight = self.final = False
         self._door = self._door_rest = False
+        self._door_stand = None
         self._lineup_turn = None
         self._land_left = None
         self.ctg, self._ctg_field, self._ctg_index, self.plan = ctg, check.fld, 0, None
@@ -1097,7 +1101,17 @@ class ControlCore:
                            self.index == self.lineups and self.field is not None
                            and fld is not self._lineup_field,
                            self.plan is not None and self.plan.crossing,
-                           self._door_scan(now))
+                           self._door_scan(now), self._still_in_door(o))
+
+    def _still_in_door(self, o: OdomSample) -> bool:
+        """The chair stands where it was read standing in a door (within 2 cm and 1°): the
+        live map may have lost the door's jambs since (H75)."""
+        d = self._door_stand
+        if d is None or math.hypot(o.x - d[0], o.y - d[1]) > 0.02 \
+                or abs(math.remainder(o.yaw - d[2], math.tau)) > math.radians(1.0):
+            self._door_stand = None
+            return False
+        return True
 
     def on_scan(self, now: float, points: F64) -> None:
         """The laser's points of a scan (odom, (M, 2); NaN rows: no return), placed by
@@ -1168,6 +1182,9 @@ class ControlCore:
             return
         plan = self.plan = res.plan
         self._plan_got_t = now
+        if res.in_door and self.odom is not None:
+            o = self.odom
+            self._door_stand = (o.x, o.y, o.yaw)
         if self._door and not plan.hold and (plan.straight_m > 0.0
                                              or (self._door_rest and not plan.final_turn)):
             self._door = False  # (through on a straight stage; or from rest, none: MPEPC's)

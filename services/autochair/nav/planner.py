@@ -58,6 +58,10 @@ class PlanRequest:
     # At a door's line-up, the laser's points of the last scans (odom, (M, 2)): the door's
     # straight from rest is ranked by them (Mpepc.through_door's `scan`, H79); None: by the map
     scan: F64 | None = None
+    # The resting chair was read standing in a door (PlanResult.in_door) and has not moved
+    # since (ControlCore): it still is, whatever the map says now (standing with the laser in
+    # the door's plane, its beams along the wall's line cleared the jambs off the live map)
+    in_door: bool = False
 
 
 @dataclass(frozen=True)
@@ -78,6 +82,8 @@ class PlanResult:
     # A pose to line up at before a door on the way (NavField.door_approaches), if asked
     # (PlanRequest.seek_lineup) and one is found
     lineup: tuple[float, float, float] | None = None
+    # The chair at rest stands in a narrow passage (`in_door`)
+    in_door: bool = False
 
 
 _planners: dict[int, tuple[NavField, Mpepc]] = {}
@@ -301,12 +307,21 @@ def _setup(req: PlanRequest, mp: MpepcParams
     return ctg, given_up, "", hf
 
 
+def in_door(req: PlanRequest) -> bool:
+    """The chair at rest stands in a door (NavField.in_passage), or was read so before and has
+    not moved since (PlanRequest.in_door)."""
+    return abs(req.v) < 0.01 and abs(req.omega) < 0.01 and (
+        req.in_door or req.field.in_passage(req.pose))
+
+
 def compute(req: PlanRequest, params: MpepcParams | None = None,
             blocked_progress_m: float = 0.1, blocked_gain: float = 0.1) -> PlanResult:
     """One planning cycle (_compute), with the goal's lattice's cost-to-go where the chair is,
     if the lattice is made: a stage that turns the chair away from the goal to get round a
     jamb adds to the 2-D distance left, not to this."""
     res = _compute(req, params, blocked_progress_m, blocked_gain)
+    if in_door(req):
+        res = replace(res, in_door=True)
     if req.seek_lineup and res.ctg is not None and not res.error:
         # A door first seen on the live map (none was at the goal's route check: line-ups
         # are placed where its passage is narrow, and unseen cells count as free)
@@ -383,8 +398,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
                                            req.final, req.chain)
         if cross is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, cross, given_up=given_up)
-        if applies or (req.people and fld.in_passage(req.pose)
-                       and mpc.people_about(req.pose, req.people)):
+        if applies or (req.people and in_door(req) and mpc.people_about(req.pose, req.people)):
             # (a stand: not the goal's approach, which the core would drive blocked or not;
             # a door's line-up kept: Plan.hold)
             return PlanResult(req.goal_id, req.index, fld, ctg, mpc.standing(req.pose),
