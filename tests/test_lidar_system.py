@@ -180,46 +180,66 @@ def test_40_scans_per_second_none_lost_with_mapping(spawn: tuple[str, Spawn],
 
 def test_the_map_leaves_out_the_returns_of_the_people_tracked(
         spawn: tuple[str, Spawn], tmp_path: Path) -> None:
-    """The mapping service takes the control service's people (keys.PEOPLE) as not the map's:
-    here reports (10 Hz, from before the mapping service starts) put someone against the
-    default hallway's right wall 3 m ahead of the parked chair, and that stretch of wall stays
-    out of the map while the wall 3 m further on is mapped (the positive control). (Someone
-    pacing left a trail of hits that closed a door's exit on the laser's map, H75.)"""
+    """The mapping service takes the control service's people (keys.PEOPLE) who have walked
+    as not the map's: a report puts someone (first 0.6 m out from it: a walker,
+    mapping.core.Walkers) against the default hallway's right wall 3 m ahead of the parked
+    chair, and that stretch of wall stays out of the map while the wall 3 m further on is
+    mapped (the positive control). The service maps nothing until odometry places its scans,
+    which starts once the walker has been reported there. (Someone pacing left a trail of
+    hits that closed a door's exit on the laser's map, H75.)"""
     import threading
 
     import msgspec
 
     from autochair.nav.field import GridMap
-    from autochair_msgs import People, TrackedPerson
+    from autochair_msgs import Odometry, People, TrackedPerson
 
     hub, start = spawn
     session = client_session(hub)
-    stop = threading.Event()
+    stop, up = threading.Event(), threading.Event()
     try:
         grids = Recorder(session, keys.MAP_GRID)
-        pub = session.declare_publisher(keys.PEOPLE.key)
+        health = Recorder(session, keys.HEALTH, keys.HEALTH.for_service("mapping"))
+        people, odom = (session.declare_publisher(k.key) for k in (keys.PEOPLE, keys.ODOM_SLOW))
 
-        def report() -> None:  # (as the tracker does, each scan, stamped now)
-            while not stop.wait(0.1):
-                pub.put(msgspec.msgpack.encode(People(
-                    stamp_ns=time.time_ns(), frame_id="odom", people=[TrackedPerson(
-                        track_id=1, x_m=3.0, y_m=-1.4, vx_mps=0.0, vy_mps=0.0,
-                        radius_m=0.25)])))
+        def feed() -> None:
+            # The tracker's reports at 10 Hz: 0.6 m out till half a second after the service
+            # is up, then against the wall; odometry at 50 Hz half a second after that.
+            k, since_up = 0, 0
+            while not stop.wait(0.02):
+                now = time.time_ns()
+                since_up += up.is_set()
+                if k % 5 == 0:
+                    people.put(msgspec.msgpack.encode(People(
+                        stamp_ns=now, frame_id="odom", people=[TrackedPerson(
+                            track_id=1, x_m=3.0, y_m=-1.4 if since_up > 25 else -0.8,
+                            vx_mps=0.0, vy_mps=0.0, radius_m=0.25)])))
+                if since_up > 50:
+                    odom.put(msgspec.msgpack.encode(Odometry(
+                        stamp_ns=now, x_m=0.0, y_m=0.0, yaw_rad=0.0, v_mps=0.0,
+                        omega_radps=0.0)))
+                k += 1
 
-        threading.Thread(target=report, daemon=True).start()
+        threading.Thread(target=feed, daemon=True).start()
         link = tmp_path / "lidar"
         start("autochair.sim.lidar.node", "--set", f"pty_link={link}")
         start("autochair.lidar.node", "--set", f"url={link}")
-        start("autochair.mapping.node", "--set", "require_odom=false")
+        start("autochair.mapping.node")
+        wait_for(health.latest, 30, "the mapping service up (subscribed)")
+        up.set()
 
         def cells_near(x: float) -> int:
             gm = GridMap.from_msg(grids.latest())
             cx, cy = gm.centres()
             return int((gm.occupied & (np.abs(cx - x) < 0.2) & (np.abs(cy + 1.4) < 0.2)).sum())
 
-        wait_for(lambda: len(grids.messages()) >= 3, 30, "3 maps")
+        wait_for(lambda: (lambda h: h is not None and h.counters.get("scans_mapped", 0) >= 3)(
+            health.latest()), 30, "3 scans mapped")
+        since = time.time_ns()
+        wait_for(lambda: (lambda g: g is not None and g.stamp_ns > since)(grids.latest()), 10,
+                 "a map with them")
         assert cells_near(6.0) >= 4  # (the wall, mapped)
-        assert cells_near(3.0) == 0, "the tracked person's returns were mapped"
+        assert cells_near(3.0) == 0, "the tracked walker's returns were mapped"
     finally:
         stop.set()
         session.close()

@@ -16,6 +16,7 @@ from autochair.mapping.core import (
     OccupancyMapper,
     OdomBuffer,
     VoxelCloud,
+    Walkers,
     people_discs,
     scan_points,
 )
@@ -305,3 +306,23 @@ def test_people_discs_are_moved_to_the_scan_or_not_used() -> None:
     assert people_discs(report, 1_200_000_000, "map") is None  # (another frame)
     assert people_discs(report, 1_600_000_000, "odom") is None  # (too old: all mapped)
     assert people_discs(None, 0, "odom") is None
+
+
+def test_only_the_tracks_that_have_walked_are_left_out_of_the_map() -> None:
+    """Something set down in floor the map had seen free (a bin, a door leaf) can be tracked as
+    a person: it is mapped as before (and, the map's, dropped by the tracker), not left out
+    for good. A track is a walker once reported WALKED_M from where it was first."""
+    w = Walkers()
+
+    def report(*tracks: tuple[int, float, float]) -> People:
+        return People(stamp_ns=0, frame_id="odom", people=[TrackedPerson(
+            track_id=i, x_m=x, y_m=y, vx_mps=0.0, vy_mps=0.0, radius_m=0.25)
+            for i, x, y in tracks])
+
+    assert not w.of(report((1, 0.0, 0.0), (2, 5.0, 0.0))).people
+    assert not w.of(report((1, 0.05, 0.02), (2, 5.3, 0.0))).people  # (jitter, 0.3 m)
+    walkers = w.of(report((1, 0.04, -0.03), (2, 5.6, 0.0))).people
+    assert [q.track_id for q in walkers] == [2]
+    assert [q.track_id for q in w.of(report((2, 5.0, 0.0))).people] == [2]  # (still walked)
+    assert not w.of(report((3, 5.0, 0.0))).people  # (a new track: not yet)
+    assert not w.of(report((2, 5.0, 0.0))).people  # (2 was left out: forgotten)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -29,11 +29,36 @@ def scan_points(ranges: F64, angle_min: float, angle_inc: float, pose: Pose) -> 
     return np.stack([pose[0] + r * np.cos(a[ok]), pose[1] + r * np.sin(a[ok])], axis=1)
 
 
+# A track is someone walking once it has been reported this far from where it was first: only
+# theirs are left out of the map (a trail is walked; something set down that the tracker takes
+# for a person, a bin or a door leaf moved into seen floor, is mapped as before, and once it is
+# the map's the tracker drops it)
+WALKED_M = 0.5
 # A tracked person's returns lie within their reported radius of the track (the tracker puts a
 # person's centre half the arc it sees behind its nearest point, and reports at least 0.25 m):
 # this much more, and as far as they may have walked off their predicted line since the report.
 PEOPLE_MARGIN_M = 0.15
 PEOPLE_MAX_AGE_S = 0.5  # an older report is not used: every return is then the map's
+
+
+@dataclass
+class Walkers:
+    """The tracks of a People report that have walked (`WALKED_M` from where each was first
+    reported); forgotten once a report leaves them out."""
+
+    first: dict[int, tuple[float, float]] = field(default_factory=dict)
+    walked: set[int] = field(default_factory=set)
+
+    def of(self, report: People) -> People:
+        ids = {q.track_id for q in report.people}
+        self.first = {k: v for k, v in self.first.items() if k in ids}
+        self.walked &= ids
+        for q in report.people:
+            x0, y0 = self.first.setdefault(q.track_id, (q.x_m, q.y_m))
+            if math.hypot(q.x_m - x0, q.y_m - y0) >= WALKED_M:
+                self.walked.add(q.track_id)
+        return People(stamp_ns=report.stamp_ns, frame_id=report.frame_id,
+                      people=[q for q in report.people if q.track_id in self.walked])
 
 
 def people_discs(report: People | None, stamp_ns: int, frame_id: str,

@@ -3,8 +3,9 @@ scans (keys.SCAN) placed by odometry (keys.ODOM_SLOW, interpolated) and the chai
 of the [chair] section (`node.chair`). A chair→laser transform on keys.TF_STATIC that
 disagrees with it is counted (`tf_mount_mismatch`) and reported, not followed: the mount is
 defined once. Scans are integrated one per 10 cm or 0.1 rad driven, once a second parked
-(`MoveGate`). The returns of the people the control service tracks (keys.PEOPLE) are left out
-of the grid (`people_discs`): they are not the map's, and pacing they left trails in it."""
+(`MoveGate`). The returns of the people the control service tracks (keys.PEOPLE) who have
+walked (`Walkers`) are left out of the grid (`people_discs`): they are not the map's, and
+pacing they left trails in it."""
 
 from __future__ import annotations
 
@@ -36,6 +37,7 @@ from .core import (
     OccupancyMapper,
     OdomBuffer,
     VoxelCloud,
+    Walkers,
     people_discs,
     place_scan,
     scan_points,
@@ -102,10 +104,11 @@ class MappingService:
         self.keepout = load_keepout("mapping", cfg.keepout_map)
         self.unplaced = ""
         self.cloud_pub = node.publisher(keys.MAP_CLOUD)
-        self.people: People | None = None  # the control service's newest (keys.PEOPLE)
+        self.walkers = Walkers()
+        self.people: People | None = None  # the control service's newest (keys.PEOPLE), walkers
 
     def on_people(self, msg: People) -> None:
-        self.people = msg
+        self.people = self.walkers.of(msg)
 
     def on_tf(self, msg: FrameTransform) -> None:
         if msg.child_frame_id != self.cfg.laser_frame:
