@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -1054,6 +1055,10 @@ def test_world_people_walk_their_segment_and_are_seen_as_discs() -> None:
     assert w.people_state(0.5)[0, :2] == pytest.approx([0.5, 1.0])
     assert w.people_state(2.5)[0, :4] == pytest.approx([1.5, 1.0, -1.0, 0.0])  # back again
     assert len(w.at(0.5).circles) == 1 and len(w.circles) == 0
+    # (a benchmark case meeting them 2 s into their walk: nav_eval STEPPING_OUT, H82)
+    later = dataclasses.replace(w, phase_s=2.0)
+    assert later.people_state(0.5)[0, :4] == pytest.approx(w.people_state(2.5)[0, :4])
+    assert later.at(0.5).circles == pytest.approx(w.at(2.5).circles)
     with pytest.raises(WorldError, match="person speed"):
         parse_world("person 0 0 1 1 9\n")
 

@@ -35,6 +35,9 @@ class World:
     segments: F64  # (S, 4): x1 y1 x2 y2
     circles: F64  # (C, 3): cx cy r
     people: F64 = field(default_factory=lambda: np.zeros((0, 6)))  # (K, 6): x1 y1 x2 y2 v r
+    # The people's walks as at this time (s) when the world's clock reads 0 (a benchmark case
+    # that meets them at another point of their walk)
+    phase_s: float = 0.0
 
     def people_state(self, t: float) -> F64:
         """(K, 5): x, y, vx, vy, radius of each person at time t (ping-pong on the segment)."""
@@ -44,7 +47,7 @@ class World:
             if length <= 0 or speed <= 0:
                 out[i] = (x1, y1, 0.0, 0.0, radius)
                 continue
-            s = (speed * t) % (2 * length)
+            s = (speed * (t + self.phase_s)) % (2 * length)
             sign = 1.0 if s <= length else -1.0
             f = (s if s <= length else 2 * length - s) / length
             ux, uy = (x2 - x1) / length, (y2 - y1) / length
