@@ -1850,20 +1850,27 @@ class Mpepc:
                     self.pose_clearance(pose), np.array([pose], dtype=np.float64), False, 0.0,
                     0.0, 0, hold=True)
 
-    def people_about(self, pose: tuple[float, float, float], people: list[Person]) -> bool:
-        """Whether anyone comes, wherever MPEPC predicts them over the horizon (`walk_points`),
-        within their reach (r + speed·react_s) plus the chair's length of its body at `pose`:
-        a creep from there could carry it into their way (H75)."""
+    def reach_gaps(self, px: F64, py: F64, people: list[Person]) -> F64:
+        """(N, K): how far the body at each of N poses (its outline's points, (N, P)) keeps
+        outside each person's reach (r + speed·react_s) wherever MPEPC predicts them over the
+        horizon (`walk_points`); negative: within it."""
         horizon = np.asarray(np.arange(self.steps + 1) * self.p.dt_s, dtype=np.float64)
+        out = np.empty((px.shape[0], len(people)))
+        for i, q in enumerate(people):
+            w = self.walk_points(q, horizon).reshape(-1, 2)
+            d = np.hypot(px[:, :, None] - w[None, None, :, 0], py[:, :, None] - w[None, None, :, 1])
+            out[:, i] = d.reshape(px.shape[0], -1).min(1) - (
+                q.radius_m + math.hypot(q.vx_mps, q.vy_mps) * self.p.react_s)
+        return out
+
+    def people_about(self, pose: tuple[float, float, float], people: list[Person]) -> bool:
+        """Whether anyone comes, wherever MPEPC predicts them over the horizon, within their
+        reach plus the chair's length of its body at `pose` (`reach_gaps`): a creep from there
+        could carry it into their way (H75)."""
         fp = self.field.footprint
         bx, by = place_xy(self.field.outline, pose[0], pose[1], pose[2])
-        for q in people:
-            w = self.walk_points(q, horizon).reshape(-1, 2)
-            reach = q.radius_m + math.hypot(q.vx_mps, q.vy_mps) * self.p.react_s
-            d = np.hypot(bx.reshape(-1, 1) - w[None, :, 0], by.reshape(-1, 1) - w[None, :, 1])
-            if float(d.min()) < reach + fp.front_m + fp.rear_m:
-                return True
-        return False
+        gaps = self.reach_gaps(bx.reshape(1, -1), by.reshape(1, -1), people)
+        return bool((gaps < fp.front_m + fp.rear_m).any())
 
     def later_plans_clear(self, xs: F64, ys: F64, yaws: F64, people: list[Person]
                           ) -> npt.NDArray[np.bool_]:
@@ -1968,17 +1975,10 @@ class Mpepc:
                                      False, ctg, people, goal, hf, rates, final=final, top=top,
                                      whole=True)
             return True, inside
-        horizon = np.asarray((np.arange(self.steps + 1)) * p.dt_s, dtype=np.float64)
-        walks = [(q, self.walk_points(q, horizon)) for q in people]
         spare = 0.01 + p.final_overshoot_m
         ds = np.arange(out, out + 4.0, 0.05)
         rest_x, rest_y = place_xy(fld.outline, x + ds * c, y + ds * s, np.full(ds.size, yaw))
-        away = np.ones(ds.size, dtype=np.bool_)
-        for q, w in walks:
-            reach = q.radius_m + math.hypot(q.vx_mps, q.vy_mps) * p.react_s
-            d = np.hypot(rest_x[:, :, None, None] - w[None, None, :, :, 0],
-                         rest_y[:, :, None, None] - w[None, None, :, :, 1])
-            away &= d.reshape(ds.size, -1).min(1) >= reach
+        away = (self.reach_gaps(rest_x, rest_y, people) >= 0.0).all(1)
         if not away.any():
             return True, None
         dist = float(ds[int(np.argmax(away))])

@@ -319,8 +319,9 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
     """One planning cycle (_compute), with the goal's lattice's cost-to-go where the chair is,
     if the lattice is made: a stage that turns the chair away from the goal to get round a
     jamb adds to the 2-D distance left, not to this."""
-    res = _compute(req, params, blocked_progress_m, blocked_gain)
-    if in_door(req):
+    inside = in_door(req)
+    res = _compute(req, params, blocked_progress_m, blocked_gain, inside)
+    if inside:
         res = replace(res, in_door=True)
     if req.seek_lineup and res.ctg is not None and not res.error:
         # A door first seen on the live map (none was at the goal's route check: line-ups
@@ -336,7 +337,8 @@ def compute(req: PlanRequest, params: MpepcParams | None = None,
 
 
 def _compute(req: PlanRequest, params: MpepcParams | None,
-             blocked_progress_m: float, blocked_gain: float) -> PlanResult:
+             blocked_progress_m: float, blocked_gain: float, inside: bool) -> PlanResult:
+    """`compute`'s cycle; `inside`: `in_door(req)`."""
     fld, mp = req.field, params or MpepcParams()
     ctg, given_up, error, hf = _setup(req, mp)
     if error or ctg is None:
@@ -398,7 +400,7 @@ def _compute(req: PlanRequest, params: MpepcParams | None,
                                            req.final, req.chain)
         if cross is not None:
             return PlanResult(req.goal_id, req.index, fld, ctg, cross, given_up=given_up)
-        if applies or (req.people and in_door(req) and mpc.people_about(req.pose, req.people)):
+        if applies or (req.people and inside and mpc.people_about(req.pose, req.people)):
             # (a stand: not the goal's approach, which the core would drive blocked or not;
             # a door's line-up kept: Plan.hold)
             return PlanResult(req.goal_id, req.index, fld, ctg, mpc.standing(req.pose),
